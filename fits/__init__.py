@@ -1,0 +1,1 @@
+"""fits: identification of dry friction, rope friction and damping from measured decay."""

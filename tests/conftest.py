@@ -1,0 +1,17 @@
+"""Test configuration: float64 before any computation, hypothesis profile for a 2-core CI."""
+
+import os
+import sys
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from hypothesis import HealthCheck, settings  # noqa: E402
+
+settings.register_profile(
+    "vmj", deadline=None, max_examples=25, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.load_profile("vmj")
+
+sys.path.insert(0, os.path.dirname(__file__))  # tests/scipy_reference.py

@@ -1,0 +1,29 @@
+"""vmj: oscillators with dry (Coulomb) friction and time-varying parameters, in JAX.
+
+Enable float64 before any computation (the `vmj` command line does it for you):
+
+    import jax
+    jax.config.update("jax_enable_x64", True)
+"""
+
+from ._models import Coulomb, FrictionLaw, MassProportional, VariableMass
+from ._solution import RESULTS, DecaySequence, Trajectory
+from ._solve import energy_balance, simulate, turning_points
+from ._tables import paper_cells, paper_table
+
+__all__ = [
+    "Coulomb",
+    "FrictionLaw",
+    "MassProportional",
+    "VariableMass",
+    "RESULTS",
+    "DecaySequence",
+    "Trajectory",
+    "energy_balance",
+    "simulate",
+    "turning_points",
+    "paper_cells",
+    "paper_table",
+]
+
+__version__ = "0.1.0"

@@ -1,0 +1,67 @@
+"""Input validation shared by every entry point.
+
+Concrete values (Python numbers, NumPy arrays, concrete JAX arrays) are checked eagerly and
+raise `ValueError` naming the parameter and its allowed range. Traced values (inside `jit`,
+`vmap`, `grad`) are checked with `equinox.error_if`, which raises at run time with the same
+message.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["check", "check_int", "warn_if_float32"]
+
+
+def _is_traced(x) -> bool:
+    return isinstance(x, jax.core.Tracer)
+
+
+def check(name: str, value, ok: Callable, allowed: str):
+    """Return `value` after checking it is finite and satisfies `ok` elementwise.
+
+    `ok` must work on NumPy and JAX arrays alike. `allowed` is the human description of the
+    range, e.g. `"> 0"` or `"in [0, 1]"`.
+    """
+    message = f"{name} must be finite and {allowed}"
+    if _is_traced(value):
+        bad = jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value)))
+        return eqx.error_if(value, bad, message)
+    arr = np.asarray(value, dtype=float)
+    if not (np.all(np.isfinite(arr)) and np.all(ok(arr))):
+        shown = arr.item() if arr.ndim == 0 else arr
+        raise ValueError(f"{message} (got {shown})")
+    return value
+
+
+def check_int(name: str, value, minimum: int) -> int:
+    """Check a static integer (an array shape, an iteration count)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum} (got {value!r})")
+    return int(value)
+
+
+positive = lambda x: x > 0  # noqa: E731
+nonnegative = lambda x: x >= 0  # noqa: E731
+anything = lambda x: x == x  # noqa: E731
+unit_interval = lambda x: (x >= 0) & (x <= 1)  # noqa: E731
+
+_warned = False
+
+
+def warn_if_float32() -> None:
+    """Warn once when JAX runs in float32: vmj's accuracy statements assume float64."""
+    global _warned
+    if not _warned and not jax.config.jax_enable_x64:
+        _warned = True
+        warnings.warn(
+            "vmj: JAX is running in float32; accuracy figures assume float64. Enable it with "
+            "jax.config.update('jax_enable_x64', True) before any computation.",
+            stacklevel=3,
+        )

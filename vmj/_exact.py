@@ -1,0 +1,164 @@
+"""Exact (non-smooth) solution of the variable-mass oscillator, half-swing by half-swing.
+
+Within a half-swing the friction sign `s` is fixed and the equation of motion
+`m(t) x'' + b x' + c x = -s F(t)` is linear with `m` and `F` affine in `t`. Its Taylor series
+about any time `t_j` then obeys a three-term recurrence (`_taylor`), so one substep of length
+`h` costs `ORDER` multiply-adds and is accurate to machine precision when `omega h <= 2` and `h`
+stays well inside the distance `m/|dm/dt|` to the zero-mass singularity. The velocity zero is
+found on the substep's polynomial (bracketed Newton), and its time is made differentiable by one
+final Newton step taken with gradients (the implicit-function theorem). A fixed number of
+substeps per half-swing keeps the loop shape static, so the solver runs under `jit`, `vmap` and
+reverse-mode `grad`.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+
+from ._solution import RESULTS, DecaySequence
+
+ORDER = 26  #: degree of the Taylor polynomial of a substep
+RHO_OMEGA = 2.0  #: substep length in units of 1/omega(t) = sqrt(m(t)/c)
+RHO_MASS = 0.25  #: substep length as a fraction of m(t)/|dm/dt|
+NEWTON = 8  #: safeguarded Newton iterations for the velocity zero
+
+
+def _taylor(coefficients, s, x, v):
+    """Taylor coefficients `x_0..x_ORDER` of the half-swing solution about the current time."""
+    m, md, b, c, F, Fd = coefficients
+    inv_m = 1.0 / m
+    xs = [x, v]
+    for n in range(ORDER - 1):
+        rhs = c * xs[n] + (n + 1) * (md * n + b) * xs[n + 1]
+        if n == 0:
+            rhs = rhs + s * F
+        elif n == 1:
+            rhs = rhs + s * Fd
+        xs.append(-rhs * inv_m / ((n + 2) * (n + 1)))
+    return xs
+
+
+def _horner(cs, tau):
+    acc = cs[-1]
+    for c in cs[-2::-1]:
+        acc = acc * tau + c
+    return acc
+
+
+def _derivative(cs):
+    return [n * c for n, c in enumerate(cs)][1:]
+
+
+def _substep_length(model, t):
+    m, md, *_ = model.coefficients(t)
+    h_omega = RHO_OMEGA * jnp.sqrt(m / model.c)
+    amd = jnp.abs(md)
+    has_rate = amd > 0
+    h_mass = jnp.where(has_rate, RHO_MASS * m / jnp.where(has_rate, amd, 1.0), jnp.inf)
+    return jnp.minimum(h_omega, h_mass), h_mass < h_omega
+
+
+def half_swing(model, t0, x0, s, max_substeps: int):
+    """Integrate from rest at `(t0, x0)` with friction sign `s` to the next velocity zero.
+
+    Returns `(found, mass_limited, t1, x1)`: `found` is False when no velocity zero occurred
+    within `max_substeps` substeps; `mass_limited` tells whether the substeps were then limited
+    by the approach of zero mass.
+    """
+    zero = jnp.zeros_like(x0)
+
+    def body(carry, _):
+        t, x, v, found, limited, start = carry
+        h, mass_limited = _substep_length(model, t)
+        cs = _taylor(model.coefficients(t), s, x, v)
+        x1 = _horner(cs, h)
+        v1 = _horner(_derivative(cs), h)
+        hit = jnp.logical_not(found) & (v1 * s <= 0)
+        start = jax.tree.map(lambda new, old: jnp.where(hit, new, old), (t, x, v, h), start)
+        limited = jnp.where(found, limited, mass_limited)
+        found = found | hit
+        t, x, v = (jnp.where(found, a, b) for a, b in ((t, t + h), (x, x1), (v, v1)))
+        return (t, x, v, found, limited, start), None
+
+    init = (t0, x0, zero, jnp.array(False), jnp.array(False), (t0, x0, zero, zero))
+    (_, _, _, found, limited, start), _ = lax.scan(body, init, None, length=max_substeps)
+    t1, x1 = _velocity_zero(model, start, s, t0 + _half_period(model, t0))
+    return found, limited, t1, x1
+
+
+def _half_period(model, t0):
+    """Damped half-period estimated with the mass at mid-swing [s] (a starting guess only)."""
+    m, md, b, c, *_ = model.coefficients(t0)
+    m = jnp.maximum(m + 0.5 * md * jnp.pi * jnp.sqrt(m / c), 0.5 * m)
+    omega2 = jnp.maximum(c / m - (b / (2 * m)) ** 2, 0.25 * c / m)
+    return jnp.pi / jnp.sqrt(omega2)
+
+
+def _velocity_zero(model, start, s, t_guess):
+    """Velocity zero inside the substep `start = (t, x, v, h)` that contains it."""
+    t, x, v, h = start
+    cs = _taylor(model.coefficients(t), s, x, v)
+    dcs = _derivative(cs)
+    ddcs = _derivative(dcs)
+    f_cs = [lax.stop_gradient(c * s) for c in dcs]
+    fp_cs = [lax.stop_gradient(c * s) for c in ddcs]
+    lo, hi = jnp.zeros_like(h), lax.stop_gradient(h)
+    tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
+    for _ in range(NEWTON):
+        f, fp = _horner(f_cs, tau), _horner(fp_cs, tau)
+        ahead = f > 0
+        lo, hi = jnp.where(ahead, tau, lo), jnp.where(ahead, hi, tau)
+        safe_fp = jnp.where(fp != 0, fp, 1.0)
+        newton = tau - f / safe_fp
+        ok = (fp != 0) & (newton >= lo) & (newton <= hi)
+        tau = jnp.where(ok, newton, 0.5 * (lo + hi))
+    # One Newton step with gradients: d tau / d theta = -(df/d theta) / (df/d tau).
+    acc = _horner(ddcs, tau)
+    tau = tau - _horner(dcs, tau) / jnp.where(acc != 0, acc, 1.0)
+    return t + tau, _horner(cs, tau)
+
+
+def turning_points_exact(model, a0, n: int, max_substeps: int) -> DecaySequence:
+    """The first `n` turning points after release from rest at `x = -a0` (see `turning_points`)."""
+
+    def rest_state(t, x):
+        """At rest at `(t, x)`: (moves now, release time, stuck for good)."""
+        _, _, _, c, F, Fd = model.coefficients(t)
+        spring = c * jnp.abs(x)
+        moves = spring > F
+        decreasing = Fd < 0
+        t_release = t + (F - spring) / jnp.where(decreasing, -Fd, 1.0)
+        release = jnp.logical_not(moves) & decreasing
+        return jnp.where(release, t_release, t), jnp.logical_not(moves | release)
+
+    def body(carry, _):
+        t, x, code = carry
+        active = code == RESULTS.successful
+        t_go, stuck = rest_state(t, x)
+        s = -jnp.sign(x)
+        found, limited, t1, x1 = half_swing(model, t_go, x, s, max_substeps)
+        failure = jnp.where(limited, RESULTS.mass_exhausted, RESULTS.step_limit)
+        new_code = jnp.where(
+            stuck, RESULTS.stopped, jnp.where(found, RESULTS.successful, failure)
+        )
+        code = jnp.where(active, new_code, code)
+        advance = active & (code == RESULTS.successful)
+        t = jnp.where(advance, t1, t)
+        x = jnp.where(advance, x1, x)
+        return (t, x, code), (t, x, advance & (x1 * s > 0), advance)
+
+    x0 = -a0 * jnp.ones_like(model.m0)
+    init = (jnp.zeros_like(x0), x0, jnp.array(RESULTS.successful))
+    (t, x, code), (times, positions, crossed, advanced) = lax.scan(body, init, None, length=n)
+    _, stuck = rest_state(t, x)
+    code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
+    return DecaySequence(
+        times=times,
+        positions=positions,
+        crossed=crossed,
+        count=jnp.sum(advanced.astype(jnp.int32)),
+        stopped=code == RESULTS.stopped,
+        result=code,
+    )
