@@ -10,6 +10,10 @@ from ._models import Coulomb, FrictionLaw, MassProportional, VariableMass
 from ._solution import RESULTS, DecaySequence, Trajectory
 from ._solve import energy_balance, simulate, turning_points
 from ._tables import paper_cells, paper_table
+from ._stickslip import (StickSlip, StickSlipCycle, stick_slip_closed_form, stick_slip_cycle,
+                         stick_slip_simulate)
+from ._linear import (BaseMotion, Forcing, HarmonicForce, LinearOscillator, NoForcing,
+                      linear_simulate)
 
 __all__ = [
     "Coulomb",
@@ -24,6 +28,17 @@ __all__ = [
     "turning_points",
     "paper_cells",
     "paper_table",
+    "StickSlip",
+    "StickSlipCycle",
+    "stick_slip_cycle",
+    "stick_slip_closed_form",
+    "stick_slip_simulate",
+    "LinearOscillator",
+    "Forcing",
+    "NoForcing",
+    "HarmonicForce",
+    "BaseMotion",
+    "linear_simulate",
 ]
 
 __version__ = "0.1.0"

@@ -1,0 +1,258 @@
+"""Linear one-degree-of-freedom oscillator, free and harmonically forced (`SYSTEMS.md` section 4;
+the problem book's chapter 4 and the Lagrange-equation paper).
+
+    m x'' + c x' + k x = F(t),
+
+with `F(t) = 0`, `F0 sin(p t)` (harmonic force) or `k y + c y'` for a harmonic base motion
+`y(t) = Y0 sin(p t)` (the spring and damper are attached to the moving base; `x` is absolute).
+Analytic responses (under-, critically and over-damped), the logarithmic decrement, the
+amplification factor and phase, and a diffrax simulation of the same equation.
+"""
+
+from __future__ import annotations
+
+import diffrax as dfx
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array
+
+from ._checks import check, check_int, nonnegative, positive, warn_if_float32
+from ._models import _Checked, _float, validated
+from ._solution import RESULTS, Trajectory, throw_if_failed
+
+__all__ = ["Forcing", "NoForcing", "HarmonicForce", "BaseMotion", "LinearOscillator",
+           "linear_simulate"]
+
+
+class Forcing(_Checked):
+    """Excitation of a [`vmj.LinearOscillator`][]."""
+
+    def force(self, osc, t) -> Array:
+        """External force on the mass [N] at time `t` [s]."""
+        raise NotImplementedError
+
+    def complex_amplitude(self, osc):
+        """`(Q, p)`: the force is `Im(Q exp(i p t))` [N] with angular frequency `p` [1/s]."""
+        raise NotImplementedError
+
+
+class NoForcing(Forcing):
+    """No excitation (free vibration)."""
+
+    def force(self, osc, t):
+        return jnp.zeros_like(jnp.asarray(t, dtype=osc.m.dtype))
+
+    def complex_amplitude(self, osc):
+        return jnp.zeros_like(osc.m) + 0j, jnp.zeros_like(osc.m)
+
+
+class HarmonicForce(Forcing):
+    """Harmonic force `F0 sin(p t)`.
+
+    **Arguments:** `F0` force amplitude [N] (any real number); `p` angular frequency [1/s], `> 0`.
+    """
+
+    F0: Array = eqx.field(converter=_float)
+    p: Array = eqx.field(converter=_float)
+    _limits = {"F0": (lambda x: x == x, "a real number [N]"), "p": (positive, "> 0 [1/s]")}
+
+    def force(self, osc, t):
+        return self.F0 * jnp.sin(self.p * t)
+
+    def complex_amplitude(self, osc):
+        return self.F0 + 0j, self.p
+
+
+class BaseMotion(Forcing):
+    """Harmonic motion of the base `y(t) = Y0 sin(p t)` through the spring and the damper:
+    the force on the mass is `k y + c y'`, and `x` is the absolute displacement.
+
+    **Arguments:** `Y0` base amplitude [m] (any real number); `p` angular frequency [1/s], `> 0`.
+    """
+
+    Y0: Array = eqx.field(converter=_float)
+    p: Array = eqx.field(converter=_float)
+    _limits = {"Y0": (lambda x: x == x, "a real number [m]"), "p": (positive, "> 0 [1/s]")}
+
+    def force(self, osc, t):
+        return self.Y0 * (osc.k * jnp.sin(self.p * t) + osc.c * self.p * jnp.cos(self.p * t))
+
+    def complex_amplitude(self, osc):
+        return self.Y0 * (osc.k + 1j * osc.c * self.p), self.p
+
+
+class LinearOscillator(_Checked):
+    """Linear one-degree-of-freedom oscillator `m x'' + c x' + k x = F(t)`.
+
+    **Arguments:**
+
+    - `m`: mass [kg] (or moment of inertia [kg m^2]), `> 0`.
+    - `c`: viscous damping coefficient [N s/m], `>= 0`.
+    - `k`: stiffness [N/m], `> 0`.
+    - `forcing`: [`vmj.NoForcing`][] (default), [`vmj.HarmonicForce`][]`(F0, p)` or
+      [`vmj.BaseMotion`][]`(Y0, p)`.
+
+    In the book's notation `omega_c^2 = k/m`, `2 eta omega_c = c/m`, `omega_3 = omega_c
+    sqrt(1 - eta^2)`; in the paper's `k^2 = k/m`, `2 b = c/m`, `k* = sqrt(k^2 - b^2)`.
+    """
+
+    m: Array = eqx.field(converter=_float)
+    c: Array = eqx.field(converter=_float)
+    k: Array = eqx.field(converter=_float)
+    forcing: Forcing = eqx.field(default_factory=NoForcing)
+    _limits = {"m": (positive, "> 0 [kg]"), "c": (nonnegative, ">= 0 [N s/m]"),
+               "k": (positive, "> 0 [N/m]")}
+
+    def __check_init__(self):
+        if not isinstance(self.forcing, Forcing):
+            raise ValueError("forcing must be vmj.NoForcing(), vmj.HarmonicForce(F0, p) or "
+                             "vmj.BaseMotion(Y0, p)")
+        validated(self)
+
+    # -- the equation of motion, written once --------------------------------------------------
+    def acceleration(self, t, x, v):
+        """`x''` [m/s^2] at time `t` [s], position `x` [m], velocity `v` [m/s]."""
+        return (self.forcing.force(self, t) - self.c * v - self.k * x) / self.m
+
+    # -- characteristics -------------------------------------------------------------------------
+    @property
+    def natural_frequency(self) -> Array:
+        """Undamped natural frequency `omega_c = sqrt(k/m)` [1/s]."""
+        return jnp.sqrt(self.k / self.m)
+
+    @property
+    def damping_ratio(self) -> Array:
+        """`eta = c / (2 sqrt(k m))` [-]."""
+        return self.c / (2.0 * jnp.sqrt(self.k * self.m))
+
+    @property
+    def decay_rate(self) -> Array:
+        """`b = eta omega_c = c/(2m)` [1/s]."""
+        return self.c / (2.0 * self.m)
+
+    @property
+    def damped_frequency(self) -> Array:
+        """`omega_3 = omega_c sqrt(1 - eta^2)` [1/s] (NaN-free: 0 when `eta >= 1`)."""
+        return self.natural_frequency * jnp.sqrt(jnp.maximum(1.0 - self.damping_ratio**2, 0.0))
+
+    @property
+    def log_decrement(self) -> Array:
+        """Logarithmic decrement `delta = ln(A_n / A_{n+1}) = 2 pi eta / sqrt(1 - eta^2)` [-]
+        (`inf` when `eta >= 1`)."""
+        eta = self.damping_ratio
+        under = eta < 1
+        return jnp.where(under, 2 * jnp.pi * eta / jnp.sqrt(jnp.where(under, 1 - eta**2, 1.0)),
+                         jnp.inf)
+
+    def free_amplitude(self, x0, v0):
+        """Free response `x = A e^{-eta omega_c t} sin(omega_3 t + alpha)` (under-damped):
+        returns `(A, alpha)` [m, rad], `A = sqrt(x0^2 + ((v0 + eta omega_c x0)/omega_3)^2)`.
+        (The book writes `sin(omega_3 t - alpha)` with its alpha of opposite sign.)"""
+        b, wd = self.decay_rate, self.damped_frequency
+        B = (v0 + b * x0) / wd
+        return jnp.sqrt(x0**2 + B**2), jnp.arctan2(x0, B)
+
+    def amplification(self, p=None):
+        """Amplification factor `|X| k / |F|` = `1 / sqrt((1 - r^2)^2 + (2 eta r)^2)`,
+        `r = p / omega_c` [-], at forcing frequency `p` [1/s] (default: the forcing's).
+        For base motion this is the force-to-response factor; the transmissibility `|X/Y0|` is
+        [`vmj.LinearOscillator.forced_response`][]'s amplitude over `Y0`."""
+        p = self.forcing.complex_amplitude(self)[1] if p is None else p
+        r = p / self.natural_frequency
+        return 1.0 / jnp.sqrt((1 - r**2) ** 2 + (2 * self.damping_ratio * r) ** 2)
+
+    def forced_response(self):
+        """Steady forced response `x_p = D sin(p t - beta)`: returns `(D, beta)` [m, rad] with
+        `beta` in `[0, pi]` the phase lag behind the force `sin(p t)` (base motion: behind
+        `sin(p t)` of the base). `tan(beta) = 2 eta omega_c p / (omega_c^2 - p^2)`; for
+        `p > omega_c` the lag is beyond `pi/2`, i.e. `beta = pi + arctan(tan beta)` (the
+        branch the Lagrange-equation paper misses, see docs/linear.md)."""
+        Q, p = self.forcing.complex_amplitude(self)
+        H = Q / (self.k - self.m * p**2 + 1j * self.c * p)  # x_p = Im(H e^{i p t})
+        return jnp.abs(H), -jnp.angle(H)
+
+    def transient(self, x0, v0):
+        """Free-vibration part `(A, alpha)` of the full response `x = A e^{-b t} sin(omega_3 t +
+        alpha) + D sin(p t - beta)` with `x(0) = x0`, `x'(0) = v0` (under-damped)."""
+        D, beta = self.forced_response()
+        p = self.forcing.complex_amplitude(self)[1]
+        x0_free = x0 - D * jnp.sin(-beta)
+        v0_free = v0 - D * p * jnp.cos(-beta)
+        return self.free_amplitude(x0_free, v0_free)
+
+    def settling_time(self, x0, v0, fraction=0.01):
+        """Time [s] after which the transient's envelope `A e^{-b t}` stays below `fraction`
+        of the forced amplitude `D`: `t_y = ln(A / (fraction D)) / b` (the paper's
+        `ln(100 A/D)/b`)."""
+        A, _ = self.transient(x0, v0)
+        D, _ = self.forced_response()
+        return jnp.log(A / (fraction * D)) / self.decay_rate
+
+    def response(self, t, x0, v0):
+        """Analytic displacement and velocity `(x, v)` [m, m/s] at times `t` [s] from `x(0) = x0`,
+        `x'(0) = v0`: steady forced response plus the homogeneous solution (any damping,
+        via the roots of `m r^2 + c r + k = 0`)."""
+        t = jnp.asarray(t, dtype=self.m.dtype)
+        Q, p = self.forcing.complex_amplitude(self)
+        H = Q / (self.k - self.m * p**2 + 1j * self.c * p)
+        xp = jnp.imag(H * jnp.exp(1j * p * t))
+        vp = jnp.imag(1j * p * H * jnp.exp(1j * p * t))
+        y0 = x0 - jnp.imag(H)  # homogeneous initial state
+        w0 = v0 - jnp.imag(1j * p * H)
+        b = self.decay_rate
+        disc = self.natural_frequency**2 - b**2  # > 0: under-damped
+        wd = jnp.sqrt(jnp.abs(disc) + 0j)
+        # x_h = e^{-bt} (y0 C(t) + (w0 + b y0) S(t)), C = cos/cosh(wd t), S = sin/sinh(wd t)/wd
+        under = disc > 0
+        crit = disc == 0
+        wr = jnp.real(wd)
+        safe = jnp.where(wr > 0, wr, 1.0)
+        C = jnp.where(under, jnp.cos(wr * t), jnp.cosh(wr * t))
+        S = jnp.where(crit, t, jnp.where(under, jnp.sin(wr * t), jnp.sinh(wr * t)) / safe)
+        dC = jnp.where(under, -wr * jnp.sin(wr * t), wr * jnp.sinh(wr * t))
+        dS = jnp.where(crit, 1.0, jnp.where(under, jnp.cos(wr * t), jnp.cosh(wr * t)))
+        e = jnp.exp(-b * t)
+        B = w0 + b * y0
+        xh = e * (y0 * C + B * S)
+        vh = e * (y0 * dC + B * dS) - b * xh
+        return xh + xp, vh + vp
+
+
+@eqx.filter_jit
+def _simulate(osc, x0, v0, t1, n_save, rtol, throw):
+    osc = validated(osc)
+
+    def field(t, y, args):
+        return jnp.stack([y[1], osc.acceleration(t, y[0], y[1])])
+
+    ts = jnp.linspace(0.0, t1, n_save)
+    scale = jnp.abs(x0) + jnp.abs(v0) / osc.natural_frequency
+    Q, p = osc.forcing.complex_amplitude(osc)
+    scale = scale + jnp.abs(Q) / osc.k + 1e-300
+    sol = dfx.diffeqsolve(
+        dfx.ODETerm(field), dfx.Tsit5(), t0=0.0, t1=t1, dt0=None, y0=jnp.stack([x0, v0]),
+        saveat=dfx.SaveAt(ts=ts),
+        stepsize_controller=dfx.PIDController(rtol=rtol, atol=rtol * scale),
+        max_steps=500_000, throw=False,
+    )
+    ok = sol.result == dfx.RESULTS.successful
+    ys = jnp.where(ok, sol.ys, jnp.nan)
+    code = jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
+    traj = Trajectory(ts=ts, xs=ys[:, 0], vs=ys[:, 1], result=code)
+    return throw_if_failed(traj, traj.result, throw)
+
+
+def linear_simulate(osc: LinearOscillator, x0, v0, t1, *, n_save: int = 2001,
+                    rtol: float = 1e-12, throw: bool = False) -> Trajectory:
+    """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Tsit5) from `x(0) = x0` [m],
+    `x'(0) = v0` [m/s] to `t1` [s] `> 0`; `n_save` equally spaced saved times; `rtol` relative
+    tolerance (absolute tolerance `rtol` times the motion's length scale).
+    **Returns:** a [`vmj.Trajectory`][] (`ts` [s], `xs` [m], `vs` [m/s], `result`)."""
+    warn_if_float32()
+    n_save = check_int("n_save", n_save, 2)
+    x0 = check("x0", x0, lambda x: x == x, "a real number [m]")
+    v0 = check("v0", v0, lambda x: x == x, "a real number [m/s]")
+    t1 = check("t1", t1, positive, "> 0 [s]")
+    rtol = float(check("rtol", rtol, positive, "> 0"))
+    x0, v0, t1 = (jnp.asarray(v, dtype=jnp.result_type(float)) for v in (x0, v0, t1))
+    return _simulate(osc, x0, v0, t1, n_save, rtol, throw)

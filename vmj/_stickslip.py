@@ -1,0 +1,524 @@
+"""Stick-slip self-oscillation of a one-mass torsional model with instantaneous velocity reversal
+(Belokobylsky & Koronatov; `SYSTEMS.md` section 3).
+
+    I phi'' = -c (phi - omega t) - M0 sign(phi'),   static friction M1 > M0 while the disk rests.
+
+Dimensionless (tau = sqrt(c/I) t, xi = c (phi - omega t)/M0, Omega = omega sqrt(c I)/M0,
+eps = M1/M0): slip obeys `xi'' + xi = -sign(xi' + Omega)`, the disk rests while `xi' = -Omega`,
+breaks away when `xi` reaches `-eps`, and at a velocity zero during slip reverses at once when
+`|xi| > 1` (the spring overcomes sliding friction in the other direction), otherwise it sticks.
+
+Three solvers share the model:
+
+- `stick_slip_cycle` (exact): event-driven; each slip phase uses the analytic harmonic solution
+  of the phase's equation of motion and its velocity zero is found by Newton root
+  finding (fixed iteration count; implicit-function-theorem gradient), then the rules above pick
+  reversal or stick. Works under `jit`, `vmap` and `grad`.
+- `stick_slip_closed_form`: the paper's formulas (11)-(20).
+- the smoothed diffrax model (`stick_slip_simulate`, `stick_slip_cycle(method="smooth")`).
+"""
+
+from __future__ import annotations
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+from jaxtyping import Array
+
+from ._checks import check, check_int, positive, warn_if_float32
+from ._models import _Checked, _float, validated
+from ._solution import RESULTS, Trajectory
+
+__all__ = [
+    "StickSlip",
+    "StickSlipCycle",
+    "stick_slip_cycle",
+    "stick_slip_closed_form",
+    "stick_slip_simulate",
+]
+
+#: a reversal needs |xi| > 1 + REVERSAL_MARGIN at the velocity zero. At |xi| = 1 exactly the
+#: disk would leave with zero acceleration (a degenerate case); the margin 2e-5 is the one the
+#: paper's formula (16) uses, k* = floor((eps - 1)/2 - 1e-5), so that eps = 3, 5, 7, ... give
+#: the same k* in every solver.
+REVERSAL_MARGIN = 2e-5
+NEWTON = 7  #: Newton iterations per velocity zero (cubic convergence: 5 suffice in float64)
+MAX_REVERSALS = 10  #: default static bound on reversals per cycle (eps up to 21)
+
+_TOO_MANY = (
+    "more reversals per cycle than max_reversals: raise max_reversals (a cycle has "
+    "floor((eps - 1)/2) reversals)"
+)
+
+
+def _greater_than_one(x):
+    return x > 1
+
+
+def _nonpositive_rejected(x):
+    return x > 0
+
+
+class StickSlip(_Checked):
+    """Torsional one-mass stick-slip model in the paper's dimensionless form.
+
+    **Arguments:**
+
+    - `eps`: ratio of static to sliding friction `M1/M0` [-], `> 1`.
+    - `Omega`: dimensionless drive speed `omega sqrt(c I)/M0` [-], `> 0`.
+    - `time_scale`: seconds per unit of dimensionless time, `sqrt(I/c)` [s] (default 1: results
+      stay dimensionless).
+    - `angle_scale`: radians per unit of `xi`, `M0/c` [rad] (default 1).
+
+    Use [`vmj.StickSlip.from_physical`][] to build it from `I, c, omega, M0, M1`; the scales are
+    then set so that [`vmj.StickSlipCycle.physical`][] and `trajectory(physical=True)` report
+    seconds and radians.
+    """
+
+    eps: Array = eqx.field(converter=_float)
+    Omega: Array = eqx.field(converter=_float)
+    time_scale: Array = eqx.field(converter=_float, default=1.0)
+    angle_scale: Array = eqx.field(converter=_float, default=1.0)
+    _limits = {
+        "eps": (_greater_than_one, "> 1 (static friction M1 must exceed sliding friction M0)"),
+        "Omega": (positive, "> 0"),
+        "time_scale": (positive, "> 0 [s]"),
+        "angle_scale": (positive, "> 0 [rad]"),
+    }
+
+    @classmethod
+    def from_physical(cls, I, c, omega, M0, M1) -> "StickSlip":
+        """Build the model from physical parameters.
+
+        **Arguments:** `I` disk moment of inertia [kg m^2] `> 0`; `c` torsional stiffness
+        [N m/rad] `> 0`; `omega` drive speed of the upper end [rad/s] `> 0`; `M0` sliding
+        friction moment [N m] `> 0`; `M1` static friction moment [N m] `> M0`.
+
+        Then `eps = M1/M0`, `Omega = omega sqrt(c I)/M0`, `time_scale = sqrt(I/c)` [s] and
+        `angle_scale = M0/c` [rad].
+        """
+        I = check("I", I, positive, "> 0 [kg m^2]")
+        c = check("c", c, positive, "> 0 [N m/rad]")
+        omega = check("omega", omega, positive, "> 0 [rad/s]")
+        M0 = check("M0", M0, positive, "> 0 [N m]")
+        M1 = check("M1", M1, positive, "> 0 [N m]")
+        I, c, omega, M0, M1 = (_float(v) for v in (I, c, omega, M0, M1))
+        M1 = check("M1", M1, lambda m: m > M0, "> M0 (static friction exceeds sliding) [N m]")
+        return cls(M1 / M0, omega * jnp.sqrt(c * I) / M0, jnp.sqrt(I / c), M0 / c)
+
+    # -- the equation of motion of a slip phase, written once ---------------------------------
+    def slip_phase(self, xi0, s, tau):
+        """Analytic solution of `xi'' + xi = -s` from rest of the disk (`xi' = -Omega`) at
+        `xi = xi0`: returns `(xi, xi')` after the local time `tau`."""
+        a = xi0 + s
+        cos, sin = jnp.cos(tau), jnp.sin(tau)
+        return -s + a * cos - self.Omega * sin, -a * sin - self.Omega * cos
+
+    def acceleration(self, xi, dxi, sgn):
+        """`xi''` with `sgn` standing for `sign(xi' + Omega)` (exactly +-1 in the exact solver,
+        a smooth function in the smoothed one)."""
+        return -xi - sgn
+
+    def friction_peak(self, z):
+        """Friction magnitude limit (units of M0) of the smoothed model with rest memory `z`."""
+        return 1.0 + (self.eps - 1.0) * z
+
+
+class StickSlipCycle(eqx.Module):
+    """One period of the stick-slip limit cycle, starting at breakaway (`xi = -eps`, disk at rest).
+
+    Dimensionless time throughout (use [`vmj.StickSlipCycle.physical`][] for seconds). Arrays over
+    slip intervals are padded to `max_reversals + 1` with zeros past `count`.
+
+    **Fields:**
+
+    - `reversals`: number `k*` of instantaneous velocity reversals per period.
+    - `count`: number of slip intervals, `k* + 1`.
+    - `slip_intervals`: local slip interval lengths `tau_k`, `k = 1..k*+1`.
+    - `positions`: `xi_k` at the end of each slip interval.
+    - `amplitudes`: `A_k`, amplitude of the harmonic motion within interval `k`.
+    - `slip_time`, `stick_time`, `period`: `tau_*`, `tau^*`, `Lambda = tau_* + tau^*`.
+    - `result`: 0 on success, `RESULTS.step_limit` when more than `max_reversals` reversals.
+    - `model`: the [`vmj.StickSlip`][] it belongs to (for sampling and unit conversion).
+    """
+
+    reversals: Array
+    count: Array
+    slip_intervals: Array
+    positions: Array
+    amplitudes: Array
+    slip_time: Array
+    stick_time: Array
+    period: Array
+    result: Array
+    model: StickSlip
+
+    @property
+    def message(self) -> str:
+        return "limit cycle found" if int(self.result) == RESULTS.successful else _TOO_MANY
+
+    @property
+    def failed(self) -> Array:
+        return self.result != RESULTS.successful
+
+    def physical(self) -> dict:
+        """Times in seconds: `slip_intervals`, `slip_time`, `stick_time`, `period` [s], and the
+        stick-phase spring twist `positions` converted to `phi - omega t` [rad]."""
+        T, A = self.model.time_scale, self.model.angle_scale
+        return {
+            "slip_intervals": self.slip_intervals * T,
+            "slip_time": self.slip_time * T,
+            "stick_time": self.stick_time * T,
+            "period": self.period * T,
+            "positions": self.positions * A,
+        }
+
+    def reached(self) -> dict:
+        """The cycle as plain Python numbers (unbatched results only)."""
+        n = int(self.count)
+        return {
+            "reversals": int(self.reversals),
+            "slip_intervals": np.asarray(self.slip_intervals)[:n].tolist(),
+            "slip_time": float(self.slip_time),
+            "stick_time": float(self.stick_time),
+            "period": float(self.period),
+        }
+
+    def trajectory(self, n_save: int = 2001, periods: float = 1.0, physical: bool = False):
+        """Sample the cycle (analytic within each phase), starting at breakaway.
+
+        Returns a [`vmj.Trajectory`][] with `ts` = dimensionless time, `xs` = `xi`, `vs` = `xi'`
+        (the disk rests where `xi' = -Omega`). With `physical=True`: `ts` [s], `xs` = disk
+        angle `phi` [rad] (`phi = 0` at breakaway) and `vs` = `phi'` [rad/s].
+        """
+        n_save = check_int("n_save", n_save, 2)
+        return _sample(self, n_save, jnp.asarray(periods, dtype=self.period.dtype), physical)
+
+
+@eqx.filter_jit
+def _sample(cycle, n_save, periods, physical):
+    m = cycle.model
+    ts = jnp.linspace(0.0, periods * cycle.period, n_save)
+    local = jnp.mod(ts, cycle.period)
+    local = jnp.where((ts > 0) & (local == 0), cycle.period, local) * (ts > 0)
+    n = cycle.slip_intervals.shape[-1]
+    k = jnp.arange(n)
+    used = k < cycle.count
+    ends = jnp.cumsum(jnp.where(used, cycle.slip_intervals, 0.0))
+    starts = ends - cycle.slip_intervals
+    start_xi = jnp.concatenate([-m.eps[None], cycle.positions[:-1]])
+    signs = jnp.where(k % 2 == 0, 1.0, -1.0)
+
+    def one(t):
+        j = jnp.clip(jnp.sum((t >= ends) & used), 0, cycle.count - 1)
+        xi, dxi = m.slip_phase(start_xi[j], signs[j], t - starts[j])
+        stuck = t >= cycle.slip_time
+        xi = jnp.where(stuck, cycle.positions[cycle.count - 1] - m.Omega * (t - cycle.slip_time), xi)
+        dxi = jnp.where(stuck, -m.Omega, dxi)
+        return xi, dxi
+
+    xi, dxi = jax.vmap(one)(local)
+    if physical:
+        # phi / angle_scale = xi + Omega tau (+ xi(0) offset so that phi = 0 at breakaway)
+        phi = m.angle_scale * (xi + m.Omega * ts + m.eps)
+        return Trajectory(ts=ts * m.time_scale, xs=phi,
+                          vs=(dxi + m.Omega) * m.angle_scale / m.time_scale,
+                          result=cycle.result)
+    return Trajectory(ts=ts, xs=xi, vs=dxi, result=cycle.result)
+
+
+# -- exact event-driven solver -------------------------------------------------------------------
+def _velocity_zero(model, xi0, s):
+    """First velocity zero of the disk (`xi' = -Omega`) after it starts from rest at `xi0` moving
+    in direction `s` (= sign(-xi0), |xi0| > 1). Returns `(tau, xi)` at the zero.
+
+    With `a = xi0 + s` the disk velocity of the phase is
+    `u(tau) = Omega (1 - cos tau) - a sin tau = 2 sin(tau/2) h(tau/2)`,
+    `h(x) = Omega sin x - a cos x`. The factor `sin(tau/2)` is the start's own zero, so the event
+    is the root of `h` in `(0, pi/2)` (`s = -1`) or `(pi/2, pi)` (`s = +1`, as `s a < 0`). `h` is
+    a sinusoid `R sin(x - x*)`, on which Newton's iteration maps the error `e` to `e - tan e`:
+    started at the middle of the quarter period (`|e| <= pi/4`) it converges cubically, to
+    float64 precision within 5 steps. The last step is taken with gradients
+    (implicit-function theorem), so `tau` differentiates in eps and Omega.
+    """
+
+    def h(x, a, Om):
+        return Om * jnp.sin(x) - a * jnp.cos(x)
+
+    def hp(x, a, Om):
+        return Om * jnp.cos(x) + a * jnp.sin(x)
+
+    a_ng, Om_ng = lax.stop_gradient(xi0 + s), lax.stop_gradient(model.Omega)
+    x = jnp.where(s > 0, 0.75 * jnp.pi, 0.25 * jnp.pi) * jnp.ones_like(a_ng)
+    for _ in range(NEWTON):
+        x = x - h(x, a_ng, Om_ng) / hp(x, a_ng, Om_ng)
+    a = xi0 + s
+    x = x - h(x, a, model.Omega) / hp(x, a, model.Omega)
+    tau = 2.0 * x
+    xi, _ = model.slip_phase(xi0, s, tau)
+    return tau, xi
+
+
+def exact_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
+    """Event-driven limit cycle (see the module docstring); traceable."""
+    n = max_reversals + 1
+    xi0 = -model.eps
+
+    def body(carry, _):
+        xi, s, done, reversals = carry
+        tau, xi1 = _velocity_zero(model, xi, s)
+        a = xi + s
+        amplitude = jnp.sqrt(a * a + model.Omega**2)
+        reverse = jnp.abs(xi1) > 1.0 + REVERSAL_MARGIN
+        active = jnp.logical_not(done)
+        out = (jnp.where(active, tau, 0.0), jnp.where(active, xi1, 0.0),
+               jnp.where(active, amplitude, 0.0), active)
+        new_done = done | jnp.logical_not(reverse)
+        reversals = reversals + (active & reverse).astype(jnp.int32)
+        xi = jnp.where(active, xi1, xi)
+        s = jnp.where(active & reverse, -s, s)
+        return (xi, s, new_done, reversals), out
+
+    init = (xi0, jnp.ones_like(xi0), jnp.array(False), jnp.array(0, dtype=jnp.int32))
+    (xi_end, _, done, reversals), (taus, xis, amps, used) = lax.scan(body, init, None, length=n)
+    count = jnp.sum(used.astype(jnp.int32))
+    slip = jnp.sum(taus)
+    stick = (xi_end + model.eps) / model.Omega  # xi falls at rate Omega from xi_end to -eps
+    code = jnp.where(done, RESULTS.successful, RESULTS.step_limit)
+    return StickSlipCycle(
+        reversals=reversals, count=count, slip_intervals=taus, positions=xis, amplitudes=amps,
+        slip_time=slip, stick_time=stick, period=slip + stick, result=code, model=model,
+    )
+
+
+# -- the paper's closed forms (11)-(20) ------------------------------------------------------------
+def closed_form_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
+    eps, Omega = model.eps, model.Omega
+    n = max_reversals + 1
+    kstar = jnp.floor((eps - 1.0) / 2.0 - 1e-5).astype(jnp.int32)  # (16)
+    k = jnp.arange(1, n + 1)
+    sign_k = jnp.where(k % 2 == 0, 1.0, -1.0)  # (-1)^k
+    used = k <= kstar + 1
+    tau_k = 2.0 * (jnp.pi * (1.0 - sign_k) / 2.0
+                   - sign_k * jnp.arctan((2 * k - (eps + 1.0)) / Omega))  # (14)
+    xi_k = sign_k * (2 * k - eps)  # (13)
+    A_k = jnp.sqrt((2 * k - (eps + 1.0)) ** 2 + Omega**2)  # (12)
+    slip = jnp.sum(jnp.where(used, tau_k, 0.0))  # (17)
+    sign_kstar = jnp.where(kstar % 2 == 0, 1.0, -1.0)
+    stick = (eps + sign_kstar * (eps - 2.0 * (kstar + 1))) / Omega  # (19)
+    code = jnp.where(kstar + 1 <= n, RESULTS.successful, RESULTS.step_limit)
+    return StickSlipCycle(
+        reversals=kstar, count=jnp.minimum(kstar + 1, n),
+        slip_intervals=jnp.where(used, tau_k, 0.0), positions=jnp.where(used, xi_k, 0.0),
+        amplitudes=jnp.where(used, A_k, 0.0), slip_time=slip, stick_time=stick,
+        period=slip + stick, result=code, model=model,  # (20)
+    )
+
+
+def _throw(cycle, throw):
+    if not throw:
+        return cycle
+    return eqx.error_if(cycle, cycle.result != RESULTS.successful, _TOO_MANY)
+
+
+@eqx.filter_jit
+def _exact_entry(model, max_reversals, throw):
+    return _throw(exact_cycle(validated(model), max_reversals), throw)
+
+
+@eqx.filter_jit
+def _closed_entry(model, max_reversals, throw):
+    return _throw(closed_form_cycle(validated(model), max_reversals), throw)
+
+
+def stick_slip_cycle(
+    model: StickSlip,
+    *,
+    method: str = "exact",
+    max_reversals: int = MAX_REVERSALS,
+    smoothing=None,
+    throw: bool = False,
+) -> StickSlipCycle:
+    """The stick-slip limit cycle of `model`, from breakaway to the next breakaway.
+
+    **Arguments:**
+
+    - `model`: a [`vmj.StickSlip`][].
+    - `method`: `"exact"` (default): event-driven solution of the non-smooth rules; each slip
+      phase is the analytic solution of `xi'' + xi = -+1`, its velocity zero found by
+      Newton iteration with an implicit-function-theorem gradient. Runs under `jax.jit`,
+      `jax.vmap` (batched models) and `jax.grad` (the period, slip and stick times differentiate
+      in `eps` and `Omega`). `"smooth"`: the cycle measured on the smoothed diffrax model
+      ([`vmj.stick_slip_simulate`][]); NumPy post-processing, scalar models only, no `vmap`.
+    - `max_reversals`: static bound on reversals per cycle (arrays are padded to it + 1).
+    - `smoothing`: smoothing velocity `w` of the smoothed model (`method="smooth"`), default 1e-4.
+    - `throw`: raise when the cycle has more than `max_reversals` reversals instead of returning
+      it in `result`.
+
+    **Returns:** a [`vmj.StickSlipCycle`][] (dimensionless times; `.physical()` for seconds).
+    """
+    warn_if_float32()
+    max_reversals = check_int("max_reversals", max_reversals, 0)
+    if method == "exact":
+        return _exact_entry(model, max_reversals, throw)
+    if method == "smooth":
+        return _smooth_cycle(model, max_reversals, smoothing, throw)
+    raise ValueError(f"method must be 'exact' or 'smooth' (got {method!r})")
+
+
+def stick_slip_closed_form(
+    model: StickSlip, *, max_reversals: int = MAX_REVERSALS, throw: bool = False
+) -> StickSlipCycle:
+    """The paper's closed forms (11)-(20) for the limit cycle of `model`.
+
+    `k* = floor((eps - 1)/2 - 1e-5)` reversals (16) (the `1e-5` makes eps = 3, 5, 7, ... land
+    on the lower `k*`: at those values the disk stops with `|xi| = 1` exactly and sticks);
+    `tau_k = 2 {pi [1 - (-1)^k]/2 + (-1)^(k+1) arctan((2k - (eps + 1))/Omega)}` (14);
+    `xi_k = (-1)^k (2k - eps)` (13); `A_k = sqrt((2k - (eps + 1))^2 + Omega^2)` (12);
+    slip time (17), stick time `tau^* = (eps + (-1)^k* (eps - 2(k* + 1)))/Omega` (19) and
+    period (20). Arguments and result as in [`vmj.stick_slip_cycle`][]; jit/vmap/grad-friendly.
+    """
+    warn_if_float32()
+    max_reversals = check_int("max_reversals", max_reversals, 0)
+    return _closed_entry(model, max_reversals, throw)
+
+
+# -- the smoothed model (diffrax) -----------------------------------------------------------------
+DEFAULT_SMOOTHING = 1e-4
+RTOL = 1e-8
+
+
+def _smooth_scales(w):
+    """Rest-memory velocity `sqrt(w)` and memory time `w**0.25` of the smoothed model."""
+    return jnp.sqrt(w), w**0.25
+
+
+def _smooth_field(model, w):
+    v_mem, t_mem = _smooth_scales(w)
+
+    def field(t, y, args):
+        xi, dxi, z = y
+        u = dxi + model.Omega
+        sgn = model.friction_peak(z) * jnp.tanh(u / w)
+        rest = jnp.exp(-((u / v_mem) ** 2))
+        return jnp.stack([dxi, model.acceleration(xi, dxi, sgn), (rest - z) / t_mem])
+
+    return field
+
+
+@eqx.filter_jit
+def _simulate_smooth(model, t1, w, n_save):
+    model = validated(model)
+    field = _smooth_field(model, w)
+    ts = jnp.linspace(0.0, t1, n_save)
+    y0 = jnp.stack([-model.eps, -model.Omega, jnp.zeros_like(model.eps)])
+    sol = dfx.diffeqsolve(
+        dfx.ODETerm(field), dfx.Kvaerno5(), t0=0.0, t1=t1, dt0=None, y0=y0,
+        saveat=dfx.SaveAt(ts=ts),
+        stepsize_controller=dfx.PIDController(rtol=RTOL, atol=RTOL * model.eps),
+        max_steps=1_000_000, throw=False,
+    )
+    ok = sol.result == dfx.RESULTS.successful
+    ys = jnp.where(ok, sol.ys, jnp.nan)
+    code = jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
+    return Trajectory(ts=ts, xs=ys[:, 0], vs=ys[:, 1], result=code), ys[:, 2]
+
+
+def _check_smoothing(smoothing):
+    if smoothing is None:
+        return jnp.asarray(DEFAULT_SMOOTHING)
+    return jnp.asarray(check("smoothing", smoothing, positive, "> 0"), dtype=float)
+
+
+def stick_slip_simulate(model: StickSlip, t1, *, smoothing=None, n_save: int = 4001,
+                        throw: bool = False, memory: bool = False):
+    """Solve the smoothed stick-slip model with diffrax (Kvaerno5, rtol 1e-8) from breakaway.
+
+    The smoothed model replaces `sign(u)` (`u = xi' + Omega`, the disk velocity) by
+    `P(z) tanh(u/w)` and the rest/slip switch by a rest memory `z` in `[0, 1]`:
+
+        xi'' + xi = -(1 + (eps - 1) z) tanh(u/w),   z' = (exp(-(u/sqrt(w))^2) - z) / w**0.25.
+
+    `z` relaxes to 1 while the disk (nearly) rests, so the friction limit grows to the static
+    `eps`, and to 0 while it slides; a quick passage through `u = 0` (a reversal) leaves `z`
+    small, so the disk reverses against sliding friction only -- the paper's rule. A smoothed
+    model cannot truly stick: at rest it creeps with `u ~ w`. As `w -> 0` the cycle tends to the
+    exact one (see docs/stick-slip.md for the measured convergence).
+
+    **Arguments:** `model` ([`vmj.StickSlip`][]), `t1` final dimensionless time `> 0`,
+    `smoothing` `w > 0` (default 1e-4), `n_save` saved points, `throw` raise if diffrax failed,
+    `memory` also return the saved `z`.
+
+    **Returns:** a [`vmj.Trajectory`][] (`ts` = tau, `xs` = xi, `vs` = xi'), and `z` if `memory`.
+    """
+    warn_if_float32()
+    n_save = check_int("n_save", n_save, 2)
+    t1 = check("t1", t1, positive, "> 0")
+    w = _check_smoothing(smoothing)
+    traj, z = _simulate_smooth(model, jnp.asarray(t1, dtype=float), w, n_save)
+    if throw and not isinstance(traj.result, jax.core.Tracer) and int(traj.result) != 0:
+        raise RuntimeError(RESULTS.messages[RESULTS.solver_failed])
+    return (traj, z) if memory else traj
+
+
+SMOOTH_PERIODS = 3.3  #: simulated horizon in (closed-form) periods; the last full cycle is kept
+SMOOTH_SAMPLES = 20_000  #: saved points per period for the event detection
+CREEP = 20.0  #: |u| below CREEP * w counts as a stop of the smoothed disk
+
+
+def _smooth_cycle(model, max_reversals, smoothing, throw) -> StickSlipCycle:
+    model = validated(model)
+    for leaf in jax.tree.leaves(model):
+        if isinstance(leaf, jax.core.Tracer) or jnp.ndim(leaf) != 0:
+            raise ValueError("method='smooth' takes a concrete scalar model (no jit/vmap)")
+    w = _check_smoothing(smoothing)
+    guess = float(closed_form_cycle(model, 64).period)  # only sets the simulated horizon
+    n_save = int(SMOOTH_PERIODS * SMOOTH_SAMPLES)
+    traj, z = _simulate_smooth(model, jnp.asarray(SMOOTH_PERIODS * guess), w, n_save)
+    if int(traj.result) != 0:
+        raise RuntimeError(RESULTS.messages[RESULTS.solver_failed])
+    ts, u = np.asarray(traj.ts), np.asarray(traj.vs) + float(model.Omega)
+    z = np.asarray(z)
+    slow = np.abs(u) <= CREEP * float(w)
+
+    def level(i, target):  # linear interpolation of the crossing of `target` inside [i, i+1]
+        return ts[i] + (ts[i + 1] - ts[i]) * (target[i] / (target[i] - target[i + 1]))
+
+    over = np.abs(u) - CREEP * float(w)
+    # rests: runs of |u| <= CREEP w during which the rest memory z builds up past 1/2
+    starts = np.nonzero(~slow[:-1] & slow[1:])[0]
+    stops = np.nonzero(slow[:-1] & ~slow[1:])[0]
+    rests = []
+    for i in starts:
+        j = stops[stops > i]
+        if j.size and z[i:j[0] + 1].max() > 0.5:
+            rests.append((level(i, over), level(j[0], over), i, j[0]))
+    if len(rests) < 2:
+        raise RuntimeError("the smoothed model did not settle into a stick-slip cycle within "
+                           f"{SMOOTH_PERIODS} periods; try a smaller smoothing")
+    (_, b1, _, i1), (d2, b2, i2, _) = rests[-2], rests[-1]
+    # reversals: sign changes of the disk velocity while slipping between the two rests
+    flips = np.nonzero((u[:-1] * u[1:] < 0) & (np.arange(len(u) - 1) > i1)
+                       & (np.arange(len(u) - 1) < i2))[0]
+    marks = [b1] + [level(i, u) for i in flips] + [d2]
+    taus = np.diff(marks)
+    n = max_reversals + 1
+    rev = len(taus) - 1
+    padded = np.zeros(n)
+    padded[: min(n, len(taus))] = taus[:n]
+    code = RESULTS.successful if rev <= max_reversals else RESULTS.step_limit
+    if throw and code != RESULTS.successful:
+        raise RuntimeError(_TOO_MANY)
+    xi_at = np.interp(marks[1:], ts, np.asarray(traj.xs))
+    positions = np.zeros(n)
+    positions[: min(n, len(taus))] = xi_at[:n]
+    return StickSlipCycle(
+        reversals=jnp.asarray(rev), count=jnp.asarray(min(n, len(taus))),
+        slip_intervals=jnp.asarray(padded), positions=jnp.asarray(positions),
+        amplitudes=jnp.zeros(n), slip_time=jnp.asarray(d2 - b1),
+        stick_time=jnp.asarray(b2 - d2), period=jnp.asarray(b2 - b1),
+        result=jnp.asarray(code), model=model,
+    )
