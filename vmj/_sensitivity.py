@@ -1,0 +1,104 @@
+"""Sensitivities: derivatives of a solution with respect to chosen model parameters."""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._sweep import _get, resolve_field
+
+__all__ = ["sensitivity"]
+
+
+def sensitivity(
+    fn: Callable,
+    model,
+    wrt: Sequence[str],
+    *,
+    mode: str = "forward",
+    **solver_args,
+) -> dict:
+    """Derivatives of `fn(model, **solver_args)` with respect to the parameters named in `wrt`.
+
+    **Arguments:**
+
+    - `fn`: a function of the model returning a float array or a pytree of float arrays, e.g.
+      `lambda m, a0, n: vmj.turning_points(m, a0, n).amplitudes` (amplitudes [m]) or
+      `.stop_time` [s]. Integer and boolean outputs (counts, flags) have no derivative: select
+      the float fields you need.
+    - `model`: a model with scalar parameters (to differentiate over a grid of models, wrap the
+      call in [`vmj.sweep`][] or `jax.vmap`: this function is vmappable and jittable).
+    - `wrt`: parameter names: model fields (`"eps"`, `"mu"`, `"delta"`, `"F"` for `friction.F`,
+      or a dotted path) and float keyword arguments of `fn` (e.g. `"a0"`).
+    - `mode`: `"forward"` (`jax.jacfwd`, best for few parameters) or `"reverse"`
+      (`jax.jacrev`, best for a scalar output); both give the same numbers.
+    - `**solver_args`: passed to `fn` (e.g. `a0=0.06, n=12`).
+
+    **Returns:** a dict mapping each name in `wrt` to `d fn / d parameter`, shaped like the
+    output of `fn` (in the output's unit per the parameter's unit, e.g. m per kg/s).
+    """
+    if mode not in ("forward", "reverse"):
+        raise ValueError(f"mode must be 'forward' or 'reverse' (got {mode!r})")
+    wrt = tuple(wrt)
+    if not wrt:
+        raise ValueError("wrt must name at least one parameter")
+    if len(set(wrt)) != len(wrt):
+        raise ValueError(f"wrt names a parameter twice: {wrt}")
+    field_names = [w for w in wrt if w not in solver_args]
+    paths = [resolve_field(model, w) for w in field_names]
+    for w in wrt:
+        if w in solver_args and isinstance(solver_args[w], (bool, str)):
+            raise ValueError(f"{w} is not a float argument of fn (got {solver_args[w]!r})")
+    theta0 = {w: jnp.asarray(solver_args[w] if w in solver_args else
+                             _get(model, paths[field_names.index(w)]),
+                             dtype=jnp.result_type(float)) for w in wrt}
+    for w, v in theta0.items():
+        if jnp.ndim(v) != 0:
+            raise ValueError(f"sensitivity takes scalar parameters ({w} has shape "
+                             f"{jnp.shape(v)}); use vmj.sweep or jax.vmap over a batch")
+
+    out = _sensitivity(fn, model, tuple(paths), tuple(field_names), wrt, mode, theta0,
+                       solver_args)
+    return {w: out[w] for w in wrt}
+
+
+@eqx.filter_jit
+def _sensitivity(fn, model, paths, field_names, wrt, mode, theta0, solver_args):
+    def of(theta):
+        m = model
+        if paths:
+            m = eqx.tree_at(lambda m: [_get(m, p) for p in paths], m,
+                            [theta[w] for w in field_names])
+        args = {**solver_args, **{w: theta[w] for w in wrt if w in solver_args}}
+        out = fn(m, **args)
+        for leaf in jax.tree.leaves(out):
+            if not jnp.issubdtype(jnp.result_type(leaf), jnp.inexact):
+                raise ValueError(
+                    "sensitivity needs fn to return float arrays only (got an integer or boolean "
+                    "output: select float fields such as .amplitudes, .times or .stop_time)")
+        return out
+
+    jac = (jax.jacfwd if mode == "forward" else jax.jacrev)(of)(theta0)
+    # jac has the output's structure with a dict over `wrt` at each leaf: put `wrt` outside
+    outer = jax.tree.structure(jax.eval_shape(of, theta0))
+    inner = jax.tree.structure(theta0)
+    swapped = jax.tree.transpose(outer, inner, jac)
+    return {w: swapped[w] for w in wrt}
+
+
+def central_difference(fn, model, name: str, step: float, **solver_args):
+    """Central finite difference of `fn` in one parameter (used by tests and examples)."""
+    if name in solver_args:
+        x = float(solver_args[name])
+        hi = fn(model, **{**solver_args, name: x + step})
+        lo = fn(model, **{**solver_args, name: x - step})
+    else:
+        path = resolve_field(model, name)
+        x = float(_get(model, path))
+        at = lambda v: eqx.tree_at(lambda m: _get(m, path), model, jnp.asarray(v))  # noqa: E731
+        hi, lo = fn(at(x + step), **solver_args), fn(at(x - step), **solver_args)
+    return jax.tree.map(lambda a, b: (np.asarray(a) - np.asarray(b)) / (2 * step), hi, lo)

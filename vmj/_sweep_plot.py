@@ -1,0 +1,114 @@
+"""Figures of sweeps over (eps, mu, delta) of the variable-mass model."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._plot import _pyplot, save
+from ._solution import RESULTS
+
+__all__ = ["plot_swings", "plot_energy_error"]
+
+
+def _panels(result):
+    """(delta values or [None], an index function) for one panel per delta."""
+    dims = list(result.dims)
+    if dims[:2] != ["eps", "mu"] or len(dims) > 3 or (len(dims) == 3 and dims[2] != "delta"):
+        raise ValueError("the sweep figures need axes eps, mu and optionally delta, in this order "
+                         f"(got {', '.join(dims)})")
+    if len(dims) == 2:
+        return [None], lambda a, j: a
+    return list(result.coords["delta"]), lambda a, j: a[:, :, j]
+
+
+def _boundary(ax, eps, mu, delta):
+    """The paper's boundary delta (1 - 2 eps) = 2 mu in the (eps, mu) plane."""
+    if delta is None or delta == 0:
+        return
+    e = np.linspace(eps.min(), eps.max(), 200)
+    m = delta * (1 - 2 * e) / 2
+    keep = (m >= mu.min()) & (m <= mu.max())
+    if keep.any():
+        ax.plot(e[keep], m[keep], "w-", lw=2.5)
+        ax.plot(e[keep], m[keep], "k--", lw=1.2, label=r"$\delta(1-2\varepsilon)=2\mu$")
+        ax.legend(loc="upper right", fontsize=7)
+
+
+def _edges(x):
+    x = np.asarray(x, dtype=float)
+    if x.size == 1:
+        return np.array([x[0] - 0.5, x[0] + 0.5])
+    mid = (x[1:] + x[:-1]) / 2
+    return np.concatenate([[2 * x[0] - mid[0]], mid, [2 * x[-1] - mid[-1]]])
+
+
+def _grid_of_panels(n_panels):
+    plt = _pyplot()
+    cols = min(n_panels, 4)
+    rows = -(-n_panels // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.2 * rows), squeeze=False,
+                             sharex=True, sharey=True, constrained_layout=True)
+    for ax in axes.flat[n_panels:]:
+        ax.set_visible(False)
+    return plt, fig, list(axes.flat)
+
+
+def plot_swings(result, path: str, title: str = "") -> None:
+    """Number of swings until the mass sticks over (eps, mu), one panel per delta, with the
+    paper's boundary `delta (1 - 2 eps) = 2 mu` (below it, `mu` large, the motion decays even
+    without dry friction). `result.values` is a [`vmj.DecaySequence`][] over a grid."""
+    deltas, at = _panels(result)
+    seq = result.values
+    n = np.shape(seq.positions)[-1]
+    eps, mu = result.coords["eps"], result.coords["mu"]
+    plt, fig, axes = _grid_of_panels(len(deltas))
+    cmap = plt.get_cmap("viridis", n).copy()
+    cmap.set_over("lightgrey")
+    mesh = None
+    for j, (ax, d) in enumerate(zip(axes, deltas)):
+        count = at(np.asarray(seq.count), j).astype(float)
+        stopped = at(np.asarray(seq.stopped), j)
+        failed = at(np.asarray(seq.result), j) >= RESULTS.mass_exhausted
+        shown = np.where(stopped, count, n + 1.0)  # still moving after n swings: "over"
+        mesh = ax.pcolormesh(_edges(eps), _edges(mu), shown.T, cmap=cmap, vmin=0.5,
+                             vmax=n + 0.5, shading="flat")
+        if failed.any():
+            ie, im = np.nonzero(failed)
+            ax.plot(eps[ie], mu[im], "rx", ms=4, label="mass exhausted")
+        _boundary(ax, eps, mu, d)
+        ax.set_title(title + (f"delta = {d:g} kg/s" if d is not None else ""), fontsize=9)
+        ax.set_xlabel("eps [-]")
+        ax.set_ylabel("mu [kg/s]")
+    bar = fig.colorbar(mesh, ax=list(axes)[: len(deltas)], extend="max", shrink=0.9)
+    bar.set_label(f"swings until the mass sticks (grey: still moving after {n})")
+    save(fig, path)
+    plt.close(fig)
+
+
+def plot_energy_error(exact, energy, a0: float, path: str) -> None:
+    """Largest difference over the swings between the energy-balance amplitudes and the exact
+    ones, relative to `a0`, over (eps, mu) for each delta (log scale)."""
+    deltas, at = _panels(exact)
+    eps, mu = exact.coords["eps"], exact.coords["mu"]
+    err = np.max(np.abs(np.abs(np.asarray(energy.values.positions))
+                        - np.abs(np.asarray(exact.values.positions))), axis=-1) / a0
+    plt, fig, axes = _grid_of_panels(len(deltas))
+    from matplotlib.colors import LogNorm
+
+    norm = LogNorm(vmin=max(float(np.nanmin(err[err > 0])) if (err > 0).any() else 1e-6, 1e-6),
+                   vmax=max(float(np.nanmax(err)), 1e-5))
+    mesh = None
+    for j, (ax, d) in enumerate(zip(axes, deltas)):
+        e = np.maximum(at(err, j), norm.vmin)
+        mesh = ax.pcolormesh(_edges(eps), _edges(mu), e.T, norm=norm, cmap="magma",
+                             shading="flat")
+        cs = ax.contour(eps, mu, e.T, levels=[1e-3, 1e-2], colors=["w", "c"], linewidths=1)
+        ax.clabel(cs, fmt={1e-3: "0.1 %", 1e-2: "1 %"}, fontsize=7)
+        _boundary(ax, eps, mu, d)
+        ax.set_title(f"delta = {d:g} kg/s" if d is not None else "", fontsize=9)
+        ax.set_xlabel("eps [-]")
+        ax.set_ylabel("mu [kg/s]")
+    bar = fig.colorbar(mesh, ax=list(axes)[: len(deltas)], shrink=0.9)
+    bar.set_label("max_k | a_k(energy balance) - a_k(exact) | / a0")
+    save(fig, path)
+    plt.close(fig)
