@@ -10,12 +10,19 @@ from ._models import Coulomb, FrictionLaw, MassProportional, VariableMass
 from ._solution import RESULTS, DecaySequence, Trajectory
 from ._solve import energy_balance, simulate, turning_points
 from ._tables import paper_cells, paper_table
+from ._sweep import Grid, SweepResult, grid, sweep
+from ._sensitivity import sensitivity
 from ._stickslip import (StickSlip, StickSlipCycle, stick_slip_closed_form, stick_slip_cycle,
                          stick_slip_simulate)
 from ._linear import (BaseMotion, Forcing, HarmonicForce, LinearOscillator, NoForcing,
                       linear_simulate)
 
 __all__ = [
+    "Grid",
+    "SweepResult",
+    "grid",
+    "sweep",
+    "sensitivity",
     "Coulomb",
     "FrictionLaw",
     "MassProportional",
