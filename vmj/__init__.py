@@ -16,6 +16,10 @@ from ._stickslip import (StickSlip, StickSlipCycle, stick_slip_closed_form, stic
                          stick_slip_simulate)
 from ._linear import (BaseMotion, Forcing, HarmonicForce, LinearOscillator, NoForcing,
                       linear_simulate)
+from ._rope import KGF, Braking, ConstantSpeed, LengthProfile, Rope
+from . import _rope_solve  # noqa: F401  (registers the rope's exact and smoothed solvers)
+from ._rope_averaging import (action_amplitude, action_frequency, kbm_amplitude, kbm_frequency,
+                              rope_energy_map)
 
 __all__ = [
     "Grid",
@@ -46,6 +50,16 @@ __all__ = [
     "HarmonicForce",
     "BaseMotion",
     "linear_simulate",
+    "KGF",
+    "Braking",
+    "ConstantSpeed",
+    "LengthProfile",
+    "Rope",
+    "action_amplitude",
+    "action_frequency",
+    "kbm_amplitude",
+    "kbm_frequency",
+    "rope_energy_map",
 ]
 
 __version__ = "0.1.0"

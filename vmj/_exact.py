@@ -99,21 +99,30 @@ def _half_period(model, t0):
 def _velocity_zero(model, start, s, t_guess):
     """Velocity zero inside the substep `start = (t, x, v, h)` that contains it."""
     t, x, v, h = start
-    cs = _taylor(model.coefficients(t), s, x, v)
+    return velocity_zero_of(_taylor(model.coefficients(t), s, x, v), t, h, s, t_guess)
+
+
+def velocity_zero_of(cs, t, h, s, t_guess):
+    """Velocity zero of the substep polynomial `cs` (Taylor coefficients about `t`, valid on
+    `[t, t + h]`, moving with sign `s`): `(time, position)`. Shared by the exact solvers."""
     dcs = _derivative(cs)
     ddcs = _derivative(dcs)
     f_cs = [lax.stop_gradient(c * s) for c in dcs]
     fp_cs = [lax.stop_gradient(c * s) for c in ddcs]
     lo, hi = jnp.zeros_like(h), lax.stop_gradient(h)
     tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
-    for _ in range(NEWTON):
+
+    def newton_step(_, state):  # a loop (not unrolled): keeps the compiled graph small
+        tau, lo, hi = state
         f, fp = _horner(f_cs, tau), _horner(fp_cs, tau)
         ahead = f > 0
         lo, hi = jnp.where(ahead, tau, lo), jnp.where(ahead, hi, tau)
         safe_fp = jnp.where(fp != 0, fp, 1.0)
         newton = tau - f / safe_fp
         ok = (fp != 0) & (newton >= lo) & (newton <= hi)
-        tau = jnp.where(ok, newton, 0.5 * (lo + hi))
+        return jnp.where(ok, newton, 0.5 * (lo + hi)), lo, hi
+
+    tau, _, _ = lax.fori_loop(0, NEWTON, newton_step, (tau, lo, hi))
     # One Newton step with gradients: d tau / d theta = -(df/d theta) / (df/d tau).
     acc = _horner(ddcs, tau)
     tau = tau - _horner(dcs, tau) / jnp.where(acc != 0, acc, 1.0)

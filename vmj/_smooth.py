@@ -15,7 +15,7 @@ MAX_STEPS = 200_000
 
 def default_smoothing(model, x0, v0):
     """Default smoothing velocity w [m/s]: 1e-4 of the motion's velocity scale."""
-    return DEFAULT_SMOOTHING * (jnp.abs(x0) * jnp.sqrt(model.c / model.m0) + jnp.abs(v0))
+    return DEFAULT_SMOOTHING * (model.velocity_scale(jnp.abs(x0)) + jnp.abs(v0))
 
 
 def _solve(model, x0, v0, t1, w, saveat):
@@ -23,7 +23,7 @@ def _solve(model, x0, v0, t1, w, saveat):
         x, v = y
         return jnp.stack([v, model.acceleration(t, x, v, jnp.tanh(v / w))])
 
-    scale = jnp.abs(x0) + jnp.abs(v0) * jnp.sqrt(model.m0 / model.c)
+    scale = jnp.abs(x0) + jnp.abs(v0) / model.velocity_scale(1.0)
     sol = dfx.diffeqsolve(
         dfx.ODETerm(field),
         dfx.Tsit5(),
@@ -62,16 +62,20 @@ def horizon(model, a0, n: int):
 CREEP = 20.0  #: |v| below CREEP * w after the last reversal counts as the smoothed model's arrest
 
 
-def turning_points_smooth(model, a0, n: int, w, grid_per_swing: int = 64) -> DecaySequence:
+def turning_points_smooth(
+    model, a0, n: int, w, grid_per_swing: int = 64, t1=None,
+    exhausted_code: int = RESULTS.mass_exhausted,
+) -> DecaySequence:
     """Velocity zeros of the smoothed solution released from rest at x = -a0.
 
     A smoothed model cannot stick: where the exact mass sticks, the smoothed one slows to a
     creep `|v| ~ w` without reversing. Its arrival at `|v| = CREEP * w` after the last reversal
     is reported as the final turning point, and `stopped` is set when the motion is still
-    creeping at the end of the horizon.
+    creeping at the end of the horizon. `t1` overrides the variable-mass `horizon`; a solve cut
+    short by the model's lifetime reports `exhausted_code`.
     """
-    x0 = -a0 * jnp.ones_like(model.m0)
-    t1 = horizon(model, a0, n)
+    x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
+    t1 = horizon(model, a0, n) if t1 is None else t1
     sol, field, code = _solve(model, x0, jnp.zeros_like(x0), t1, w, dfx.SaveAt(dense=True))
     ts = jnp.linspace(0.0, t1, grid_per_swing * (n + 1) + 1)
     vs = jax.vmap(sol.evaluate)(ts)[:, 1]
@@ -91,10 +95,14 @@ def turning_points_smooth(model, a0, n: int, w, grid_per_swing: int = 64) -> Dec
 
     def refine(lo, hi, level):
         sgn = jnp.sign(sol.evaluate(lo)[1])
-        for _ in range(50):  # bisection to float64 resolution on the dense interpolant
+
+        def bisect(_, bracket):  # to float64 resolution on the dense interpolant
+            lo, hi = bracket
             mid = 0.5 * (lo + hi)
             ahead = sol.evaluate(mid)[1] * sgn > level
-            lo, hi = jnp.where(ahead, mid, lo), jnp.where(ahead, hi, mid)
+            return jnp.where(ahead, mid, lo), jnp.where(ahead, hi, mid)
+
+        lo, hi = jax.lax.fori_loop(0, 50, bisect, (lo, hi))
         t = 0.5 * (lo + hi)
         return t, sol.evaluate(t)[0]
 
@@ -113,7 +121,7 @@ def turning_points_smooth(model, a0, n: int, w, grid_per_swing: int = 64) -> Dec
         code,
         jnp.where(
             exhausted,
-            RESULTS.mass_exhausted,
+            exhausted_code,
             jnp.where(incomplete, RESULTS.step_limit, jnp.where(creeping, RESULTS.stopped, code)),
         ),
     )

@@ -18,6 +18,7 @@ class RESULTS:
     mass_exhausted = 2  #: the mass reaches zero (delta < 0) before the next turning point
     step_limit = 3  #: no velocity zero within the step limit (overdamped or creeping motion)
     solver_failed = 4  #: the diffrax solve of the smoothed model did not finish
+    length_exhausted = 5  #: the rope length l(t) reaches zero before the next turning point
 
     messages = (
         "reached every requested turning point",
@@ -28,8 +29,9 @@ class RESULTS:
         "(raise max_substeps if it is only slow)",
         "the smoothed ODE solve failed (step limit or non-finite state); try a larger smoothing "
         "or max_steps",
+        "the rope length l(t) reaches zero before the next turning point; the solve stopped there",
     )
-    failures = (mass_exhausted, step_limit, solver_failed)
+    failures = (mass_exhausted, step_limit, solver_failed, length_exhausted)
 
 
 def result_message(code) -> str:

@@ -176,13 +176,13 @@ def simulate(
     x0 = check("x0", x0, lambda x: x == x, "a real number [m]")
     v0 = check("v0", v0, lambda x: x == x, "a real number [m/s]")
     t1 = check("t1", t1, positive, "> 0 [s]")
-    if isinstance(model, VariableMass):
+    if hasattr(model, "lifetime"):
         lifetime = model.lifetime()
+        what = getattr(model, "_lifetime_text", "the zero-mass time m0/|delta|")
         if not isinstance(lifetime, jax.core.Tracer) and not isinstance(t1, jax.core.Tracer):
             if float(t1) >= float(lifetime):
                 raise ValueError(
-                    f"t1 must be below the zero-mass time m0/|delta| = {float(lifetime):.6g} s "
-                    f"(got {float(t1)})"
+                    f"t1 must be below {what} = {float(lifetime):.6g} s (got {float(t1)})"
                 )
     if smoothing is not None:
         smoothing = check("smoothing", smoothing, positive, "> 0 [m/s]")
