@@ -188,6 +188,7 @@ class LinearOscillator(_Checked):
         D, _ = self.forced_response()
         return jnp.log(A / (fraction * D)) / self.decay_rate
 
+    @eqx.filter_jit
     def response(self, t, x0, v0):
         """Analytic displacement and velocity `(x, v)` [m, m/s] at times `t` [s] from `x(0) = x0`,
         `x'(0) = v0`: steady forced response plus the homogeneous solution (any damping,

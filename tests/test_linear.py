@@ -1,0 +1,186 @@
+"""Linear one-degree-of-freedom oscillator: diffrax simulation vs analytic response, the problem
+book's worked example 4.1.2/2, the Lagrange-equation paper's example and its erratum, bad input,
+CLI."""
+
+import json
+import math
+
+import jax
+import numpy as np
+import pytest
+
+import vmj
+from vmj._cli import main as cli_main
+
+REL = 1e-8
+
+
+def _printed(value, printed, decimals):
+    """`value` rounds to the printed number at its printed precision."""
+    assert round(float(value), decimals) == pytest.approx(printed, abs=1e-12), (value, printed)
+
+
+CASES = {
+    "free-under": (vmj.LinearOscillator(2.0, 0.8, 50.0), 0.03, -0.2, 8.0),
+    "free-critical": (vmj.LinearOscillator(1.0, 2.0 * math.sqrt(14.5), 14.5), 0.02, 0.1, 5.0),
+    "free-over": (vmj.LinearOscillator(1.0, 20.0, 14.5), 0.02, -0.1, 5.0),
+    "free-undamped": (vmj.LinearOscillator(1.0, 0.0, 9.0), 0.01, 0.3, 10.0),
+    "force": (vmj.LinearOscillator(1.0, 1.0, 14.5, vmj.HarmonicForce(4.0, 15.0)), 0.0, 0.1, 20.0),
+    "force-resonant": (vmj.LinearOscillator(1.0, 0.2, 16.0, vmj.HarmonicForce(1.0, 4.0)), 0.0, 0.0,
+                       20.0),
+    "base": (vmj.LinearOscillator(3.0, 2.0, 40.0, vmj.BaseMotion(0.01, 2.5)), 0.02, 0.0, 15.0),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_simulation_matches_analytic_response(name):
+    osc, x0, v0, t1 = CASES[name]
+    tr = vmj.linear_simulate(osc, x0, v0, t1, n_save=801)
+    assert int(tr.result) == 0
+    x, v = osc.response(tr.ts, x0, v0)
+    assert np.max(np.abs(tr.xs - x)) <= REL * np.max(np.abs(x))
+    assert np.max(np.abs(tr.vs - v)) <= REL * np.max(np.abs(v))
+
+
+def test_response_initial_conditions_and_equation():
+    osc = CASES["base"][0]
+    x0, v0 = 0.02, -0.3
+    x, v = osc.response(0.0, x0, v0)
+    assert float(x) == pytest.approx(x0, abs=1e-15) and float(v) == pytest.approx(v0, abs=1e-14)
+    # the analytic response satisfies m x'' + c x' + k x = F(t) (x'' by autodiff of v)
+    a = jax.vmap(jax.grad(lambda t: osc.response(t, x0, v0)[1]))(np.linspace(0.1, 5, 7))
+    ts = np.linspace(0.1, 5, 7)
+    xs, vs = osc.response(ts, x0, v0)
+    np.testing.assert_allclose(a, osc.acceleration(ts, xs, vs), rtol=1e-10, atol=1e-12)
+
+
+def test_log_decrement_is_ratio_of_peaks():
+    osc = vmj.LinearOscillator(2.0, 0.8, 50.0)
+    Td = 2 * np.pi / float(osc.damped_frequency)
+    ts = np.array([0.3, 0.3 + Td])
+    x, _ = osc.response(ts, 0.03, -0.2)
+    assert math.log(float(x[0] / x[1])) == pytest.approx(float(osc.log_decrement), rel=1e-12)
+    eta = float(osc.damping_ratio)
+    assert float(osc.log_decrement) == pytest.approx(2 * np.pi * eta / np.sqrt(1 - eta**2))
+
+
+def test_amplification_and_phase():
+    osc = vmj.LinearOscillator(1.0, 0.4, 25.0, vmj.HarmonicForce(2.0, 5.0))  # at resonance
+    eta = float(osc.damping_ratio)
+    D, beta = osc.forced_response()
+    assert float(beta) == pytest.approx(np.pi / 2, abs=1e-14)
+    assert float(osc.amplification()) == pytest.approx(1 / (2 * eta))
+    assert float(D) == pytest.approx(2.0 / 25.0 * float(osc.amplification()), rel=1e-14)
+    assert float(osc.amplification(1e-9)) == pytest.approx(1.0)
+    # the peak of the amplification curve is at r = sqrt(1 - 2 eta^2)
+    r = np.linspace(0.9, 1.05, 30001)
+    amp = np.asarray(osc.amplification(r * 5.0))
+    assert r[np.argmax(amp)] == pytest.approx(np.sqrt(1 - 2 * eta**2), abs=1e-5)
+    # base motion: |X/Y0| = sqrt(1 + (2 eta r)^2) * amplification
+    base = vmj.LinearOscillator(1.0, 0.4, 25.0, vmj.BaseMotion(0.01, 7.0))
+    Db, _ = base.forced_response()
+    rb = 7.0 / 5.0
+    assert float(Db) / 0.01 == pytest.approx(
+        np.sqrt(1 + (2 * eta * rb) ** 2) * float(base.amplification()), rel=1e-13)
+
+
+def test_problem_book_example_4_1_2_2():
+    # m = 100 kg, k3 = 4.7e5 N/m, c3 = 5.49e3 N s/m, V0 = 0.7 m/s, X0 = -2e-3 m
+    osc = vmj.LinearOscillator(100.0, 5.49e3, 4.7e5)
+    _printed(osc.natural_frequency, 68.6, 1)
+    _printed(osc.damping_ratio, 0.4, 1)
+    _printed(osc.damped_frequency, 62.8, 1)
+    A, _ = osc.free_amplitude(-2e-3, 0.7)
+    _printed(A * 1e3, 10.5, 1)  # A = 10.5e-3 m
+    # with a quarter of the platform's 50 kg: m3 = 112.5 kg
+    osc = vmj.LinearOscillator(112.5, 5.49e3, 4.7e5)
+    _printed(osc.natural_frequency, 64.6, 1)
+    _printed(osc.damping_ratio, 0.38, 2)
+    # the book multiplies its rounded 64.6 and 0.38: 64.6 sqrt(1 - 0.38^2) = 59.75 -> 59.8
+    _printed(osc.natural_frequency * math.sqrt(1 - round(float(osc.damping_ratio), 2) ** 2),
+             59.8, 1)
+    assert float(osc.damped_frequency) == pytest.approx(59.8, abs=0.06)
+    A, _ = osc.free_amplitude(-2e-3, 0.7)
+    _printed(A * 1e3, 11.0, 0)  # A = 11e-3 m
+
+
+def test_lagrange_paper_example_and_erratum():
+    # phi'' + phi' + 14.5 phi = 4 sin 15t, phi(0) = 0, phi'(0) = 0.1
+    osc = vmj.LinearOscillator(1.0, 1.0, 14.5, vmj.HarmonicForce(4.0, 15.0))
+    _printed(osc.decay_rate, 0.5, 1)
+    _printed(osc.natural_frequency, 3.8, 1)
+    # the paper prints k* = 3.78; sqrt(14.5 - 0.25) = 3.7749 (it rounded k = 3.8 first)
+    assert float(osc.damped_frequency) == pytest.approx(3.78, abs=0.006)
+    D, beta = osc.forced_response()
+    _printed(D, 0.019, 3)
+    _printed(math.tan(float(beta)), -0.071, 3)
+    # the paper takes beta = arctan(-0.071) (principal branch); its transient A and settling time
+    beta_paper = math.atan(math.tan(float(beta)))
+    A_paper, alpha_paper = osc.free_amplitude(-float(D) * math.sin(-beta_paper),
+                                              0.1 - float(D) * 15 * math.cos(-beta_paper))
+    _printed(A_paper, 0.049, 3)
+    _printed(math.log(100 * float(A_paper) / float(D)) / 0.5, 11.1, 1)
+    # erratum: the printed law (23) violates phi(0) = 0 ...
+    law23 = lambda t: (0.049 * np.exp(-0.5 * t) * np.sin(3.78 * t + 0.028)  # noqa: E731
+                       + 0.019 * np.sin(15 * t + 0.071))
+    assert abs(law23(0.0)) > 2e-3
+    # ... and the lag is beta = pi - 0.071 (p > k), so the forced term is -0.019 sin(15t + 0.071)
+    assert float(beta) == pytest.approx(np.pi - 0.0712, abs=1e-3)
+    A, alpha = osc.transient(0.0, 0.1)
+    assert float(A) == pytest.approx(0.1018, abs=1e-4)
+    assert float(alpha) == pytest.approx(0.0132, abs=1e-4)
+    corrected = lambda t: (0.1018 * np.exp(-0.5 * t) * np.sin(3.775 * t + 0.0132)  # noqa: E731
+                           - 0.018954 * np.sin(15 * t + 0.0712))
+    tr = vmj.linear_simulate(osc, 0.0, 0.1, 12.0, n_save=801)
+    assert np.max(np.abs(corrected(np.asarray(tr.ts)) - tr.xs)) < 2e-4
+    assert np.max(np.abs(law23(np.asarray(tr.ts)) - tr.xs)) > 0.02
+    assert float(osc.settling_time(0.0, 0.1)) == pytest.approx(12.57, abs=0.01)
+
+
+@pytest.mark.parametrize("make,name", [
+    (lambda: vmj.LinearOscillator(0.0, 1.0, 1.0), "m"),
+    (lambda: vmj.LinearOscillator(-1.0, 1.0, 1.0), "m"),
+    (lambda: vmj.LinearOscillator(1.0, -0.1, 1.0), "c"),
+    (lambda: vmj.LinearOscillator(1.0, 1.0, 0.0), "k"),
+    (lambda: vmj.LinearOscillator(float("nan"), 1.0, 1.0), "m"),
+    (lambda: vmj.HarmonicForce(1.0, 0.0), "p"),
+    (lambda: vmj.HarmonicForce(float("nan"), 1.0), "F0"),
+    (lambda: vmj.BaseMotion(0.01, -2.0), "p"),
+    (lambda: vmj.LinearOscillator(1.0, 1.0, 1.0, forcing=3.0), "forcing"),
+    (lambda: vmj.linear_simulate(vmj.LinearOscillator(1.0, 1.0, 1.0), 0.0, 1.0, 0.0), "t1"),
+])
+def test_bad_input(make, name):
+    with pytest.raises(ValueError, match=name):
+        make()
+
+
+def _cli_json(capsys, argv):
+    assert cli_main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+KEYS = ["natural_frequency", "damped_frequency", "damping_ratio", "log_decrement",
+        "free_amplitude", "free_phase", "forced_amplitude", "forced_phase"]
+
+
+def test_cli_json(capsys):
+    out = _cli_json(capsys, ["linear", "--m", "100", "--c", "5.49e3", "--k", "4.7e5",
+                             "--x0=-2e-3", "--v0", "0.7", "--json"])
+    assert list(out) == KEYS
+    assert out["free_amplitude"] == pytest.approx(10.46e-3, abs=1e-5)
+    assert out["forced_amplitude"] is None and out["forced_phase"] is None
+    out = _cli_json(capsys, ["linear", "--m", "1", "--c", "1", "--k", "14.5", "--v0", "0.1",
+                             "--F0", "4", "--p", "15", "--json"])
+    assert list(out) == KEYS
+    assert out["forced_amplitude"] == pytest.approx(0.018954, abs=1e-6)
+    assert out["forced_phase"] == pytest.approx(np.pi - 0.0712, abs=1e-3)
+    out = _cli_json(capsys, ["linear", "--m", "1", "--c", "10", "--k", "1", "--json"])
+    assert out["damped_frequency"] is None and out["log_decrement"] is None
+
+
+@pytest.mark.parametrize("argv", [["--m", "0", "--c", "1", "--k", "1"],
+                                  ["--m", "1", "--c", "-1", "--k", "1"],
+                                  ["--m", "1", "--c", "1", "--k", "1", "--F0", "1"]])
+def test_cli_bad_input_exit_2(capsys, argv):
+    assert cli_main(["linear", *argv]) == 2
+    assert capsys.readouterr().err.startswith("vmj: error:")
