@@ -62,8 +62,7 @@ def plot_swings(result, path: str, title: str = "") -> None:
     n = np.shape(seq.positions)[-1]
     eps, mu = result.coords["eps"], result.coords["mu"]
     plt, fig, axes = _grid_of_panels(len(deltas))
-    cmap = plt.get_cmap("viridis", n).copy()
-    cmap.set_over("lightgrey")
+    cmap = plt.get_cmap("viridis", n).with_extremes(over="lightgrey")
     mesh = None
     for j, (ax, d) in enumerate(zip(axes, deltas)):
         count = at(np.asarray(seq.count), j).astype(float)

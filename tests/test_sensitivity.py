@@ -1,0 +1,95 @@
+"""vmj.sensitivity: forward and reverse mode against central finite differences, under vmap and
+inside vmj.sweep."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import vmj
+from vmj._sensitivity import central_difference
+
+A0 = 0.06
+WRT = ("F", "mu", "eps", "delta", "a0")
+
+
+def model_at(delta=3.0, eps=0.3, mu=2.0, F=14.7):
+    return vmj.VariableMass(5.0, 4900.0, delta, eps, mu, vmj.Coulomb(F))
+
+
+def exact_amplitudes(m, a0, n):
+    return vmj.turning_points(m, a0, n).amplitudes
+
+
+def energy_amplitudes(m, a0, n):
+    return vmj.energy_balance(m, a0, n).amplitudes
+
+
+# steps of the central differences: about 1e-6 of each parameter's scale
+STEPS = {"F": 1e-5, "mu": 1e-6, "eps": 1e-7, "delta": 1e-6, "a0": 1e-8}
+
+
+@pytest.mark.parametrize("delta", [3.0, -3.0])
+def test_exact_forward_mode_matches_central_differences(delta):
+    m = model_at(delta=delta, eps=0.3, mu=2.0)
+    got = vmj.sensitivity(exact_amplitudes, m, WRT, a0=A0, n=8)
+    assert list(got) == list(WRT)
+    for name in WRT:
+        fd = central_difference(exact_amplitudes, m, name, STEPS[name], a0=A0, n=8)
+        assert got[name].shape == (8,)
+        scale = np.max(np.abs(fd))
+        assert scale > 0
+        np.testing.assert_allclose(got[name], fd, rtol=0, atol=1e-5 * scale, err_msg=name)
+
+
+def test_reverse_mode_equals_forward_mode_and_central_differences():
+    m = model_at(delta=-3.0, eps=0.7, mu=5.0)
+    fwd = vmj.sensitivity(energy_amplitudes, m, WRT, a0=A0, n=12)
+    rev = vmj.sensitivity(energy_amplitudes, m, WRT, a0=A0, n=12, mode="reverse")
+    for name in WRT:
+        np.testing.assert_allclose(rev[name], fwd[name], rtol=1e-12, atol=1e-15)
+        fd = central_difference(energy_amplitudes, m, name, STEPS[name], a0=A0, n=12)
+        np.testing.assert_allclose(fwd[name], fd, rtol=0, atol=1e-6 * np.max(np.abs(fd)))
+
+
+def test_stop_time_sensitivity():
+    # the exact stop time moves smoothly with the friction force while the count is unchanged
+    def stop_time(m, a0, n):
+        return vmj.energy_balance(m, a0, n).stop_time
+
+    m = model_at(delta=3.0, eps=0.0, mu=9.0)
+    assert np.isfinite(stop_time(m, A0, 20))
+    got = vmj.sensitivity(stop_time, m, ("delta", "mu"), a0=A0, n=20)
+    for name in ("delta", "mu"):
+        fd = central_difference(stop_time, m, name, STEPS[name], a0=A0, n=20)
+        np.testing.assert_allclose(got[name], fd, rtol=1e-6)
+
+
+def test_vmappable_and_sweepable():
+    eps = jnp.array([0.1, 0.5, 0.9])
+
+    def at(e):
+        return vmj.sensitivity(energy_amplitudes, model_at(eps=e), ("mu", "F"), a0=A0, n=6)
+
+    batched = jax.vmap(at)(eps)
+    swept = vmj.sweep(lambda m: vmj.sensitivity(energy_amplitudes, m, ("mu", "F"), a0=A0, n=6),
+                      vmj.grid(model_at(), eps=eps))
+    for i, e in enumerate(eps):
+        one = at(e)
+        for name in ("mu", "F"):
+            np.testing.assert_allclose(batched[name][i], one[name], rtol=1e-12)
+            np.testing.assert_allclose(swept.values[name][i], one[name], rtol=1e-12)
+    assert "mu_1" in swept.columns()
+
+
+def test_bad_input():
+    m = model_at()
+    with pytest.raises(ValueError, match="'nu' is not a parameter"):
+        vmj.sensitivity(energy_amplitudes, m, ("nu",), a0=A0, n=3)
+    with pytest.raises(ValueError, match="mode must be"):
+        vmj.sensitivity(energy_amplitudes, m, ("mu",), a0=A0, n=3, mode="central")
+    with pytest.raises(ValueError, match="float arrays only"):
+        vmj.sensitivity(lambda m, a0, n: vmj.energy_balance(m, a0, n).count, m, ("mu",),
+                        a0=A0, n=3)
+    with pytest.raises(ValueError, match="at least one"):
+        vmj.sensitivity(energy_amplitudes, m, (), a0=A0, n=3)

@@ -1,0 +1,237 @@
+"""vmj.sweep / vmj.grid: point-by-point equality, the SciPy reference, broadcasting, chunking,
+bounded memory, sharding over 4 devices, CSV / NetCDF export and the `vmj sweep` command."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import vmj
+from scipy_reference import variable_mass_turning_points
+
+A0 = 0.06
+N_SWINGS = 12
+EPS, MU, DELTA = [0.0, 0.4, 1.0], [0.0, 2.0, 9.0], [-3.0, 3.0]
+
+
+def paper_model(delta=3.0, eps=0.0, mu=2.0, F=14.7):
+    return vmj.VariableMass(5.0, 4900.0, delta, eps, mu, vmj.Coulomb(F))
+
+
+@pytest.fixture(scope="module")
+def exact_grid():
+    g = vmj.grid(paper_model(), eps=EPS, mu=MU, delta=DELTA)
+    # 18 points in chunks of 8: three chunks, the last one padded
+    return vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=8)
+
+
+def test_grid_axes_and_shape(exact_grid):
+    r = exact_grid
+    assert r.dims == ("eps", "mu", "delta")
+    assert r.shape == (3, 3, 2) and r.chunks == 3
+    assert r.values.positions.shape == (3, 3, 2, N_SWINGS)
+    assert r.values.count.shape == (3, 3, 2)
+    np.testing.assert_array_equal(r.coords["mu"], MU)
+
+
+def test_sweep_equals_point_by_point(exact_grid):
+    r = exact_grid
+    for i, e in enumerate(EPS):
+        for j, m in enumerate(MU):
+            for k, d in enumerate(DELTA):
+                one = vmj.turning_points(paper_model(d, e, m), A0, N_SWINGS)
+                np.testing.assert_allclose(r.values.positions[i, j, k], one.positions,
+                                           rtol=0, atol=1e-12 * A0)
+                np.testing.assert_allclose(r.values.times[i, j, k], one.times, rtol=1e-12)
+                for name in ("crossed", "count", "stopped", "result"):
+                    np.testing.assert_array_equal(getattr(r.values, name)[i, j, k],
+                                                  getattr(one, name))
+
+
+@pytest.mark.parametrize("idx", [(0, 0, 1), (1, 1, 0), (2, 2, 1), (2, 0, 0)])
+def test_sweep_matches_scipy(exact_grid, idx):
+    i, j, k = idx
+    t_ref, x_ref, c_ref = variable_mass_turning_points(5.0, 4900.0, DELTA[k], EPS[i], MU[j], A0,
+                                                       N_SWINGS, F=14.7)
+    seq = exact_grid.values
+    count = int(seq.count[idx])
+    assert count == len(x_ref)
+    np.testing.assert_allclose(seq.positions[idx][:count], x_ref, rtol=0, atol=1e-7 * A0)
+    np.testing.assert_allclose(seq.times[idx][:count], t_ref, rtol=1e-7)
+    np.testing.assert_array_equal(seq.crossed[idx][:count], c_ref)
+
+
+def test_paired_points_broadcast_like_numpy():
+    eps = np.array([0.0, 0.3, 1.0])
+    mu = np.array([2.0, 5.0, 9.0])
+    paired = vmj.sweep(vmj.energy_balance, paper_model(eps=eps, mu=mu), a0=A0, n=8)
+    assert paired.dims == ("point",) and paired.shape == (3,)
+    assert set(paired.coords) == {"eps", "mu"}
+    for p in range(3):
+        one = vmj.energy_balance(paper_model(eps=eps[p], mu=mu[p]), A0, 8)
+        np.testing.assert_allclose(paired.values.positions[p], one.positions, atol=1e-12 * A0)
+    # (2, 1) x (3,) broadcasts to a 2 x 3 product, the same as the grid over those axes
+    outer = vmj.sweep(vmj.energy_balance, paper_model(eps=eps[:2, None], mu=mu), a0=A0, n=8)
+    g = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=eps[:2], mu=mu), a0=A0, n=8)
+    assert outer.shape == g.shape == (2, 3)
+    assert outer.dims == ("point_0", "point_1")
+    np.testing.assert_array_equal(outer.values.positions, g.values.positions)
+
+
+def test_nested_parameter_names():
+    g = vmj.grid(paper_model(), F=[5.0, 14.7])
+    assert g.dims == ("F",)
+    dotted = vmj.grid(paper_model(), **{"friction.F": [5.0, 14.7]})
+    np.testing.assert_array_equal(dotted.model.friction.F, g.model.friction.F)
+    r = vmj.sweep(vmj.energy_balance, g, a0=A0, n=4)
+    one = vmj.energy_balance(paper_model(F=5.0), A0, 4)
+    np.testing.assert_allclose(r.values.positions[0], one.positions, atol=1e-12 * A0)
+
+
+def test_chunking_gives_identical_results_and_reports_progress(capsys):
+    rng = np.random.default_rng(1)
+    n = 1000
+    model = paper_model(delta=rng.uniform(-3, 3, n), eps=rng.uniform(0, 1, n),
+                        mu=rng.uniform(0, 10, n))
+    whole = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=n)
+    parts = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=64,
+                      progress=True)
+    assert whole.chunks == 1 and parts.chunks == 16
+    for a, b in zip(whole.values.__dict__.values(), parts.values.__dict__.values()):
+        np.testing.assert_array_equal(a, b)
+    assert "16/16 chunks" in capsys.readouterr().err
+
+
+def _run(code: str, env_extra: dict | None = None) -> dict:
+    env = {**os.environ, **(env_extra or {})}
+    out = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
+                         text=True, env=env, timeout=300,
+                         cwd=os.path.dirname(os.path.dirname(__file__)))
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_million_point_energy_sweep_has_bounded_memory():
+    got = _run("""
+        import json, resource
+        import jax
+        jax.config.update("jax_enable_x64", True)
+        import numpy as np, vmj
+        model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
+        g = vmj.grid(model, eps=np.linspace(0, 1, 100), mu=np.linspace(0, 10, 100),
+                     delta=np.linspace(-3, 3, 100))
+        fn = lambda m, a0, n: vmj.energy_balance(m, a0, n).amplitudes
+        vmj.sweep(fn, vmj.grid(model, eps=[0.5]), a0=0.06, n=12)  # imports and a first compile
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        r = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=65536)
+        after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        print(json.dumps({"mb": after - before, "chunks": r.chunks, "shape": r.values.shape,
+                          "finite": bool(np.isfinite(r.values).all())}))
+    """)
+    assert got["shape"] == [100, 100, 100, 12] and got["chunks"] == 16 and got["finite"]
+    # the result itself is 96 MB; an unchunked evaluation keeps several 10^6 x 12 buffers
+    assert got["mb"] < 250, got
+
+
+def test_sharded_over_four_devices_equals_one_device():
+    got = _run("""
+        import json
+        import jax
+        jax.config.update("jax_enable_x64", True)
+        import numpy as np, vmj
+        assert len(jax.devices()) == 4
+        model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
+        g = vmj.grid(model, eps=np.linspace(0, 1, 5), mu=np.linspace(0, 9, 7), delta=[-3.0, 3.0])
+        fn = vmj.energy_balance
+        four = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=24)
+        one = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=24, devices=jax.devices()[:1])
+        diff = max(float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float))))
+                   for a, b in zip(jax.tree.leaves(four.values), jax.tree.leaves(one.values)))
+        print(json.dumps({"devices": [four.devices, one.devices], "diff": diff,
+                          "chunks": four.chunks}))
+    """, {"XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"})
+    assert got["devices"] == [4, 1] and got["chunks"] == 3
+    assert got["diff"] <= 1e-15
+
+
+def test_csv_round_trip(exact_grid, tmp_path):
+    path = tmp_path / "sweep.csv"
+    exact_grid.to_csv(str(path))
+    back = vmj.SweepResult.read_csv(str(path))
+    assert back.dims == exact_grid.dims and back.shape == exact_grid.shape
+    for d in back.dims:
+        np.testing.assert_array_equal(back.coords[d], exact_grid.coords[d])
+    for name in ("times", "positions", "crossed", "count", "stopped", "result"):
+        orig = getattr(exact_grid.values, name)
+        np.testing.assert_array_equal(back.values[name], orig)
+        assert back.values[name].dtype == orig.dtype
+    header = path.read_text().splitlines()[1].split(",")
+    assert header[:4] == ["eps", "mu", "delta", "times_1"]
+
+
+def test_csv_round_trip_paired(tmp_path):
+    model = paper_model(eps=np.array([0.1, 0.7]), mu=np.array([1.0, 3.0]))
+    r = vmj.sweep(vmj.energy_balance, model, a0=A0, n=5)
+    r.to_csv(str(tmp_path / "p.csv"))
+    back = vmj.SweepResult.read_csv(str(tmp_path / "p.csv"))
+    np.testing.assert_array_equal(back.coords["eps"], [0.1, 0.7])
+    np.testing.assert_array_equal(back.values["positions"], r.values.positions)
+
+
+def test_netcdf_round_trip(exact_grid, tmp_path):
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("netCDF4")
+    ds = exact_grid.to_xarray()
+    assert ds.positions.dims == ("eps", "mu", "delta", "k")
+    np.testing.assert_array_equal(ds.k, np.arange(1, N_SWINGS + 1))
+    path = tmp_path / "sweep.nc"
+    exact_grid.to_netcdf(str(path))
+    with xr.open_dataset(path) as back:
+        np.testing.assert_array_equal(back.positions.values, exact_grid.values.positions)
+        np.testing.assert_array_equal(back.crossed.values, exact_grid.values.crossed)
+        np.testing.assert_array_equal(back.mu.values, MU)
+        sel = back.positions.sel(eps=0.4, mu=2.0, delta=3.0).values
+        np.testing.assert_array_equal(sel, exact_grid.values.positions[1, 1, 1])
+
+
+def test_bad_input_raises_value_error():
+    m = paper_model()
+    with pytest.raises(ValueError, match="'nu' is not a parameter"):
+        vmj.grid(m, nu=[1.0])
+    with pytest.raises(ValueError, match=r"eps must be finite and in \[0, 1\]"):
+        vmj.grid(m, eps=[0.0, 2.0])
+    with pytest.raises(ValueError, match="1-D"):
+        vmj.grid(m, eps=[[0.0, 1.0]])
+    with pytest.raises(ValueError, match="scalar parameters"):
+        vmj.grid(paper_model(eps=jnp.array([0.0, 1.0])), mu=[1.0])
+    with pytest.raises(ValueError, match="do not broadcast"):
+        vmj.sweep(vmj.energy_balance, paper_model(eps=np.zeros(2), mu=np.zeros(3)), a0=A0, n=2)
+    with pytest.raises(ValueError, match="chunk_size"):
+        vmj.sweep(vmj.energy_balance, vmj.grid(m, eps=[0.0]), a0=A0, n=2, chunk_size=0)
+
+
+def test_cli_sweep(tmp_path, capsys):
+    from vmj._cli import main
+
+    out, fig = tmp_path / "s.csv", tmp_path / "s.png"
+    argv = ["sweep", "variable-mass", "--eps", "0:1:3", "--mu", "0:10:3", "--delta", "-3:3:2",
+            "--set", "m0=5,c=4900,FT=14.7,a0=0.06", "--method", "energy", "--out", str(out),
+            "--plot", str(fig)]
+    assert main(argv) == 0
+    assert "18 points (eps 3 x mu 3 x delta 2)" in capsys.readouterr().out
+    back = vmj.SweepResult.read_csv(str(out))
+    assert back.dims == ("eps", "mu", "delta")
+    np.testing.assert_array_equal(back.coords["delta"], [-3.0, 3.0])
+    one = vmj.energy_balance(paper_model(-3.0, 0.5, 10.0), A0, N_SWINGS)
+    np.testing.assert_allclose(back.values["positions"][1, 2, 0], one.positions, atol=1e-12 * A0)
+    assert fig.stat().st_size > 10_000
+    bad = argv[:3] + ["0:2:3"] + argv[4:]
+    assert main(bad) == 2
+    assert "eps must be finite and in [0, 1]" in capsys.readouterr().err
+    assert main(["sweep", "variable-mass", "--eps", "0:1:3", "--set", "m0=5,c=4900,FT=1"]) == 2
+    assert "missing a0" in capsys.readouterr().err
