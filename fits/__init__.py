@@ -1,1 +1,41 @@
-"""fits: identification of dry friction, rope friction and damping from measured decay."""
+"""fits: identification of dry friction, rope friction and damping from measured decay.
+
+    import jax
+    jax.config.update("jax_enable_x64", True)
+    import fits
+
+    record = fits.read_record("80P.txt", series=True)       # raw signal -> turning points
+    result = fits.fit(record, "oscillator", free=("omega", "zeta", "xF", "a0", "offset"))
+    print(result.report())
+
+See docs/fits.md.
+"""
+
+from ._decrement import decrement
+from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
+from ._io import (Record, Signal, extract_turning_points, read_peaks, read_record, read_signal,
+                  record_from_sequence)
+from ._models import FORWARDS, AffineFriction, oscillator_half_swings
+from ._report import paper_records, plot_fit, text_report
+
+__all__ = [
+    "Record",
+    "Signal",
+    "read_peaks",
+    "read_signal",
+    "read_record",
+    "record_from_sequence",
+    "extract_turning_points",
+    "decrement",
+    "fit",
+    "fit_batch",
+    "FitResult",
+    "FORWARDS",
+    "LOSSES",
+    "OPTIMIZERS",
+    "AffineFriction",
+    "oscillator_half_swings",
+    "paper_records",
+    "plot_fit",
+    "text_report",
+]

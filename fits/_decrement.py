@@ -1,0 +1,121 @@
+"""The classical decrement method (a linear regression of successive amplitudes), used as the
+starting guess of every fit and reported next to it for comparison.
+
+For a constant-mass oscillator with viscous damping `zeta` and Coulomb dead band `xF`, each
+half-swing is exactly the affine map (Feeny & Liang's decrement method for simultaneous Coulomb
+and viscous friction)
+
+    A_{k+1} = r A_k - (1 + r) xF,   r = exp(-pi zeta / sqrt(1 - zeta^2)),
+
+where `A_k = |x_k - offset|` and `A_{k+1}` is counted negative when the swing did not pass the
+centre. A least-squares line through the pairs `(A_k, A_{k+1})` gives `r` and `xF`; a line
+through `(k, t_k)` gives the half-period.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._io import Record
+
+__all__ = ["decrement", "starting_guess"]
+
+
+def decrement(record: Record, centre: float | None = None) -> dict:
+    """Decrement-method estimate from a record's turning points.
+
+    **Returns** a dict: `r` (amplitude ratio per half-swing), `xF` (Coulomb dead band, in the
+    record's units), `zeta`, `half_period` [s] and `omega` [rad/s] (when the record has times,
+    else `None`), `slope`, `intercept`, `stderr_r`, `stderr_xF`, `pairs` (the regression data
+    `A_k`, `A_{k+1}`), `centre`.
+
+    Raises `ValueError` when the amplitudes do not decay.
+    """
+    c = record.centre if centre is None else centre
+    x = np.asarray(record.positions, dtype=float) - c
+    k = np.asarray(record.k)
+    src = f"{record.source}: " if record.source else ""
+    if len(x) < 3:
+        raise ValueError(f"{src}need at least 3 turning points for the decrement method "
+                         f"(got {len(x)})")
+    amp = np.abs(x)
+    trend = np.polyfit(k.astype(float), amp, 1)[0]
+    if not trend < 0:
+        raise ValueError(f"{src}the sequence does not decay (the amplitudes grow by "
+                         f"{trend:.3g} per swing on average): nothing to identify")
+    consecutive = np.diff(k) == 1
+    a_now = amp[:-1][consecutive]
+    a_next = (-np.sign(x[:-1]) * x[1:])[consecutive]  # negative: did not pass the centre
+    moving = np.abs(x[1:] - x[:-1])[consecutive] > 0
+    a_now, a_next = a_now[moving], a_next[moving]
+    if a_now.size < 2:
+        raise ValueError(f"{src}need at least 2 pairs of successive turning points")
+    A = np.stack([a_now, np.ones_like(a_now)], axis=1)
+    coef, *_ = np.linalg.lstsq(A, a_next, rcond=None)
+    slope, intercept = float(coef[0]), float(coef[1])
+    dof = max(a_now.size - 2, 1)
+    resid = a_next - A @ coef
+    s2 = float(resid @ resid) / dof
+    try:
+        cov = s2 * np.linalg.inv(A.T @ A)
+    except np.linalg.LinAlgError:
+        cov = np.full((2, 2), np.nan)
+    r = min(max(slope, 1e-6), 1 - 1e-9)
+    xF = -intercept / (1 + r)
+    # d xF / d(slope, intercept) for the standard error
+    g = np.array([intercept / (1 + r) ** 2, -1 / (1 + r)])
+    log_r = math.log(r)
+    zeta = -log_r / math.sqrt(math.pi**2 + log_r**2)
+    half = omega = None
+    if record.times is not None and np.sum(consecutive) >= 1:
+        half = float(np.polyfit(k.astype(float), record.times, 1)[0])
+        if half > 0:
+            omega = math.pi / half / math.sqrt(1 - zeta * zeta)
+    return {
+        "r": r,
+        "xF": xF,
+        "zeta": zeta,
+        "half_period": half,
+        "omega": omega,
+        "slope": slope,
+        "intercept": intercept,
+        "stderr_r": float(math.sqrt(max(cov[0, 0], 0.0))),
+        "stderr_xF": float(math.sqrt(max(g @ cov @ g, 0.0))),
+        "pairs": (a_now, a_next),
+        "centre": c,
+    }
+
+
+def starting_guess(space_name: str, record: Record, given: dict, dec: dict) -> dict:
+    """Starting values of every parameter of a model family from the decrement estimate `dec`;
+    values in `given` (fixed parameters, or starts chosen by the user) take precedence."""
+    a0 = float(abs(record.positions[0] - dec["centre"])) if record.k[0] == 0 else None
+    if a0 is None:
+        a0 = float(np.max(record.amplitudes))
+    zeta = max(dec["zeta"], 1e-3)
+    xF = max(dec["xF"], 2e-3 * a0)
+    start = {"a0": a0, "offset": dec["centre"]}
+    if space_name == "oscillator":
+        start.update(zeta=min(zeta, 0.5), xF=xF, omega=dec["omega"] or 1.0)
+    elif space_name == "variable-mass":
+        m0, c = given["m0"], given["c"]
+        delta = given.get("delta", 0.0)
+        eps = given.get("eps", 0.0)
+        g = given.get("g", 9.81)
+        n = int(record.k[-1])
+        half = math.pi * math.sqrt(m0 / c)
+        m_mid = max(m0 + delta * half * n / 2, 0.2 * m0)
+        lam = 4 * math.sqrt(c * m_mid) * math.log(dec["r"]) / math.pi
+        mu = max((delta - 2 * delta * eps - lam) / 2, 2e-3 * math.sqrt(c * m0))
+        start.update(mu=mu, eps=min(max(eps, 0.05), 0.95), delta=delta, g=g, m0=m0, c=c,
+                     FT=c * xF, f=c * xF / (g * m_mid))
+    elif space_name == "rope":
+        start.update(rope_start(record, given, dec, a0))
+    start.update({k: float(v) for k, v in given.items()})
+    return start
+
+
+def rope_start(record, given, dec, a0):  # replaced by the rope module when it is loaded
+    raise ValueError("the rope model is not available")

@@ -1,0 +1,170 @@
+"""Forward models of the fits: turning-point sequences as functions of a parameter vector.
+
+Each model family is a `Space`: its parameter names, how each is kept in range during the fit
+(`kinds`), which parameters are dry and which viscous friction (for the model comparison), and
+`predict(theta, n, forward)` returning the release point and the first `n` turning points
+`(times [s], signed positions)` of the model released from rest at `-a0`. The constant offset
+and the orientation of the record are applied by the fit, not here.
+
+Every `predict` wraps `vmj.turning_points` (one solver per method), except the constant-mass
+oscillator's `"exact"` method, which is its closed-form half-swing map (exact for constant mass,
+and what the decrement method linearises).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+from jax import lax
+
+import vmj
+from vmj._checks import nonnegative, positive
+from vmj._models import FrictionLaw, _float
+
+__all__ = ["Space", "SPACES", "FORWARDS", "AffineFriction", "oscillator_half_swings"]
+
+FORWARDS = ("exact", "smooth", "energy")
+
+#: how a parameter is kept in range: theta = scale p (real), scale p^2 (positive),
+#: sin(p)^2 (unit: [0, 1])
+KIND_CODES = {"real": 0, "positive": 1, "unit": 2}
+
+
+class AffineFriction(FrictionLaw):
+    """Dry friction `F(t) = F_T + f g m(t)`: covers [`vmj.Coulomb`][] (`f = 0`) and
+    [`vmj.MassProportional`][] (`F_T = 0`) with one compiled forward model, so fits of both laws
+    (and of their comparison) share one compilation.
+
+    **Arguments:** `FT` [N] `>= 0`, `f` [-] `>= 0`, `g` [m/s^2] `> 0`.
+    """
+
+    FT: jnp.ndarray = eqx.field(converter=_float)
+    f: jnp.ndarray = eqx.field(converter=_float)
+    g: jnp.ndarray = eqx.field(converter=_float, default=9.81)
+    _limits = {"FT": (nonnegative, ">= 0 [N]"), "f": (nonnegative, ">= 0 [-]"),
+               "g": (positive, "> 0 [m/s^2]")}
+
+    def force(self, mass):
+        return self.FT + self.f * self.g * mass
+
+    def dforce_dmass(self):
+        return self.f * self.g
+
+
+@dataclass(frozen=True)
+class Space:
+    """A model family for fitting (static; compared by name)."""
+
+    name: str
+    names: tuple
+    kinds: tuple
+    units: tuple
+    dry: tuple  #: dry-friction parameters (fixed to 0 for the viscous-only comparison)
+    viscous: tuple  #: viscous parameters (fixed to 0 for the Coulomb-only comparison)
+    required: tuple  #: parameters that must be given when not fitted
+    predict: Callable = None
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+    def __hash__(self):
+        return hash(self.name)
+
+    def __eq__(self, other):
+        return isinstance(other, Space) and other.name == self.name
+
+
+def _sequence(seq, a0):
+    times = jnp.concatenate([jnp.zeros((1,)), seq.times])
+    positions = jnp.concatenate([-jnp.reshape(a0, (1,)), seq.positions])
+    return times, positions
+
+
+# -- variable-mass oscillator ------------------------------------------------------------------
+def _variable_mass(theta: dict, n: int, forward: str):
+    law = AffineFriction(theta["FT"], theta["f"], theta["g"])
+    model = vmj.VariableMass(theta["m0"], theta["c"], theta["delta"], theta["eps"], theta["mu"],
+                             law)
+    return _sequence(vmj.turning_points(model, theta["a0"], n, method=forward), theta["a0"])
+
+
+VARIABLE_MASS = Space(
+    name="variable-mass",
+    names=("FT", "f", "mu", "eps", "delta", "a0", "offset", "m0", "c", "g"),
+    kinds=("positive", "positive", "positive", "unit", "real", "positive", "real", "positive",
+           "positive", "positive"),
+    units=("N", "-", "kg/s", "-", "kg/s", "m", "m", "kg", "N/m", "m/s^2"),
+    dry=("FT", "f"),
+    viscous=("mu",),
+    required=("m0", "c"),
+    predict=_variable_mass,
+)
+
+
+# -- normalised constant-mass oscillator -------------------------------------------------------
+def oscillator_half_swings(omega, zeta, xF, a0, n: int):
+    """Exact turning points of `x'' + 2 zeta omega x' + omega^2 x = -omega^2 xF sign(x')`
+    released from rest at `-a0` (`0 <= zeta < 1`).
+
+    Each half-swing oscillates about `-s xF` (`s` the sign of the velocity), so it lasts
+    `pi/omega_d` (`omega_d = omega sqrt(1 - zeta^2)`) and maps `x -> -s xF - r (x + s xF)` with
+    `r = exp(-zeta omega pi/omega_d)`; the mass sticks where `|x| <= xF`. Returns
+    `(times, positions, moved)` of the `n` turning points after the release."""
+    wd = omega * jnp.sqrt(jnp.maximum(1.0 - zeta * zeta, 1e-12))
+    half = jnp.pi / wd
+    r = jnp.exp(-zeta * omega * half)
+
+    def body(carry, _):
+        t, x = carry
+        moves = jnp.abs(x) > xF
+        s = -jnp.sign(x)
+        x1 = -s * xF - r * (x + s * xF)
+        t, x = jnp.where(moves, t + half, t), jnp.where(moves, x1, x)
+        return (t, x), (t, x, moves)
+
+    x0 = -a0 * jnp.ones_like(omega)
+    _, (times, positions, moved) = lax.scan(body, (jnp.zeros_like(x0), x0), None, length=n)
+    return times, positions, moved
+
+
+def _oscillator_model(theta):
+    omega = theta["omega"]
+    law = vmj.Coulomb(omega * omega * theta["xF"])
+    return vmj.VariableMass(1.0, omega * omega, 0.0, 0.0, 2 * theta["zeta"] * omega, law)
+
+
+def _oscillator(theta: dict, n: int, forward: str):
+    if forward == "exact":
+        times, positions, _ = oscillator_half_swings(theta["omega"], theta["zeta"], theta["xF"],
+                                                     theta["a0"], n)
+        return (jnp.concatenate([jnp.zeros((1,)), times]),
+                jnp.concatenate([-jnp.reshape(theta["a0"], (1,)), positions]))
+    seq = vmj.turning_points(_oscillator_model(theta), theta["a0"], n, method=forward)
+    return _sequence(seq, theta["a0"])
+
+
+OSCILLATOR = Space(
+    name="oscillator",
+    names=("omega", "zeta", "xF", "a0", "offset"),
+    kinds=("positive", "unit", "positive", "positive", "real"),
+    units=("rad/s", "-", "signal", "signal", "signal"),
+    dry=("xF",),
+    viscous=("zeta",),
+    required=(),
+    predict=_oscillator,
+)
+
+SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR)}
+
+
+def register_space(space: Space) -> Space:
+    """Add a model family (used by the rope model when `vmj.Rope` is available)."""
+    SPACES[space.name] = space
+    return space
+
+
+def theta_dict(space: Space, theta) -> dict:
+    return {name: theta[..., i] for i, name in enumerate(space.names)}
