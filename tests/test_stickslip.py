@@ -188,3 +188,16 @@ def test_cli_nan_exit_2():
     with pytest.raises(SystemExit) as e:
         cli_main(["stick-slip", "--eps", "nan", "--Omega", "1"])
     assert e.value.code == 2
+
+
+def test_smoothed_model_approaches_exact_cycle():
+    # w = 1e-4: same reversals, period within 2 % (the convergence is slow, ~w^0.28:
+    # docs/stick-slip.md); the smoothed disk creeps instead of sticking
+    model = vmj.StickSlip(6.3, 0.7)
+    exact = exact_jit(6.3, 0.7)
+    sm = vmj.stick_slip_cycle(model, method="smooth", smoothing=1e-4)
+    assert int(sm.reversals) == int(exact.reversals) == 2
+    assert float(sm.period) == pytest.approx(float(exact.period), rel=0.02)
+    assert float(sm.period) != pytest.approx(float(exact.period), rel=1e-3)
+    with pytest.raises(ValueError, match="stick_slip_simulate"):
+        sm.trajectory()

@@ -143,6 +143,7 @@ class StickSlipCycle(eqx.Module):
     - `slip_time`, `stick_time`, `period`: `tau_*`, `tau^*`, `Lambda = tau_* + tau^*`.
     - `result`: 0 on success, `RESULTS.step_limit` when more than `max_reversals` reversals.
     - `model`: the [`vmj.StickSlip`][] it belongs to (for sampling and unit conversion).
+    - `method`: `"exact"`, `"closed"` or `"smooth"` (static): the solver that produced it.
     """
 
     reversals: Array
@@ -155,6 +156,7 @@ class StickSlipCycle(eqx.Module):
     period: Array
     result: Array
     model: StickSlip
+    method: str = eqx.field(static=True, default="exact")
 
     @property
     def message(self) -> str:
@@ -195,6 +197,9 @@ class StickSlipCycle(eqx.Module):
         angle `phi` [rad] (`phi = 0` at breakaway) and `vs` = `phi'` [rad/s].
         """
         n_save = check_int("n_save", n_save, 2)
+        if self.method == "smooth":
+            raise ValueError("a cycle measured on the smoothed model has no analytic trajectory; "
+                             "sample it with vmj.stick_slip_simulate")
         return _sample(self, n_save, jnp.asarray(periods, dtype=self.period.dtype), physical)
 
 
@@ -314,7 +319,7 @@ def closed_form_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
         reversals=kstar, count=jnp.minimum(kstar + 1, n),
         slip_intervals=jnp.where(used, tau_k, 0.0), positions=jnp.where(used, xi_k, 0.0),
         amplitudes=jnp.where(used, A_k, 0.0), slip_time=slip, stick_time=stick,
-        period=slip + stick, result=code, model=model,  # (20)
+        period=slip + stick, result=code, model=model, method="closed",  # (20)
     )
 
 
@@ -520,5 +525,5 @@ def _smooth_cycle(model, max_reversals, smoothing, throw) -> StickSlipCycle:
         slip_intervals=jnp.asarray(padded), positions=jnp.asarray(positions),
         amplitudes=jnp.zeros(n), slip_time=jnp.asarray(d2 - b1),
         stick_time=jnp.asarray(b2 - d2), period=jnp.asarray(b2 - b1),
-        result=jnp.asarray(code), model=model,
+        result=jnp.asarray(code), model=model, method="smooth",
     )
