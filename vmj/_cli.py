@@ -151,7 +151,7 @@ command("table", "reproduce a table of the variable-mass paper")((_table_args, _
 
 # -- commands defined in other modules register themselves on import ------------------------
 # (each such module imports `command`/`DECAY_MODELS` from here and is listed once below)
-COMMAND_MODULES = ("vmj._cli_stickslip", "vmj._cli_sweep")
+COMMAND_MODULES = ("vmj._cli_stickslip", "vmj._cli_sweep", "vmj._cli_rope", "vmj._cli_fit")
 
 
 # -- entry point --------------------------------------------------------------------------------
