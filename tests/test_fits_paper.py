@@ -1,0 +1,130 @@
+"""Acceptance of the variable-mass fits (issue 5): synthetic records of the exact model with noise
+0.2 % of a0, and the monograph columns of the paper's 16 table columns.
+
+Both friction laws go through one compiled solver (fits.AffineFriction, free parameters as data,
+records of equal bucketed length and equal batch size), so the module compiles once.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import fits
+import vmj
+from vmj._tables import PAPER
+
+A0 = PAPER["a0"]
+MU_SYNTH = 2.0  #: viscous coefficient of the synthetic records [kg/s]
+DELTAS = (0.0, 3.0, -3.0)  #: constant, growing and shrinking mass [kg/s]
+SEEDS = (11, 12)
+
+
+def _synthetic(law: str, delta: float, seed: int):
+    value = PAPER[law]
+    friction = fits.AffineFriction(value if law == "FT" else 0.0, value if law == "f" else 0.0)
+    model = vmj.VariableMass(PAPER["m0"], PAPER["c"], delta, 0.0, MU_SYNTH, friction)
+    seq = vmj.turning_points(model, A0, 12)
+    n = int(seq.count)
+    noise = np.random.default_rng(seed).normal(0.0, 0.002 * A0, n + 1)
+    positions = np.concatenate([[-A0], np.asarray(seq.positions)[:n]]) + noise
+    record = fits.record_from_sequence(positions=positions,
+                                       source=f"synthetic {law} delta={delta} seed={seed}")
+    given = {"m0": PAPER["m0"], "c": PAPER["c"], "delta": delta, "eps": 0.0, "a0": A0}
+    return {"record": record, "given": given, "truth": {law: value, "mu": MU_SYNTH},
+            "delta": delta}
+
+
+def _batch(law: str, tables, loss: str):
+    columns = fits.paper_records(tables[0]) + fits.paper_records(tables[1])
+    synthetic = [_synthetic(law, d, s) for d in DELTAS for s in SEEDS]
+    items = columns + synthetic
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = fits.fit_batch([it["record"] for it in items], "variable-mass", (law, "mu"),
+                                 [it["given"] for it in items], loss=loss)
+    return list(zip(items, results))
+
+
+@pytest.fixture(scope="module")
+def coulomb_l2():
+    return _batch("FT", (1, 2), "l2")
+
+
+@pytest.fixture(scope="module")
+def coulomb_cauchy():
+    return _batch("FT", (1, 2), "cauchy")
+
+
+@pytest.fixture(scope="module")
+def proportional_l2():
+    return _batch("f", (3, 4), "l2")
+
+
+def _columns(pairs):
+    return [(it, r) for it, r in pairs if "table" in it]
+
+
+def _synthetics(pairs):
+    return [(it, r) for it, r in pairs if "table" not in it]
+
+
+def _mu_ok(estimate, truth, rel):
+    return abs(estimate - truth) <= (rel * truth if truth > 0 else 0.3)
+
+
+@pytest.mark.parametrize("which", ["coulomb_l2", "proportional_l2"])
+def test_synthetic_records_constant_growing_shrinking_mass(which, request):
+    pairs = _synthetics(request.getfixturevalue(which))
+    assert {it["delta"] for it, _ in pairs} == set(DELTAS)
+    for it, r in pairs:
+        law = next(k for k in it["truth"] if k != "mu")
+        assert r.converged, it["record"].source
+        assert abs(r.params[law] / it["truth"][law] - 1) < 0.03, (it["record"].source, r.params)
+        assert abs(r.params["mu"] / MU_SYNTH - 1) < 0.15, (it["record"].source, r.params)
+        # the standard errors describe the scatter: the truth lies within 4 of them
+        for name in (law, "mu"):
+            assert abs(r.params[name] - it["truth"][name]) < 4 * r.stderr[name], (name, r)
+
+
+@pytest.mark.parametrize("which", ["coulomb_l2", "proportional_l2"])
+def test_monograph_columns(which, request):
+    pairs = _columns(request.getfixturevalue(which))
+    assert len(pairs) == 8
+    for it, r in pairs:
+        law = it["free"][0]
+        assert r.converged, it["record"].source
+        if it["table"] == 1 and it["mu"] == 9:
+            continue  # bad published cells: see test_bad_cells_need_the_robust_loss
+        assert abs(r.params[law] / PAPER[law] - 1) < 0.02, (it["record"].source, r.params)
+        assert _mu_ok(r.params["mu"], it["mu"], 0.10), (it["record"].source, r.params)
+
+
+def test_bad_cells_need_the_robust_loss(coulomb_l2, coulomb_cauchy):
+    robust = {it["record"].source: (it, r) for it, r in _columns(coulomb_cauchy)}
+    plain = {it["record"].source: r for it, r in _columns(coulomb_l2)}
+    bad = [src for src, (it, _) in robust.items() if it["table"] == 1 and it["mu"] == 9]
+    assert len(bad) == 2
+    for src in bad:
+        it, r = robust[src]
+        assert r.converged
+        assert abs(r.params["FT"] / PAPER["FT"] - 1) < 0.02, (src, r.params)
+        assert _mu_ok(r.params["mu"], it["mu"], 0.10), (src, r.params)
+        # the erratum cell (2.212 printed for 3.212; 0.236 for about 0.024) is flagged
+        assert set(it["notes"]) <= set(r.outliers), (src, r.outliers, it["notes"])
+        # without the robust loss the printed 2.212 spoils the estimate
+    assert abs(plain[bad[0]].params["FT"] / PAPER["FT"] - 1) > 0.05
+    # the robust loss does not disturb the clean columns
+    for src, (it, r) in robust.items():
+        assert abs(r.params["FT"] / PAPER["FT"] - 1) < 0.02, src
+
+
+def test_model_comparison_finds_the_friction_present(proportional_l2, coulomb_l2):
+    for it, r in _columns(proportional_l2) + _columns(coulomb_l2):
+        comp = r.model_comparison
+        assert set(comp) == {"coulomb", "viscous", "both", "best_aic", "best_bic"}
+        assert comp["viscous"]["bic"] > comp["both"]["bic"]  # dry friction is always there
+        if it["mu"] > 0 and not (it["table"] == 1 and it["mu"] == 9):
+            assert comp["best_bic"] == "both", it["record"].source
+        # (for mu = 0 a tiny mu absorbs part of the monograph method's own approximation
+        # error, so "both" may win by a few BIC units: no assertion there)
