@@ -308,7 +308,9 @@ def _action_solve(rope, a0, ts):
         _, xm, xp, _ = _swing_of_action(rope, Js * Js, l)
         return jnp.where(alive, -friction / jnp.pi * (xp - xm) / (2 * Js), 0.0)
 
-    t1 = jnp.max(ts)
+    order = jnp.argsort(ts)  # any order of the requested times: solve sorted, then put back
+    ts = ts[order]
+    t1 = ts[-1]
     sol = dfx.diffeqsolve(
         dfx.ODETerm(field), dfx.Tsit5(), t0=0.0, t1=t1, dt0=None, y0=J0,
         saveat=dfx.SaveAt(ts=ts),
@@ -328,7 +330,8 @@ def _action_solve(rope, a0, ts):
     amp, freq = jax.vmap(output)(Js, ts)
     ok = sol.result == dfx.RESULTS.successful
     amp = eqx.error_if(amp, jnp.logical_not(ok), "the averaged (action) law's ODE solve failed")
-    return amp, freq
+    back = jnp.argsort(order)
+    return amp[back], freq[back]
 
 
 def _action_entry(rope, a0, t):
