@@ -423,12 +423,7 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
         _fail(source, "the signal is constant: no decay to fit")
     h = float(hysteresis) if hysteresis is not None else max(6 * sigma, 1e-3 * span)
     idx = _zigzag(y_clean, h)
-    # drop an extremum at the very first sample unless the signal starts at rest there
-    if idx.size and idx[0] == 0:
-        slope0 = abs(y_clean[min(3, len(y) - 1)] - y_clean[0]) / max(t[min(3, len(t) - 1)], 1e-300)
-        steep = np.max(np.abs(np.diff(y_clean)) / np.maximum(np.diff(t), 1e-300))
-        if slope0 > 0.05 * steep:
-            idx = idx[1:]
+    starts_at_edge = bool(idx.size and idx[0] == 0)
     # spurious wiggles: remove the closest pair while an interval is far below the median
     while idx.size >= 4:
         gaps = np.diff(t[idx])
@@ -443,6 +438,12 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
     refined = [_refine(t, y_clean, i, s, sigma) for i, s in zip(idx, swings)]
     tk = np.array([r[0] for r in refined])
     xk = np.array([r[1] for r in refined])
+    if starts_at_edge and xk.size >= 5:
+        # an extremum at the first sample is a release from rest only if it is at least as far
+        # from the centre as the next one on its side (not a record that starts mid-swing)
+        c = np.median((xk[1:-2] + 2 * xk[2:-1] + xk[3:]) / 4)
+        if abs(xk[0] - c) < 0.98 * abs(xk[2] - c):
+            tk, xk = tk[1:], xk[1:]
     floor = float(min_amplitude) if min_amplitude is not None else 10 * h
     small = np.nonzero(np.abs(np.diff(xk)) < 2 * floor)[0]
     if small.size:
