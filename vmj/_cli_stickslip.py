@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 
 from ._cli import _emit, _number, command
 
@@ -27,8 +28,12 @@ def _stick_slip(args) -> int:
     if args.method == "closed":
         cycle = vmj.stick_slip_closed_form(model, max_reversals=_bound(args.eps))
     else:
-        cycle = vmj.stick_slip_cycle(model, method=args.method, max_reversals=_bound(args.eps),
-                                     smoothing=args.smoothing)
+        try:
+            cycle = vmj.stick_slip_cycle(model, method=args.method,
+                                         max_reversals=_bound(args.eps), smoothing=args.smoothing)
+        except RuntimeError as e:  # the smoothed model did not settle / diffrax failed
+            print(f"vmj: error: {e}", file=sys.stderr)
+            return 1
     out = cycle.reached()
     lines = [f"stick-slip cycle (eps={args.eps:g}, Omega={args.Omega:g}, method={args.method}; "
              "dimensionless time)",
@@ -101,8 +106,9 @@ def _linear(args) -> int:
         f"A = {fmt(A, 'm')}, alpha = {fmt(alpha, 'rad')}",
     ]
     if args.F0 is not None:
-        lines.append(f"forced response x = D sin(p t - beta): D = {fmt(out['forced_amplitude'], 'm')}"
-                     f", beta = {fmt(out['forced_phase'], 'rad')}")
+        lines.append("forced response x = D sin(p t - beta): "
+                     f"D = {fmt(out['forced_amplitude'], 'm')}, "
+                     f"beta = {fmt(out['forced_phase'], 'rad')}")
     _emit(out, args.json, "\n".join(lines))
     return 0
 

@@ -58,10 +58,6 @@ def _greater_than_one(x):
     return x > 1
 
 
-def _nonpositive_rejected(x):
-    return x > 0
-
-
 class StickSlip(_Checked):
     """Torsional one-mass stick-slip model in the paper's dimensionless form.
 
@@ -221,7 +217,8 @@ def _sample(cycle, n_save, periods, physical):
         j = jnp.clip(jnp.sum((t >= ends) & used), 0, cycle.count - 1)
         xi, dxi = m.slip_phase(start_xi[j], signs[j], t - starts[j])
         stuck = t >= cycle.slip_time
-        xi = jnp.where(stuck, cycle.positions[cycle.count - 1] - m.Omega * (t - cycle.slip_time), xi)
+        rest = cycle.positions[cycle.count - 1] - m.Omega * (t - cycle.slip_time)
+        xi = jnp.where(stuck, rest, xi)
         dxi = jnp.where(stuck, -m.Omega, dxi)
         return xi, dxi
 
