@@ -1,0 +1,285 @@
+"""Variable-mass oscillator: exact solver vs SciPy, closed-form limits, smoothed model, gradients,
+invariants and failure reporting. Tolerances are the acceptance criteria of the foundation issue."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy_reference import variable_mass_turning_points
+
+import vmj
+
+M0, C, A0, FT = 5.0, 4900.0, 0.06, 14.7
+
+
+def model(delta=3.0, eps=0.0, mu=2.0, F=FT, f=None):
+    law = vmj.Coulomb(F) if f is None else vmj.MassProportional(f)
+    return vmj.VariableMass(M0, C, delta, eps, mu, law)
+
+
+# -- one compiled batch solver reused by the SciPy and property tests ---------------------------
+N_SWINGS = 12
+
+
+@eqx.filter_jit
+def batch_exact(m0, c, delta, eps, mu, F, f, use_f):
+    def one(m0, c, delta, eps, mu, F, f, use_f):
+        # the friction law is selected per point: F(t) = F + use_f * f g m(t)
+        law_c = vmj.Coulomb(F)
+        law_f = vmj.MassProportional(f)
+        a = vmj.turning_points(vmj.VariableMass(m0, c, delta, eps, mu, law_c), A0, N_SWINGS)
+        b = vmj.turning_points(vmj.VariableMass(m0, c, delta, eps, mu, law_f), A0, N_SWINGS)
+        return jax.tree.map(lambda x, y: jnp.where(use_f, y, x), a, b)
+
+    return jax.vmap(one)(m0, c, delta, eps, mu, F, f, use_f)
+
+
+def random_parameters(rng, size):
+    return dict(
+        m0=rng.uniform(1.0, 10.0, size),
+        c=rng.uniform(1e3, 1e4, size),
+        delta=rng.uniform(-3.0, 3.0, size),
+        eps=rng.uniform(0.0, 1.0, size),
+        mu=rng.uniform(0.0, 10.0, size),
+        F=rng.uniform(0.0, 20.0, size),
+        f=rng.uniform(0.0, 0.3, size),
+        use_f=rng.random(size) < 0.5,
+    )
+
+
+def test_exact_matches_scipy_event_integration():
+    """Exact amplitudes vs SciPy DOP853 (rtol 1e-12, velocity-zero events): 1e-7 relative for
+    amplitudes above 1 % of a0, both friction laws, growing and shrinking mass."""
+    p = random_parameters(np.random.default_rng(20261121), 16)
+    seq = batch_exact(**{k: jnp.asarray(v) for k, v in p.items()})
+    worst, worst_t, compared = 0.0, 0.0, 0
+    for i in range(16):
+        law = {"f": p["f"][i]} if p["use_f"][i] else {"F": p["F"][i]}
+        t_ref, x_ref, c_ref = variable_mass_turning_points(
+            p["m0"][i], p["c"][i], p["delta"][i], p["eps"][i], p["mu"][i], A0, N_SWINGS, **law
+        )
+        k = len(t_ref)
+        assert int(seq.count[i]) == k
+        x = np.asarray(seq.positions[i, :k])
+        big = np.abs(x_ref) > 0.01 * A0
+        worst = max(worst, np.max(np.abs(x - x_ref)[big] / np.abs(x_ref[big]), initial=0.0))
+        worst_t = max(worst_t, np.max(np.abs(np.asarray(seq.times[i, :k]) - t_ref) / t_ref,
+                                      initial=0.0))
+        np.testing.assert_array_equal(np.asarray(seq.crossed[i, :k]), c_ref)
+        compared += k
+    print(f"compared {compared} turning points: worst relative amplitude error {worst:.2e}, "
+          f"time error {worst_t:.2e}")
+    assert compared > 100
+    assert worst < 1e-7
+    assert worst_t < 1e-9
+    assert np.any(p["delta"] < 0) and np.any(p["delta"] > 0) and np.any(p["use_f"])
+
+
+def test_constant_mass_coulomb_decrement_is_exactly_2F_over_c():
+    m = model(delta=0.0, mu=0.0)
+    for method in ("exact", "energy"):
+        seq = vmj.turning_points(m, A0, 12, method=method)
+        a = np.concatenate([[A0], np.asarray(seq.amplitudes)[: int(seq.count)]])
+        crossed = np.asarray(seq.crossed)[: int(seq.count)]
+        np.testing.assert_allclose(-np.diff(a)[crossed], 2 * FT / C, rtol=1e-9, atol=0)
+    seq = vmj.turning_points(m, A0, 12)
+    # constant mass: every half-swing lasts exactly pi sqrt(m/c)
+    np.testing.assert_allclose(np.diff(np.concatenate([[0], np.asarray(seq.times)[:9]])),
+                               np.pi * np.sqrt(M0 / C), rtol=1e-12)
+
+
+@pytest.mark.parametrize("eps,delta", [(0.0, 3.0), (0.25, -4.0), (1.0, -3.0)])
+def test_arithmetic_decay_on_the_papers_boundary(eps, delta):
+    """delta = 2 mu / (1 - 2 eps) (lambda = 0): the paper's remark that the decay is arithmetic.
+    The energy balance gives exactly 2F/c per swing; the exact solution too, to 1e-6."""
+    mu = delta * (1 - 2 * eps) / 2
+    if mu < 0:
+        pytest.skip("mu would be negative")
+    m = model(delta=delta, eps=eps, mu=mu)
+    for method, rtol in (("energy", 1e-12), ("exact", 1e-6)):
+        seq = vmj.turning_points(m, A0, 8, method=method)
+        a = np.concatenate([[A0], np.asarray(seq.amplitudes)[:8]])
+        np.testing.assert_allclose(-np.diff(a), 2 * FT / C, rtol=rtol)
+
+
+def test_smoothed_turning_points_converge_to_exact():
+    """At the default smoothing the first five amplitudes agree with the exact ones to 1e-3
+    relative, and the error shrinks as w shrinks."""
+    w0 = 1e-4 * A0 * np.sqrt(C / M0)  # the default smoothing velocity of these models
+    for m in (model(delta=-3.0, eps=1.0, mu=9.0), model(delta=-3.0, f=0.3, mu=5.0)):
+        exact = np.asarray(vmj.turning_points(m, A0, 6).amplitudes)[:5]
+
+        def error(w):
+            smooth = vmj.turning_points(m, A0, 6, method="smooth", smoothing=w)
+            return np.max(np.abs(np.asarray(smooth.amplitudes)[:5] / exact - 1))
+
+        default = error(None)
+        errors = [error(k * w0) for k in (1000, 100, 10)]
+        print(f"smoothing error at the default w: {default:.1e}; at 1000, 100, 10 w0: {errors}")
+        assert default < 1e-3
+        assert errors[0] > errors[1] > errors[2]
+
+
+def test_smoothed_model_arrest_is_reported_as_stop():
+    m = model()  # sticks at the 10th turning point (table 1, mu = 2, eps = 0)
+    exact = vmj.turning_points(m, A0, 12)
+    smooth = vmj.turning_points(m, A0, 12, method="smooth")
+    assert int(exact.count) == int(smooth.count) == 10
+    assert bool(exact.stopped) and bool(smooth.stopped)
+    assert not bool(smooth.crossed[9]) and not bool(exact.crossed[9])
+    np.testing.assert_allclose(smooth.amplitudes[9], exact.amplitudes[9], rtol=1e-2)
+
+
+def test_simulate_follows_the_exact_turning_points():
+    m = model()
+    exact = vmj.turning_points(m, A0, 3)
+    t1 = float(exact.times[2])
+    traj = vmj.simulate(m, -A0, 0.0, t1, n_save=4001)
+    assert traj.ts.shape == (4001,) and int(traj.result) == 0
+    assert np.all(np.isfinite(np.asarray(traj.xs)))
+    np.testing.assert_allclose(traj.xs[-1], exact.positions[2], rtol=1e-6)
+    # the sampled extremes bracket the first turning point closely
+    assert abs(np.max(np.asarray(traj.xs)) - float(exact.positions[0])) < 1e-5
+
+
+def _positions(theta, law):
+    F, mu, eps, delta = theta
+    friction = vmj.Coulomb(F) if law == "F" else vmj.MassProportional(F)
+    seq = vmj.turning_points(vmj.VariableMass(M0, C, delta, eps, mu, friction), A0, 8)
+    return jnp.concatenate([seq.positions, seq.times])
+
+
+@pytest.mark.parametrize("law,theta", [("F", (14.7, 9.0, 0.7, -3.0)), ("f", (0.3, 5.0, 0.6, 3.0))])
+def test_gradients_match_central_differences(law, theta):
+    """d x_k / d(F or f, mu, eps, delta) and d t_k / d(...) from the exact solver (reverse mode)
+    against central finite differences (h = 1e-5 relative): agreement to 1e-7 of each column's
+    scale."""
+    theta = jnp.array(theta)
+    rev = jax.jit(jax.jacrev(_positions), static_argnums=1)(theta, law)
+    h = 1e-5 * jnp.maximum(1.0, jnp.abs(theta))
+    steps = jnp.concatenate([jnp.diag(h), -jnp.diag(h)])
+    values = jax.jit(jax.vmap(_positions, in_axes=(0, None)), static_argnums=1)(theta + steps, law)
+    fd = ((values[:4] - values[4:]) / (2 * h[:, None])).T
+    scale = jnp.max(jnp.abs(fd), axis=0)
+    print(f"max |reverse - central difference| / scale: {float(jnp.max(jnp.abs(rev - fd) / scale)):.1e}")
+    np.testing.assert_allclose(rev / scale, fd / scale, atol=1e-7)
+    if law == "F":  # forward mode gives the same Jacobian
+        fwd = jax.jit(jax.jacfwd(_positions), static_argnums=1)(theta, law)
+        np.testing.assert_allclose(fwd, rev, rtol=1e-9, atol=1e-12)
+
+
+def test_mass_exhaustion_is_reported_not_nan():
+    m = vmj.VariableMass(1.0, C, -3.0, 0.0, 0.0, vmj.Coulomb(1.0))  # mass gone at t = 1/3 s
+    for method in ("exact", "smooth", "energy"):
+        seq = vmj.turning_points(m, A0, 40, method=method)
+        assert int(seq.result) == vmj.RESULTS.mass_exhausted, method
+        assert "reaches zero" in seq.message
+        assert 0 < int(seq.count) < 40
+        assert np.all(np.isfinite(np.asarray(seq.positions)))
+        assert float(np.max(seq.times)) < 1.0 / 3.0
+        with pytest.raises(Exception, match="reaches zero"):
+            vmj.turning_points(m, A0, 40, method=method, throw=True)
+
+
+def test_release_when_friction_falls_with_the_mass():
+    """f-law with shrinking mass: a stuck mass moves on once f g m(t) < c |x|, as in SciPy."""
+    p = dict(m0=5.0, c=C, delta=-3.0, eps=0.0, mu=60.0, f=0.3)
+    seq = vmj.turning_points(vmj.VariableMass(5.0, C, -3.0, 0.0, 60.0,
+                                              vmj.MassProportional(0.3)), A0, 12)
+    t_ref, x_ref, _ = variable_mass_turning_points(a0=A0, n=12, **p)
+    k = len(t_ref)
+    assert int(seq.count) == k
+    np.testing.assert_allclose(np.asarray(seq.positions)[:k], x_ref, rtol=1e-7)
+    np.testing.assert_allclose(np.asarray(seq.times)[:k], t_ref, rtol=1e-9)
+
+
+# -- invariants (hypothesis) --------------------------------------------------------------------
+@given(
+    m0=st.floats(0.5, 20), c=st.floats(100, 2e4), delta=st.floats(-3, 3), eps=st.floats(0, 1),
+    mu=st.floats(0, 20), F=st.floats(0, 30), f=st.floats(0, 0.5), use_f=st.booleans(),
+)
+def test_decay_sequence_invariants(m0, c, delta, eps, mu, F, f, use_f):
+    args = [jnp.full(16, v) for v in (m0, c, delta, eps, mu, F, f, use_f)]
+    seq = jax.tree.map(lambda x: x[0], batch_exact(*args))
+    n = int(seq.count)
+    t = np.asarray(seq.times)
+    x = np.asarray(seq.positions)
+    assert np.all(np.isfinite(t)) and np.all(np.isfinite(x))
+    assert 0 <= n <= N_SWINGS
+    dt = np.diff(np.concatenate([[0.0], t[:n]]))
+    assert np.all(dt >= 0)  # time moves on (strictly, unless a release is astronomically late)
+    assert np.all(dt[t[:n] < 1e6] > 0)
+    previous = np.concatenate([[-A0], x[: n - 1]]) if n else np.array([])
+    np.testing.assert_array_equal(np.asarray(seq.crossed)[:n], x[:n] * previous < 0)
+    if n < N_SWINGS:  # padding repeats the last turning point
+        assert np.all(x[n:] == (x[n - 1] if n else -A0))
+    Ft = f * 9.81 * (m0 + delta * t) if use_f else F + 0 * t
+    if bool(seq.stopped) and n:
+        assert c * abs(x[n - 1]) <= Ft[n - 1] * (1 + 1e-12)
+    if n and not (use_f and delta < 0):
+        # a mass moves on from every turning point but the last
+        assert np.all(c * np.abs(x[: n - 1]) > Ft[: n - 1])
+    if delta == 0 or (1 - 2 * eps) * delta <= 2 * mu:
+        # energy decays: amplitudes never grow when the motion decays without dry friction
+        a = np.concatenate([[A0], np.abs(x[:n])])
+        assert np.all(np.diff(a) <= 1e-12 * A0)
+
+
+# -- bad input ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("kwargs,name", [
+    (dict(m0=0.0), "m0"), (dict(m0=-1.0), "m0"), (dict(c=0.0), "c"), (dict(c=-5.0), "c"),
+    (dict(mu=-1.0), "mu"), (dict(eps=-0.1), "eps"), (dict(eps=1.5), "eps"),
+    (dict(delta=float("nan")), "delta"), (dict(m0=float("inf")), "m0"), (dict(mu=float("nan")), "mu"),
+])
+def test_bad_model_parameters_raise_value_error(kwargs, name):
+    p = dict(m0=M0, c=C, delta=3.0, eps=0.0, mu=2.0)
+    p.update(kwargs)
+    with pytest.raises(ValueError, match=rf"^{name} must be"):
+        vmj.VariableMass(friction=vmj.Coulomb(FT), **p)
+
+
+@pytest.mark.parametrize("make,name", [
+    (lambda: vmj.Coulomb(-1.0), "F"), (lambda: vmj.Coulomb(float("nan")), "F"),
+    (lambda: vmj.MassProportional(-0.1), "f"), (lambda: vmj.MassProportional(0.3, g=0.0), "g"),
+])
+def test_bad_friction_raises_value_error(make, name):
+    with pytest.raises(ValueError, match=rf"^{name} must be"):
+        make()
+
+
+@pytest.mark.parametrize("call,name", [
+    (lambda m: vmj.turning_points(m, 0.0, 5), "a0"),
+    (lambda m: vmj.turning_points(m, -0.01, 5), "a0"),
+    (lambda m: vmj.turning_points(m, float("nan"), 5), "a0"),
+    (lambda m: vmj.turning_points(m, A0, 0), "n"),
+    (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=0.0), "smoothing"),
+    (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=-1.0), "smoothing"),
+    (lambda m: vmj.energy_balance(m, -1.0, 5), "a0"),
+    (lambda m: vmj.turning_points(m, A0, 5, method="rk4"), "method"),
+    (lambda m: vmj.simulate(m, -A0, 0.0, 0.0), "t1"),
+    (lambda m: vmj.simulate(m, -A0, 0.0, 1.0, smoothing=0.0), "smoothing"),
+    (lambda m: vmj.simulate(m, float("inf"), 0.0, 1.0), "x0"),
+])
+def test_bad_solver_arguments_raise_value_error(call, name):
+    with pytest.raises(ValueError, match=rf"^{name} must be"):
+        call(model())
+
+
+def test_simulate_refuses_a_horizon_past_zero_mass():
+    with pytest.raises(ValueError, match=r"^t1 must be below the zero-mass time"):
+        vmj.simulate(model(delta=-3.0), -A0, 0.0, 2.0)
+
+
+def test_traced_bad_parameters_raise_inside_jit():
+    f = jax.jit(lambda mu: vmj.turning_points(model(mu=mu), A0, 4).positions)
+    assert np.all(np.isfinite(np.asarray(f(2.0))))
+    with pytest.raises(Exception, match="mu must be finite and >= 0"):
+        f(-1.0).block_until_ready()
+
+
+def test_batched_model_needs_sweep_or_vmap():
+    with pytest.raises(ValueError, match="scalar parameters"):
+        vmj.turning_points(model(mu=jnp.array([1.0, 2.0])), A0, 4)
