@@ -112,10 +112,9 @@ def starting_guess(space_name: str, record: Record, given: dict, dec: dict) -> d
         start.update(mu=mu, eps=min(max(eps, 0.05), 0.95), delta=delta, g=g, m0=m0, c=c,
                      FT=c * xF, f=c * xF / (g * m_mid))
     elif space_name == "rope":
-        start.update(rope_start(record, given, dec, a0))
+        # the dead band xF = A T / (A e / l0): T = e xF / l0 (first-order, length at release)
+        e = given.get("e", 1.0)
+        start.update(T=e * xF / given.get("l0", 1.0), e=e, d=given.get("d", 0.0),
+                     b=given.get("b", 0.0), u=given.get("u", 0.0))
     start.update({k: float(v) for k, v in given.items()})
     return start
-
-
-def rope_start(record, given, dec, a0):  # replaced by the rope module when it is loaded
-    raise ValueError("the rope model is not available")

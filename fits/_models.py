@@ -157,13 +157,26 @@ OSCILLATOR = Space(
     predict=_oscillator,
 )
 
-SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR)}
+# -- mass on a rope of varying length (Osinski) ------------------------------------------------
+def _rope(theta: dict, n: int, forward: str):
+    rope = vmj.Rope(theta["m"], theta["A"], theta["e"], theta["b"], theta["d"], theta["T"],
+                    vmj.ConstantSpeed(theta["l0"], theta["u"]))
+    return _sequence(vmj.turning_points(rope, theta["a0"], n, method=forward), theta["a0"])
 
 
-def register_space(space: Space) -> Space:
-    """Add a model family (used by the rope model when `vmj.Rope` is available)."""
-    SPACES[space.name] = space
-    return space
+ROPE = Space(
+    name="rope",
+    names=("T", "e", "d", "b", "a0", "offset", "m", "A", "l0", "u"),
+    kinds=("positive", "positive", "positive", "real", "positive", "real", "positive",
+           "positive", "positive", "real"),
+    units=("Pa", "Pa", "Pa", "Pa", "m", "m", "kg", "m^2", "m", "m/s"),
+    dry=("T",),
+    viscous=(),
+    required=("m", "A", "e", "l0"),
+    predict=_rope,
+)
+
+SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR, ROPE)}
 
 
 def theta_dict(space: Space, theta) -> dict:
