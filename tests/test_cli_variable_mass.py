@@ -1,0 +1,103 @@
+"""The `vmj decay variable-mass` and `vmj table` commands: JSON contract, text output, errors."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import vmj
+from vmj._cli import main
+
+BASE = ["decay", "variable-mass", "--m0", "5", "--c", "4900", "--delta", "3", "--eps", "0",
+        "--mu", "2", "--a0", "0.06"]
+ARGS = BASE + ["--FT", "14.7"]
+
+
+def with_value(argv, flag, value):
+    argv = list(argv)
+    if flag in argv:
+        argv[argv.index(flag) + 1] = value
+    else:
+        argv += [flag, value]
+    return argv
+
+
+def run(capsys, argv):
+    code = main(argv)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_decay_json_lists_only_reached_turning_points(capsys):
+    code, out, _ = run(capsys, ARGS + ["--n", "12", "--json"])
+    assert code == 0
+    data = json.loads(out)
+    assert set(data) == {"model", "method", "times", "amplitudes", "crossed", "stopped"}
+    assert data["model"] == "variable-mass" and data["method"] == "exact"
+    assert len(data["times"]) == len(data["amplitudes"]) == len(data["crossed"]) == 10
+    assert data["stopped"] is True and data["crossed"][-1] is False
+    seq = vmj.turning_points(vmj.VariableMass(5, 4900, 3, 0, 2, vmj.Coulomb(14.7)), 0.06, 12)
+    np.testing.assert_allclose(data["amplitudes"], np.asarray(seq.amplitudes)[:10], rtol=1e-15)
+
+
+@pytest.mark.parametrize("method", ["energy", "smooth"])
+def test_decay_methods(capsys, method):
+    code, out, _ = run(capsys, BASE + ["--f", "0.3", "--n", "5", "--method", method, "--json"])
+    data = json.loads(out)
+    assert code == 0 and data["method"] == method and len(data["amplitudes"]) == 5
+
+
+def test_decay_text_table(capsys):
+    code, out, _ = run(capsys, ARGS + ["--n", "3"])
+    assert code == 0
+    assert "crossed" in out and "status:" in out and len(out.splitlines()) == 5
+
+
+@pytest.mark.parametrize("flag,value,name", [
+    ("--m0", "0", "m0"), ("--c", "-1", "c"), ("--eps", "2", "eps"), ("--mu", "-1", "mu"),
+    ("--FT", "-3", "F"), ("--a0", "0", "a0"), ("--n", "0", "n"),
+])
+def test_decay_bad_input_exits_2_with_one_line(capsys, flag, value, name):
+    code, out, err = run(capsys, with_value(ARGS, flag, value))
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith(f"vmj: error: {name} must be")
+
+
+def test_nan_argument_exits_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(with_value(ARGS, "--mu", "nan"))
+    assert e.value.code == 2
+    assert "not a finite number" in capsys.readouterr().err
+
+
+def test_table_json(capsys):
+    code, out, _ = run(capsys, ["table", "3", "--json"])
+    data = json.loads(out)
+    assert code == 0 and data["table"] == 3
+    keys = {"k", "mu", "eps", "delta", "paper_energy_cm", "paper_monograph_cm", "energy_cm",
+            "exact_cm", "exact_crossed"}
+    assert all(set(r) == keys for r in data["rows"]) and len(data["rows"]) == 30
+    worst = max(abs(r["exact_cm"] - r["paper_monograph_cm"]) for r in data["rows"])
+    assert worst < 0.002
+
+
+def test_table_text_and_figure(capsys, tmp_path):
+    path = tmp_path / "t1.png"
+    code, out, _ = run(capsys, ["table", "1", "--plot", str(path)])
+    assert code == 0 and path.stat().st_size > 10_000
+    assert "largest |vmj EB - paper EB|" in out and "2.212" in out
+
+
+def test_console_script_runs_in_float64():
+    """The installed entry point enables float64 itself (no configuration by the user)."""
+    code = ("import sys; from vmj._cli import main; import jax; sys.argv=['vmj']; "
+            "main(['decay','variable-mass','--m0','5','--c','4900','--delta','0','--eps','0',"
+            "'--mu','0','--FT','14.7','--a0','0.06','--n','2','--json']); "
+            "print(jax.config.jax_enable_x64)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    data, flag = out.stdout.strip().splitlines()
+    assert flag == "True"
+    amps = json.loads(data)["amplitudes"]
+    assert amps[0] - amps[1] == pytest.approx(2 * 14.7 / 4900, rel=1e-12)
