@@ -128,19 +128,49 @@ def _sequence(times, positions, crossed, advanced, code) -> DecaySequence:
     )
 
 
+PIECES = 3  #: polynomial pieces of a length profile searched for a release (Braking has 3)
+
+
+def release_time(model: Rope, t, x):
+    """A mass stuck at `x` from time `t` is pushed off again when the net force (spring plus
+    frame inertia) jumps above the static friction `A T` where a new piece of the length profile
+    starts (a drum that begins to brake). Returns `(t_release, never)`.
+
+    A force that grows continuously inside a piece (a shortening rope stiffens) does not give
+    a new swing: the mass is then dragged along the edge of the stick zone, `|spring| = A T`,
+    with a velocity that only touches zero (quasi-static creep, no further turning points). The
+    solver reports that as the end of the decay (`stopped`)."""
+    static = model.friction_force()
+    found = jnp.array(False)
+    t_rel = t
+    p0 = t
+    for _ in range(PIECES):
+        brk = model.length.next_break(p0)
+        p0 = jnp.where(jnp.isfinite(brk), brk, p0)
+        here = jnp.logical_not(found) & jnp.isfinite(brk) & (brk < model.lifetime()) & (
+            jnp.abs(model.net_force(p0, x)) > static)
+        t_rel = jnp.where(here, p0, t_rel)
+        found = found | here
+    return t_rel, jnp.logical_not(found)
+
+
 def rope_turning_points_exact(model: Rope, a0, n: int, max_substeps: int) -> DecaySequence:
     """The first `n` turning points after release from rest at `x = -a0` (exact solver)."""
     static = model.friction_force()
 
     def rest(t, x):
-        force = model.net_force(t, x)
-        return jnp.where(force >= 0, 1.0, -1.0), jnp.abs(force) <= static
+        """At rest at `(t, x)`: (direction of the next swing, start time, stuck for good)."""
+        stuck = jnp.abs(model.net_force(t, x)) <= static
+        t_rel, never = release_time(model, t, x)
+        t_go = jnp.where(stuck, t_rel, t)
+        force = model.net_force(t_go, x)
+        return jnp.where(force >= 0, 1.0, -1.0), t_go, stuck & never
 
     def body(carry, _):
         t, x, code = carry
         active = code == RESULTS.successful
-        s, stuck = rest(t, x)
-        found, limited, t1, x1 = half_swing(model, t, x, s, max_substeps)
+        s, t_go, stuck = rest(t, x)
+        found, limited, t1, x1 = half_swing(model, t_go, x, s, max_substeps)
         failure = jnp.where(limited, RESULTS.length_exhausted, RESULTS.step_limit)
         new_code = jnp.where(stuck, RESULTS.stopped, jnp.where(found, RESULTS.successful, failure))
         code = jnp.where(active, new_code, code)
@@ -153,7 +183,7 @@ def rope_turning_points_exact(model: Rope, a0, n: int, max_substeps: int) -> Dec
     x0 = -a0 * jnp.ones_like(model.m)
     init = (jnp.zeros_like(x0), x0, jnp.array(RESULTS.successful))
     (t, x, code), (times, positions, crossed, advanced) = lax.scan(body, init, None, length=n)
-    _, stuck = rest(t, x)
+    _, _, stuck = rest(t, x)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
     return _sequence(times, positions, crossed, advanced, code)
 
