@@ -81,7 +81,7 @@ def amplitude_panel(ax, cases, results, scale_by_a0):
     for (u, T, a0), (t, a), color in zip(cases, results, _colors(len(cases))):
         k, act, _, _ = laws(u, T, a0, GRID)
         s = a0 if scale_by_a0 else 0.01
-        label = f"u={u:g} m/s, T={T:g}" + (f", a0={100 * a0:g} cm" if scale_by_a0 else "")
+        label = f"u={u:g} m/s, T={T:.4g}" + (f", a0={100 * a0:g} cm" if scale_by_a0 else "")
         ax.plot(t[::3], a[::3] / s, ".", ms=2.5, color=color)
         ax.plot(GRID, act / s, "-", lw=1.2, color=color, label=label)
         ax.plot(GRID, k / s, "--", lw=0.9, color=color)
@@ -157,8 +157,9 @@ def fig5(plt):
         cases = [(-3.0, Tb, a0), (-3.0, 4.0, a0)]
         amplitude_panel(ax, cases, exact(cases), False)
         ax.axhline(100 * a0, color="k", lw=0.6, ls=":")
-        ax.set_title(f"fig. 5: u = -3 m/s, a0 = {100 * a0:g} cm: balance at T = {Tb:.3f} kG/cm^2"
-                     f" (first order at t=0: {first_order_balance_T(-3.0, a0):.3f})", fontsize=8)
+        ax.set_title(f"fig. 5: u = -3 m/s, a0 = {100 * a0:g} cm: exact balance at T = {Tb:.3f} "
+                     f"kG/cm^2\n(first order, da/dt = 0 at t = 0: "
+                     f"{first_order_balance_T(-3.0, a0):.3f})", fontsize=8)
         ax.set_ylabel("amplitude [cm]")
     save(fig, f"{OUT}/rope_fig5.png")
     plt.close(fig)
