@@ -62,14 +62,15 @@ def plot_swings(result, path: str, title: str = "") -> None:
     n = np.shape(seq.positions)[-1]
     eps, mu = result.coords["eps"], result.coords["mu"]
     plt, fig, axes = _grid_of_panels(len(deltas))
-    cmap = plt.get_cmap("viridis", n).with_extremes(over="lightgrey")
+    lowest = int(max(1, np.min(np.where(np.asarray(seq.stopped), np.asarray(seq.count), n))))
+    cmap = plt.get_cmap("viridis", n - lowest + 1).with_extremes(over="lightgrey")
     mesh = None
     for j, (ax, d) in enumerate(zip(axes, deltas)):
         count = at(np.asarray(seq.count), j).astype(float)
         stopped = at(np.asarray(seq.stopped), j)
         failed = at(np.asarray(seq.result), j) >= RESULTS.mass_exhausted
         shown = np.where(stopped, count, n + 1.0)  # still moving after n swings: "over"
-        mesh = ax.pcolormesh(_edges(eps), _edges(mu), shown.T, cmap=cmap, vmin=0.5,
+        mesh = ax.pcolormesh(_edges(eps), _edges(mu), shown.T, cmap=cmap, vmin=lowest - 0.5,
                              vmax=n + 0.5, shading="flat")
         if failed.any():
             ie, im = np.nonzero(failed)
