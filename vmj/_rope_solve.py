@@ -1,11 +1,12 @@
-"""Solvers of the rope model: exact Taylor half-swings, the smoothed ODE, and the exact energy
-map for a rope of fixed length (`method="energy"`).
+"""Solvers of the rope model: exact Taylor half-swings (`method="exact"`) and the smoothed ODE
+(`method="smooth"`); the `u = 0` energy map (`method="energy"`) is in `_rope_averaging`.
 
 Exact solver. Within a half-swing the friction sign `s` is fixed and, on each polynomial piece
 of the length profile, `g_k(tau) = 1/l(t + tau)^k` has a Taylor series given by a recurrence
 (`l` is a polynomial of degree <= 2). The Taylor coefficients of `x` then follow from
 
-    m (n+2)(n+1) x_{n+2} = -A [e (g_1 x)_n + b (g_2 x^2)_n + d (g_3 x^3)_n] + [n = 0] (2 m l_2 - A T s)
+    m (n+2)(n+1) x_{n+2} = -A [e (g_1 x)_n + b (g_2 x^2)_n + d (g_3 x^3)_n]
+                           + [n = 0] (2 m l_2 - A T s)
 
 with Cauchy products `( )_n`, so a substep of length `h` costs O(ORDER^2) multiply-adds and is
 accurate to machine precision when `h` is well inside the radius of convergence: `h` is at most
