@@ -179,7 +179,8 @@ def test_smooth_matches_exact():
     r = vmj.Rope.paper(u=3.0, T=4.0)
     ex = vmj.turning_points(r, jnp.asarray(0.04), 12, max_substeps=10)
     sm = vmj.turning_points(r, jnp.asarray(0.04), 12, method="smooth")
-    np.testing.assert_allclose(np.asarray(sm.positions), np.asarray(ex.positions), rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(sm.positions), np.asarray(ex.positions), rtol=1e-8)
+    np.testing.assert_allclose(np.asarray(sm.times), np.asarray(ex.times), rtol=1e-8)
 
 
 def test_braking_drum_dynamic_force():
