@@ -7,6 +7,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy_rope import rope_turning_points
 
 import vmj
@@ -111,6 +113,19 @@ def test_energy_map_matches_exact(exact, which):
     V = np.asarray(r.potential(jnp.asarray(xs), L0))
     lhs, rhs = V[:-1] - V[1:], float(r.A * r.T) * np.abs(np.diff(xs))
     assert np.max(np.abs(lhs - rhs)) < 1e-9 * np.max(V)
+
+
+@settings(max_examples=10)
+@given(T=st.floats(0.1, 10.0), d=st.floats(0.0, 1.0), a0=st.floats(0.002, 0.06))
+def test_energy_map_invariants(T, d, a0):
+    """Fixed length, b = 0: amplitudes fall by less than the linear decrement 2 T l/e per swing
+    (the cubic spring only shortens it), alternate sides until they stick, and time moves on."""
+    seq = vmj.rope_energy_map(rope(0.0, d * D, T, 0.0), jnp.asarray(a0), N).reached()
+    a = np.concatenate([[a0], seq["amplitudes"]])
+    step = 2 * T * KG_CM2 * L0 / E
+    assert np.all(np.diff(a) < 0) and np.all(-np.diff(a) <= step * (1 + 1e-9))
+    assert np.all(np.diff(np.concatenate([[0.0], seq["times"]])) > 0)
+    assert np.all(seq["crossed"][:-1])
 
 
 def test_linear_frictionless_ratio_independent_of_a0(exact):
