@@ -104,7 +104,9 @@ def _residual_and_jacobian_impl(space, forward, n, p, d):
         r = _residual(space, forward, n, theta.at[d.free].set(values), d)
         return r, r
 
-    J, r = jax.jacfwd(r_of, has_aux=True)(theta[d.free])
+    # the smoothed model's diffrax solve differentiates in reverse mode only
+    jacobian = jax.jacrev if forward == "smooth" else jax.jacfwd
+    J, r = jacobian(r_of, has_aux=True)(theta[d.free])
     return r, J
 
 
