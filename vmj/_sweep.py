@@ -302,9 +302,19 @@ class _Progress:
         self.stream.flush()
 
 
+#: points per vectorised block inside a chunk: the state of a block stays in the CPU caches while
+#: `fn` loops over swings (`lax.map` over blocks; about 2x faster than one `vmap` over the chunk
+#: for the energy balance, 1.3x for the exact solver)
+_BLOCK = 2048
+
+
 @eqx.filter_jit
-def _evaluate(fn, kwargs, model):
-    return eqx.filter_vmap(lambda m: fn(m, **kwargs))(model)
+def _evaluate(fn, kwargs, model, block):
+    point = lambda m: fn(m, **kwargs)  # noqa: E731
+    if block is None:
+        return eqx.filter_vmap(point)(model)
+    dynamic, static = eqx.partition(model, eqx.is_array)
+    return jax.lax.map(lambda d: point(eqx.combine(d, static)), dynamic, batch_size=block)
 
 
 def _devices(devices):
@@ -389,7 +399,9 @@ def sweep(
         for i, h in zip(arrays, host):
             part = np.ascontiguousarray(h[idx]) if shape else np.broadcast_to(h, (chunk,))
             batch[i] = jax.device_put(part, sharding if sharding is not None else devs[0])
-        got = _evaluate(fn, solver_args, jax.tree.unflatten(treedef, batch))
+        # one device: blocks of _BLOCK points; several: one vmap, partitioned by XLA (GSPMD)
+        block = _BLOCK if nd == 1 and chunk > _BLOCK else None
+        got = _evaluate(fn, solver_args, jax.tree.unflatten(treedef, batch), block)
         got_leaves, got_def = jax.tree.flatten(got)
         if out_leaves is None:
             out_def = got_def
