@@ -111,7 +111,7 @@ def bench_energy(points, repeat):
     first = time.perf_counter() - t0
     t_vmap, _ = best_of(lambda: f(eps, mu, delta), repeat)
     # the layout vmj.sweep uses: lax.map over blocks of _BLOCK points, each block a vmap
-    model = model_of(eps, mu, delta)
+    model = jax.tree.map(lambda x: jnp.broadcast_to(x, (points,)), model_of(eps, mu, delta))
     kw = {"a0": A0, "n": N}
     jax.block_until_ready(_evaluate(vmj.energy_balance, kw, model, _BLOCK))
     t_block, _ = best_of(lambda: _evaluate(vmj.energy_balance, kw, model, _BLOCK), repeat)
