@@ -5,10 +5,18 @@ import json
 import os
 import warnings
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import fits
+import vmj
+from fits._fit import _arrays, _dtheta_dp, _Job, _residual_and_jacobian, _theta
+from fits._models import SPACES
 from vmj._cli import main
 
 HERE = os.path.dirname(__file__)
@@ -217,3 +225,48 @@ def test_energy_forward_model_agrees_with_the_exact_one(pendulum):
     assert abs(r.params["zeta"] / exact.params["zeta"] - 1) < 0.02
     assert abs(r.params["omega"] / exact.params["omega"] - 1) < 1e-4
     assert abs(r.params["xF"] - exact.params["xF"]) < 3 * exact.stderr["xF"]
+
+
+
+@settings(max_examples=10)
+@given(omega=st.floats(5.0, 40.0), zeta=st.floats(0.0, 0.2), xF=st.floats(0.0, 0.05))
+def test_closed_form_oscillator_matches_the_exact_solver(omega, zeta, xF):
+    """The oscillator's "exact" forward model (closed-form half-swing map) is the constant-mass
+    special case of vmj.VariableMass solved by the Taylor solver."""
+    a0 = 1.0
+    times, positions, _ = fits.oscillator_half_swings(omega, zeta, xF, a0, 12)
+    model = vmj.VariableMass(1.0, omega**2, 0.0, 0.0, 2 * zeta * omega, vmj.Coulomb(omega**2 * xF))
+    seq = vmj.turning_points(model, a0, 12)
+    np.testing.assert_allclose(np.asarray(positions), np.asarray(seq.positions), atol=1e-9)
+    np.testing.assert_allclose(np.asarray(times), np.asarray(seq.times), rtol=1e-9)
+
+
+def _held(d, idx, value):
+    """`d` with parameter `idx` held at `value` (its free slot no longer moved by p)."""
+    return eqx.tree_at(lambda z: (z.fixed, z.code), d,
+                       (d.fixed.at[idx].set(value), jnp.where(d.free == idx, 3, d.code)))
+
+
+def test_fit_jacobian_matches_finite_differences(synthetic_signal):
+    """The materialised Jacobian handed to the solvers (custom_jvp) against central differences,
+    and the tangent the solvers see, J (dtheta/dp) dp."""
+    path, _ = synthetic_signal
+    rec = fits.read_record(path, series=True)
+    space = SPACES["oscillator"]
+    start = {"omega": 20.1, "zeta": 0.011, "xF": 0.04, "a0": 9.9, "offset": 1.9}
+    d, p0, n, _ = _arrays(space, [_Job(rec, FREE, start, {}, 0, "fit")], len(FREE), [0.02],
+                          [1e-3])
+    d, p = jax.tree.map(lambda a: a[0], d), p0[0]
+    r, J = _residual_and_jacobian(space, "exact", n, p, d)
+    theta = _theta(space, p, d)
+    for i, idx in enumerate(np.asarray(d.free)):
+        h = 1e-6 * max(abs(float(theta[idx])), 1e-3)
+        up = _residual_and_jacobian(space, "exact", n, p, _held(d, idx, theta[idx] + h))[0]
+        dn = _residual_and_jacobian(space, "exact", n, p, _held(d, idx, theta[idx] - h))[0]
+        np.testing.assert_allclose(np.asarray(J[:, i]), np.asarray((up - dn) / (2 * h)),
+                                   rtol=1e-5, atol=1e-6 * float(jnp.max(jnp.abs(J[:, i]))))
+    dp = jnp.ones_like(p)
+    _, (tangent, _) = jax.jvp(lambda q: _residual_and_jacobian(space, "exact", n, q, d), (p,),
+                              (dp,))
+    np.testing.assert_allclose(np.asarray(tangent),
+                               np.asarray(J @ (_dtheta_dp(space, p, d) * dp)))
