@@ -270,3 +270,13 @@ def test_fit_jacobian_matches_finite_differences(synthetic_signal):
                               (dp,))
     np.testing.assert_allclose(np.asarray(tangent),
                                np.asarray(J @ (_dtheta_dp(space, p, d) * dp)))
+
+
+def test_identifiability_warning(synthetic_signal):
+    """Six noisy turning points cannot separate a small Coulomb band from viscous damping."""
+    path, _ = synthetic_signal
+    rec = fits.read_record(path, series=True)
+    short = fits.Record(k=rec.k[:6], positions=rec.positions[:6], centre=rec.centre)
+    with pytest.warns(UserWarning, match="identifiable"):
+        r = fits.fit(short, "oscillator", ("zeta", "xF", "a0", "offset"), compare=False)
+    assert any("zeta and xF" in w for w in r.warnings)
