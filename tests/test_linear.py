@@ -8,6 +8,8 @@ import math
 import jax
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import vmj
 from vmj._cli import main as cli_main
@@ -29,6 +31,8 @@ CASES = {
     "force-resonant": (vmj.LinearOscillator(1.0, 0.2, 16.0, vmj.HarmonicForce(1.0, 4.0)), 0.0, 0.0,
                        20.0),
     "base": (vmj.LinearOscillator(3.0, 2.0, 40.0, vmj.BaseMotion(0.01, 2.5)), 0.02, 0.0, 15.0),
+    "force-undamped-resonance": (vmj.LinearOscillator(1.0, 0.0, 16.0, vmj.HarmonicForce(1.0, 4.0)),
+                                 0.01, 0.0, 20.0),
 }
 
 
@@ -37,6 +41,20 @@ def test_simulation_matches_analytic_response(name):
     osc, x0, v0, t1 = CASES[name]
     tr = vmj.linear_simulate(osc, x0, v0, t1, n_save=801)
     assert int(tr.result) == 0
+    x, v = osc.response(tr.ts, x0, v0)
+    assert np.max(np.abs(tr.xs - x)) <= REL * np.max(np.abs(x))
+    assert np.max(np.abs(tr.vs - v)) <= REL * np.max(np.abs(v))
+
+
+@settings(max_examples=10)
+@given(m=st.floats(0.1, 100.0), k=st.floats(1.0, 1e5), eta=st.floats(0.0, 3.0),
+       r=st.floats(0.1, 5.0), F0=st.floats(-10.0, 10.0), x0=st.floats(0.1, 1.0),
+       v0=st.floats(-1.0, 1.0))
+def test_simulation_matches_analytic_property(m, k, eta, r, F0, x0, v0):
+    wc = math.sqrt(k / m)
+    osc = vmj.LinearOscillator(m, 2 * eta * math.sqrt(k * m), k, vmj.HarmonicForce(F0, r * wc))
+    x0, v0 = x0 * (1 + abs(F0)) / k, v0 * (1 + abs(F0)) / k * wc  # comparable to the forced part
+    tr = vmj.linear_simulate(osc, x0, v0, 6 * math.pi / wc, n_save=801)
     x, v = osc.response(tr.ts, x0, v0)
     assert np.max(np.abs(tr.xs - x)) <= REL * np.max(np.abs(x))
     assert np.max(np.abs(tr.vs - v)) <= REL * np.max(np.abs(v))
@@ -72,6 +90,13 @@ def test_amplification_and_phase():
     assert float(osc.amplification()) == pytest.approx(1 / (2 * eta))
     assert float(D) == pytest.approx(2.0 / 25.0 * float(osc.amplification()), rel=1e-14)
     assert float(osc.amplification(1e-9)) == pytest.approx(1.0)
+    # undamped resonance: no steady state, the response grows like t (no NaN)
+    und = vmj.LinearOscillator(1.0, 0.0, 16.0, vmj.HarmonicForce(1.0, 4.0))
+    assert float(und.forced_response()[0]) == np.inf
+    x, _ = und.response(np.array([10.0, 10.0 + np.pi / 2]), 0.0, 0.0)
+    assert np.all(np.isfinite(x))
+    assert float(und.response(2 * np.pi * 10, 0.0, 0.0)[0]) == pytest.approx(
+        -1.0 / (2 * 4.0) * 2 * np.pi * 10, rel=1e-10)
     # the peak of the amplification curve is at r = sqrt(1 - 2 eta^2)
     r = np.linspace(0.9, 1.05, 30001)
     amp = np.asarray(osc.amplification(r * 5.0))

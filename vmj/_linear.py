@@ -166,10 +166,22 @@ class LinearOscillator(_Checked):
         `beta` in `[0, pi]` the phase lag behind the force `sin(p t)` (base motion: behind
         `sin(p t)` of the base). `tan(beta) = 2 eta omega_c p / (omega_c^2 - p^2)`; for
         `p > omega_c` the lag is beyond `pi/2`, i.e. `beta = pi + arctan(tan beta)` (the
-        branch the Lagrange-equation paper misses, see docs/linear.md)."""
+        branch the Lagrange-equation paper misses, see docs/linear.md). At undamped resonance
+        there is no steady state: `D = inf`, `beta = pi/2` (the response grows like `t`)."""
         Q, p = self.forcing.complex_amplitude(self)
-        H = Q / (self.k - self.m * p**2 + 1j * self.c * p)  # x_p = Im(H e^{i p t})
-        return jnp.abs(H), -jnp.angle(H)
+        H, resonant, _ = self._receptance(Q, p)  # x_p = Im(H e^{i p t})
+        D = jnp.where(resonant & (Q != 0), jnp.inf, jnp.abs(H))
+        return D, jnp.where(resonant, jnp.pi / 2, -jnp.angle(H))
+
+    def _receptance(self, Q, p):
+        """`(H, resonant, G)`: steady amplitude `H = Q / (k - m p^2 + i c p)`; at undamped
+        resonance (`c = 0`, `k = m p^2` exactly) `H = 0` and the particular solution is the
+        secular `Im(G t e^{i p t})`, `G = Q / (2 i m p)`."""
+        den = self.k - self.m * p**2 + 1j * self.c * p
+        resonant = den == 0
+        H = jnp.where(resonant, 0.0, Q / jnp.where(resonant, 1.0, den))
+        G = jnp.where(resonant, Q / (2j * self.m * jnp.where(resonant, p, 1.0)), 0.0)
+        return H, resonant, G
 
     def transient(self, x0, v0):
         """Free-vibration part `(A, alpha)` of the full response `x = A e^{-b t} sin(omega_3 t +
@@ -195,11 +207,12 @@ class LinearOscillator(_Checked):
         via the roots of `m r^2 + c r + k = 0`)."""
         t = jnp.asarray(t, dtype=self.m.dtype)
         Q, p = self.forcing.complex_amplitude(self)
-        H = Q / (self.k - self.m * p**2 + 1j * self.c * p)
-        xp = jnp.imag(H * jnp.exp(1j * p * t))
-        vp = jnp.imag(1j * p * H * jnp.exp(1j * p * t))
+        H, _, G = self._receptance(Q, p)
+        e_ipt = jnp.exp(1j * p * t)
+        xp = jnp.imag(H * e_ipt) + jnp.imag(G * t * e_ipt)
+        vp = jnp.imag(1j * p * H * e_ipt) + jnp.imag(G * (1 + 1j * p * t) * e_ipt)
         y0 = x0 - jnp.imag(H)  # homogeneous initial state
-        w0 = v0 - jnp.imag(1j * p * H)
+        w0 = v0 - jnp.imag(1j * p * H) - jnp.imag(G)
         b = self.decay_rate
         disc = self.natural_frequency**2 - b**2  # > 0: under-damped
         wd = jnp.sqrt(jnp.abs(disc) + 0j)
