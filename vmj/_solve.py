@@ -31,6 +31,10 @@ def register_solver(model_type: type, method: str):
     return wrap
 
 
+def _as_float_array(x):
+    return jnp.asarray(x, dtype=jnp.result_type(float))
+
+
 def _require_scalar_fields(model) -> None:
     for leaf in jax.tree.leaves(model):
         if not isinstance(leaf, jax.core.Tracer) and jnp.ndim(leaf) != 0:
@@ -43,8 +47,7 @@ def _require_scalar_fields(model) -> None:
 def _smoothing(model, x0, v0, smoothing):
     if smoothing is None:
         return default_smoothing(model, x0, v0)
-    return check("smoothing", jnp.asarray(smoothing, dtype=jnp.result_type(float)), positive,
-                 "> 0 [m/s]")
+    return check("smoothing", _as_float_array(smoothing), positive, "> 0 [m/s]")
 
 
 @register_solver(VariableMass, "exact")
@@ -113,9 +116,10 @@ def turning_points(
     n = check_int("n", n, 1)
     max_substeps = check_int("max_substeps", max_substeps, 1)
     _require_scalar_fields(model)
-    a0 = check("a0", a0, positive, "> 0 [m]")
+    # arrays, not Python floats: filter_jit would treat floats as static and recompile per value
+    a0 = _as_float_array(check("a0", a0, positive, "> 0 [m]"))
     if smoothing is not None:
-        smoothing = check("smoothing", smoothing, positive, "> 0 [m/s]")
+        smoothing = _as_float_array(check("smoothing", smoothing, positive, "> 0 [m/s]"))
     return _turning_points(model, a0, n, method, smoothing, max_substeps, throw)
 
 
@@ -185,6 +189,6 @@ def simulate(
                     f"t1 must be below {what} = {float(lifetime):.6g} s (got {float(t1)})"
                 )
     if smoothing is not None:
-        smoothing = check("smoothing", smoothing, positive, "> 0 [m/s]")
-    x0, v0, t1 = (jnp.asarray(v, dtype=jnp.result_type(float)) for v in (x0, v0, t1))
+        smoothing = _as_float_array(check("smoothing", smoothing, positive, "> 0 [m/s]"))
+    x0, v0, t1 = (_as_float_array(v) for v in (x0, v0, t1))
     return _simulate(model, x0, v0, t1, smoothing, n_save, throw)
