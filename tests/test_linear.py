@@ -179,6 +179,11 @@ def test_bad_input(make, name):
         make()
 
 
+def test_free_amplitude_needs_underdamping():
+    with pytest.raises(Exception, match="under-damped"):
+        vmj.LinearOscillator(1.0, 20.0, 14.5).free_amplitude(0.01, 0.0)
+
+
 def _cli_json(capsys, argv):
     assert cli_main(argv) == 0
     return json.loads(capsys.readouterr().out)

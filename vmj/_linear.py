@@ -149,6 +149,9 @@ class LinearOscillator(_Checked):
         returns `(A, alpha)` [m, rad], `A = sqrt(x0^2 + ((v0 + eta omega_c x0)/omega_3)^2)`.
         (The book writes `sin(omega_3 t - alpha)` with its alpha of opposite sign.)"""
         b, wd = self.decay_rate, self.damped_frequency
+        wd = eqx.error_if(wd, jnp.any(self.damping_ratio >= 1),
+                          "free_amplitude/transient/settling_time need an under-damped "
+                          "oscillator (damping ratio eta < 1); use response() otherwise")
         B = (v0 + b * x0) / wd
         return jnp.sqrt(x0**2 + B**2), jnp.arctan2(x0, B)
 
