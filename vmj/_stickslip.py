@@ -46,7 +46,7 @@ __all__ = [
 #: the same k* in every solver.
 REVERSAL_MARGIN = 2e-5
 NEWTON = 7  #: Newton iterations per velocity zero (cubic convergence: 5 suffice in float64)
-MAX_REVERSALS = 10  #: default static bound on reversals per cycle (eps up to 21)
+MAX_REVERSALS = 10  #: default static bound on reversals per cycle (eps below 23)
 
 _TOO_MANY = (
     "more reversals per cycle than max_reversals: raise max_reversals (a cycle has "
@@ -163,8 +163,8 @@ class StickSlipCycle(eqx.Module):
         return self.result != RESULTS.successful
 
     def physical(self) -> dict:
-        """Times in seconds: `slip_intervals`, `slip_time`, `stick_time`, `period` [s], and the
-        stick-phase spring twist `positions` converted to `phi - omega t` [rad]."""
+        """Times in seconds: `slip_intervals`, `slip_time`, `stick_time`, `period` [s], and
+        `positions` (xi_k) converted to the spring twist `phi - omega t` [rad]."""
         T, A = self.model.time_scale, self.model.angle_scale
         return {
             "slip_intervals": self.slip_intervals * T,
