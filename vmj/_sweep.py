@@ -303,8 +303,8 @@ class _Progress:
 
 
 #: points per vectorised block inside a chunk: the state of a block stays in the CPU caches while
-#: `fn` loops over swings (`lax.map` over blocks; about 2x faster than one `vmap` over the chunk
-#: for the energy balance, 1.3x for the exact solver)
+#: `fn` loops over swings (`lax.map` over blocks; measured 1.2 to 2 times faster than one `vmap`
+#: over the chunk for the energy balance and the exact solver, see benchmarks/bench_sweep.py)
 _BLOCK = 2048
 
 
