@@ -59,11 +59,4 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
     )
     stuck = (c * a <= model.friction.force(m)) & jnp.logical_not(dF_dm * delta < 0)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return DecaySequence(
-        times=times,
-        positions=positions,
-        crossed=crossed,
-        count=jnp.sum(advanced.astype(jnp.int32)),
-        stopped=code == RESULTS.stopped,
-        result=code,
-    )
+    return DecaySequence.from_scan(times, positions, crossed, advanced, code)

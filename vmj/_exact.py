@@ -173,11 +173,4 @@ def turning_points_exact(model, a0, n: int, max_substeps: int) -> DecaySequence:
     (t, x, code), (times, positions, crossed, advanced) = lax.scan(body, init, None, length=n)
     _, stuck = rest_state(t, x)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return DecaySequence(
-        times=times,
-        positions=positions,
-        crossed=crossed,
-        count=jnp.sum(advanced.astype(jnp.int32)),
-        stopped=code == RESULTS.stopped,
-        result=code,
-    )
+    return DecaySequence.from_scan(times, positions, crossed, advanced, code)

@@ -118,15 +118,6 @@ def half_swing(model: Rope, t0, x0, s, max_substeps: int):
     return found, limited, t1, x1
 
 
-def _sequence(times, positions, crossed, advanced, code) -> DecaySequence:
-    return DecaySequence(
-        times=times,
-        positions=positions,
-        crossed=crossed,
-        count=jnp.sum(advanced.astype(jnp.int32)),
-        stopped=code == RESULTS.stopped,
-        result=code,
-    )
 
 
 PIECES = 3  #: polynomial pieces of a length profile searched for a release (Braking has 3)
@@ -186,7 +177,7 @@ def rope_turning_points_exact(model: Rope, a0, n: int, max_substeps: int) -> Dec
     (t, x, code), (times, positions, crossed, advanced) = lax.scan(body, init, None, length=n)
     _, _, stuck = rest(t, x)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return _sequence(times, positions, crossed, advanced, code)
+    return DecaySequence.from_scan(times, positions, crossed, advanced, code)
 
 
 def rope_horizon(model: Rope, n: int):

@@ -71,6 +71,19 @@ class DecaySequence(eqx.Module):
     stopped: Array
     result: Array
 
+    @classmethod
+    def from_scan(cls, times, positions, crossed, advanced, code) -> "DecaySequence":
+        """Assemble a sequence from a solver's per-swing outputs (`advanced`: the swing was
+        reached) and its final status code."""
+        return cls(
+            times=times,
+            positions=positions,
+            crossed=crossed,
+            count=jnp.sum(advanced.astype(jnp.int32)),
+            stopped=code == RESULTS.stopped,
+            result=code,
+        )
+
     @property
     def amplitudes(self) -> Array:
         """`|x|` at each turning point [m]."""
