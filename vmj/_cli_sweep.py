@@ -52,6 +52,8 @@ def _parse_set(text: str | None) -> dict:
         if "=" not in item:
             raise ValueError(f"--set takes name=value pairs separated by commas (got {item!r})")
         k, v = (s.strip() for s in item.split("=", 1))
+        if k in out:
+            raise ValueError(f"--set gives {k} twice")
         out[k] = v
     return out
 
