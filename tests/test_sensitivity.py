@@ -93,3 +93,20 @@ def test_bad_input():
                         a0=A0, n=3)
     with pytest.raises(ValueError, match="at least one"):
         vmj.sensitivity(energy_amplitudes, m, (), a0=A0, n=3)
+
+
+def test_other_models_stick_slip_period_and_stick_time():
+    # nothing in sweep/sensitivity is specific to VariableMass: the stick-slip model works as is
+    def period_and_stick(m):
+        cycle = vmj.stick_slip_cycle(m)
+        return {"period": cycle.period, "stick_time": cycle.stick_time}
+
+    m = vmj.StickSlip(eps=3.0, Omega=0.5)
+    got = vmj.sensitivity(period_and_stick, m, ("eps", "Omega"))
+    for name in ("eps", "Omega"):
+        fd = central_difference(period_and_stick, m, name, 1e-6)
+        for out in ("period", "stick_time"):
+            np.testing.assert_allclose(got[name][out], fd[out], rtol=1e-6, err_msg=name + out)
+    swept = vmj.sweep(period_and_stick, vmj.grid(m, eps=[2.0, 3.0], Omega=[0.5, 1.0]))
+    one = period_and_stick(vmj.StickSlip(eps=3.0, Omega=1.0))
+    np.testing.assert_allclose(swept.values["period"][1, 1], one["period"], rtol=1e-12)
