@@ -123,10 +123,11 @@ def test_smoothed_turning_points_converge_to_exact():
         assert errors[0] > errors[1] > errors[2]
 
 
-def test_smoothed_model_arrest_is_reported_as_stop():
+@pytest.mark.parametrize("n", [12, 16])
+def test_smoothed_model_arrest_is_reported_as_stop(n):
     m = model()  # sticks at the 10th turning point (table 1, mu = 2, eps = 0)
-    exact = vmj.turning_points(m, A0, 12)
-    smooth = vmj.turning_points(m, A0, 12, method="smooth")
+    exact = vmj.turning_points(m, A0, n)
+    smooth = vmj.turning_points(m, A0, n, method="smooth")
     assert int(exact.count) == int(smooth.count) == 10
     assert bool(exact.stopped) and bool(smooth.stopped)
     assert not bool(smooth.crossed[9]) and not bool(exact.crossed[9])

@@ -85,7 +85,7 @@ def turning_points_smooth(
     n_rev = jnp.sum((idx >= 0).astype(jnp.int32))
     t_last = jnp.where(n_rev > 0, ts[jnp.maximum(idx[jnp.maximum(n_rev - 1, 0)], 0)], 0.0)
     slow = CREEP * w
-    entry = (jnp.abs(vs[:-1]) > slow) & (jnp.abs(vs[1:]) <= slow) & (ts[:-1] >= t_last)
+    entry = (jnp.abs(vs[:-1]) > slow) & (jnp.abs(vs[1:]) <= slow) & (ts[:-1] > t_last)
     arrest = jnp.nonzero(entry, size=1, fill_value=-1)[0][0]
     add_arrest = (n_rev < n) & (arrest >= 0)
     idx = jnp.where(jnp.arange(n) == n_rev, jnp.where(add_arrest, arrest, -1), idx)
