@@ -120,6 +120,8 @@ def turning_points(
     a0 = _as_float_array(check("a0", a0, positive, "> 0 [m]"))
     if smoothing is not None:
         smoothing = _as_float_array(check("smoothing", smoothing, positive, "> 0 [m/s]"))
+    elif method == "smooth":  # the default as an array too: one compilation for every w
+        smoothing = default_smoothing(model, a0, 0.0)
     return _turning_points(model, a0, n, method, smoothing, max_substeps, throw)
 
 
@@ -188,7 +190,9 @@ def simulate(
                 raise ValueError(
                     f"t1 must be below {what} = {float(lifetime):.6g} s (got {float(t1)})"
                 )
+    x0, v0, t1 = (_as_float_array(v) for v in (x0, v0, t1))
     if smoothing is not None:
         smoothing = _as_float_array(check("smoothing", smoothing, positive, "> 0 [m/s]"))
-    x0, v0, t1 = (_as_float_array(v) for v in (x0, v0, t1))
+    else:
+        smoothing = default_smoothing(model, x0, v0)
     return _simulate(model, x0, v0, t1, smoothing, n_save, throw)
