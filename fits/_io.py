@@ -407,7 +407,9 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
     2. extrema are found with hysteresis `h` (default `max(6 sigma, 1e-3 range)`): a turning
        point counts only once the signal has moved back from it by more than `h`;
     3. pairs of extrema much closer in time than the median half-period (spurious wiggles) are
-       dropped; each extremum is refined by a parabola through its neighbourhood;
+       dropped; each extremum is refined by a parabola through its neighbourhood; leading
+       extrema on the same side of the centre as the next one (the mass held or nudged before
+       its release) are dropped, so the record starts at the release;
     4. the record ends where the swings fall below `min_amplitude` (default `10 h`).
 
     The first turning point is the release (`k = 0`); times are measured from it. The
@@ -438,6 +440,16 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
     refined = [_refine(t, y_clean, i, s, sigma) for i, s in zip(idx, swings)]
     tk = np.array([r[0] for r in refined])
     xk = np.array([r[1] for r in refined])
+    if xk.size >= 5:
+        # before the release the mass may be held, or nudged, on the release side: extrema on
+        # the same side of the centre as their successor are no swings; the release is the
+        # last of them
+        c = np.median((xk[1:-2] + 2 * xk[2:-1] + xk[3:]) / 4)
+        lead = 0
+        while lead + 3 < xk.size and (xk[lead] - c) * (xk[lead + 1] - c) > 0:
+            lead += 1
+        if lead:
+            tk, xk, starts_at_edge = tk[lead:], xk[lead:], False
     if starts_at_edge and xk.size >= 5:
         # an extremum at the first sample is a release from rest only if it is at least as far
         # from the centre as the next one on its side (not a record that starts mid-swing)

@@ -153,6 +153,28 @@ def test_extraction_is_robust(synthetic_signal):
     assert abs(rec.centre - TRUE["offset"]) < 0.2
 
 
+def test_hold_before_the_release_is_not_a_swing(synthetic_signal, tmp_path):
+    """A record that starts with the mass held near the release point, nudged a little further
+    out and then let go: the extraction starts at the release, not at the hold."""
+    path, turning = synthetic_signal
+    t, y = np.loadtxt(path, delimiter=",", skiprows=1).T
+    rng = np.random.default_rng(7)
+    t_hold = np.arange(-0.6, 0.0, 2e-3)
+    y0 = turning[0, 1] + TRUE["offset"]
+    nudge = -0.04 * TRUE["a0"] * np.clip((t_hold + 0.3) / 0.3, 0, 1) ** 2  # further from centre
+    y_hold = y0 + 0.03 * TRUE["a0"] + nudge + rng.normal(0, 0.002 * TRUE["a0"], t_hold.size)
+    held = tmp_path / "held.csv"
+    np.savetxt(held, np.column_stack([np.concatenate([t_hold, t]), np.concatenate([y_hold, y])]),
+               delimiter=",", header="t,angle", comments="")
+    rec = fits.read_record(str(held), series=True)
+    plain = fits.read_record(path, series=True)
+    n = min(len(rec), len(plain))
+    assert n > 20
+    np.testing.assert_allclose(rec.positions[1:n], plain.positions[1:n], atol=0.01 * TRUE["a0"])
+    assert abs(rec.positions[0] - plain.positions[0]) < 0.05 * TRUE["a0"]
+    assert np.sign(rec.positions[0] - rec.centre) != np.sign(rec.positions[1] - rec.centre)
+
+
 def test_oscillator_fit_of_a_raw_signal(synthetic_signal):
     path, _ = synthetic_signal
     rec = fits.read_record(path, series=True)
