@@ -244,6 +244,7 @@ _RANGES = {
     "real": (lambda x: x == x, "a real number"),
     "positive": (nonnegative, ">= 0"),
     "unit": (unit_interval, "in [0, 1]"),
+    "damping": (lambda x: (x >= 0) & (x < 1), "in [0, 1) (an underdamped oscillator)"),
 }
 
 

@@ -30,7 +30,7 @@ FORWARDS = ("exact", "smooth", "energy")
 
 #: how a parameter is kept in range: theta = scale p (real), scale p^2 (positive),
 #: sin(p)^2 (unit: [0, 1])
-KIND_CODES = {"real": 0, "positive": 1, "unit": 2}
+KIND_CODES = {"real": 0, "positive": 1, "unit": 2, "damping": 2}  # damping: [0, 1)
 
 
 class AffineFriction(FrictionLaw):
@@ -149,7 +149,7 @@ def _oscillator(theta: dict, n: int, forward: str):
 OSCILLATOR = Space(
     name="oscillator",
     names=("omega", "zeta", "xF", "a0", "offset"),
-    kinds=("positive", "unit", "positive", "positive", "real"),
+    kinds=("positive", "damping", "positive", "positive", "real"),
     units=("rad/s", "-", "signal", "signal", "signal"),
     dry=("xF",),
     viscous=("zeta",),

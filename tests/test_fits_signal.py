@@ -302,3 +302,9 @@ def test_identifiability_warning(synthetic_signal):
     with pytest.warns(UserWarning, match="identifiable"):
         r = fits.fit(short, "oscillator", ("zeta", "xF", "a0", "offset"), compare=False)
     assert any("zeta and xF" in w for w in r.warnings)
+
+
+def test_critical_damping_is_refused(pendulum):
+    record, _ = pendulum
+    with pytest.raises(ValueError, match=r"zeta must be finite and in \[0, 1\)"):
+        fits.fit(record, "oscillator", ("omega", "xF", "a0", "offset"), {"zeta": 1.0})

@@ -279,3 +279,17 @@ def test_cli_bad_input_exit_2(capsys, extra):
     assert main(CLI + extra + ["--method", "kbm"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("vmj: error:") and err.count("\n") == 1
+
+
+def test_a_swing_over_the_potential_barrier_is_refused():
+    """b < 0: a swing from -a0 with more energy than the barrier has no turning point; the
+    averaged laws refuse it and the u = 0 energy map reports it as a value."""
+    moving = vmj.Rope(1000.0, 1e-4, 1e11, -1e13, 0.0, 1e6, vmj.ConstantSpeed(100.0, 2.0))
+    for law in (vmj.kbm_amplitude, vmj.action_amplitude):
+        with pytest.raises(Exception, match="above the potential barrier"):
+            law(moving, 0.6, jnp.linspace(0.0, 1.0, 3))
+    fixed = vmj.Rope(1000.0, 1e-4, 1e11, -1e13, 0.0, 1e6, vmj.ConstantSpeed(100.0, 0.0))
+    seq = vmj.turning_points(fixed, 0.6, 5, method="energy")
+    assert int(seq.result) == vmj.RESULTS.unbounded and int(seq.count) == 0
+    # below the barrier the same rope has turning points
+    assert int(vmj.turning_points(fixed, 0.05, 5, method="energy").count) > 0

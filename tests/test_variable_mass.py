@@ -263,6 +263,7 @@ def test_bad_friction_raises_value_error(make, name):
     (lambda m: vmj.simulate(m, -A0, 0.0, 0.0), "t1"),
     (lambda m: vmj.simulate(m, -A0, 0.0, 1.0, smoothing=0.0), "smoothing"),
     (lambda m: vmj.simulate(m, float("inf"), 0.0, 1.0), "x0"),
+    (lambda m: vmj.simulate(m, 0.0, 0.0, 1.0), "smoothing"),  # no velocity scale for a default
 ])
 def test_bad_solver_arguments_raise_value_error(call, name):
     with pytest.raises(ValueError, match=rf"^{name} must be"):
@@ -272,6 +273,12 @@ def test_bad_solver_arguments_raise_value_error(call, name):
 def test_simulate_refuses_a_horizon_past_zero_mass():
     with pytest.raises(ValueError, match=r"^t1 must be below the zero-mass time"):
         vmj.simulate(model(delta=-3.0), -A0, 0.0, 2.0)
+
+
+def test_traced_horizon_past_zero_mass_raises():
+    f = jax.jit(lambda t1: vmj.simulate(model(delta=-3.0), -A0, 0.0, t1).xs)
+    with pytest.raises(Exception, match="t1 must be below"):
+        f(2.0).block_until_ready()
 
 
 def test_traced_bad_parameters_raise_inside_jit():

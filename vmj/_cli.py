@@ -32,6 +32,19 @@ def _number(text: str) -> float:
     return value
 
 
+def parse_set(text: str | None) -> dict:
+    """`NAME=VALUE[,NAME=VALUE...]` of `--set` as `{name: text}`; a name given twice is an error."""
+    out = {}
+    for item in filter(None, (s.strip() for s in (text or "").split(","))):
+        if "=" not in item:
+            raise ValueError(f"--set takes NAME=VALUE pairs separated by commas (got {item!r})")
+        name, value = (s.strip() for s in item.split("=", 1))
+        if name in out:
+            raise ValueError(f"--set gives {name} twice")
+        out[name] = value
+    return out
+
+
 def _emit(obj, as_json: bool, text: str) -> None:
     print(json.dumps(obj) if as_json else text)
 
@@ -177,10 +190,17 @@ def main(argv=None) -> int:
     jax.config.update("jax_enable_x64", True)
     parser = build_parser()
     args = parser.parse_args(argv)
+    import equinox as eqx
+
     try:
         return args.command_run(args)
     except ValueError as e:
         print(f"vmj: error: {e}", file=sys.stderr)
+        return 2
+    except eqx.EquinoxRuntimeError as e:  # a value check inside jitted code (bad input too)
+        tag = "EquinoxRuntimeError: "
+        said = [ln.split(tag, 1)[1] for ln in str(e).splitlines() if tag in ln]
+        print(f"vmj: error: {said[-1] if said else 'invalid input'}", file=sys.stderr)
         return 2
 
 

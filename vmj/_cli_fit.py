@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
-from ._cli import _number, command
+from ._cli import _number, command, parse_set
 
 _DEFAULT_FREE = {
     "variable-mass": "FT,mu",
@@ -16,10 +16,7 @@ _DEFAULT_FREE = {
 
 def _settings(text: str) -> dict:
     out = {}
-    for item in filter(None, (s.strip() for s in (text or "").split(","))):
-        if "=" not in item:
-            raise ValueError(f"--set expects NAME=VALUE[,NAME=VALUE...] (got {item!r})")
-        name, value = (s.strip() for s in item.split("=", 1))
+    for name, value in parse_set(text).items():
         try:
             out[name] = _number(value)
         except Exception:

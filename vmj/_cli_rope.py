@@ -68,7 +68,7 @@ def _run(args) -> int:
         stopped = bool(seq.stopped) and bool(np.all(keep))
         message, failed = seq.message, bool(seq.failed)
         if int(seq.count) == n and not stopped and not failed and keep.all():
-            raise ValueError("internal: the turning-point count estimate was too small")
+            raise RuntimeError("internal: the turning-point count estimate was too small")
     out = {
         "model": "rope",
         "method": args.method,

@@ -8,6 +8,9 @@ import sys
 from ._cli import _emit, _number, command
 
 
+MAX_EPS = 1e4  #: largest eps the CLI accepts (its arrays grow with the number of reversals)
+
+
 # -- vmj stick-slip -----------------------------------------------------------------------------
 def _stick_slip_args(p):
     p.add_argument("--eps", type=_number, required=True, help="static/sliding friction M1/M0 > 1")
@@ -24,6 +27,9 @@ def _stick_slip_args(p):
 def _stick_slip(args) -> int:
     import vmj
 
+    if args.eps > MAX_EPS:
+        raise ValueError(f"eps must be finite and in (1, {MAX_EPS:g}] on the command line "
+                         f"(got {args.eps:g}): the cycle has about eps/2 reversals")
     model = vmj.StickSlip(args.eps, args.Omega)
     if args.method == "closed":
         cycle = vmj.stick_slip_closed_form(model, max_reversals=_bound(args.eps))
@@ -35,6 +41,8 @@ def _stick_slip(args) -> int:
             print(f"vmj: error: {e}", file=sys.stderr)
             return 1
     out = cycle.reached()
+    if bool(cycle.result != 0):
+        out["message"] = vmj.RESULTS.messages[int(cycle.result)]
     lines = [f"stick-slip cycle (eps={args.eps:g}, Omega={args.Omega:g}, method={args.method}; "
              "dimensionless time)",
              f"reversals k*: {out['reversals']}"]

@@ -11,7 +11,7 @@ import re
 import sys
 import time
 
-from ._cli import command
+from ._cli import _number, command, parse_set
 
 __all__ = ["SWEEP_MODELS", "parse_axis"]
 
@@ -22,12 +22,9 @@ def parse_axis(name: str, text: str):
 
     def num(t):
         try:
-            v = float(t)
-        except ValueError:
-            raise ValueError(f"--{name}: not a number: {t!r}") from None
-        if not math.isfinite(v):
-            raise ValueError(f"--{name}: not a finite number: {t!r}")
-        return v
+            return _number(t)
+        except Exception as e:
+            raise ValueError(f"--{name}: {e}") from None
 
     if ":" in text:
         parts = text.split(":")
@@ -38,24 +35,11 @@ def parse_axis(name: str, text: str):
             count = int(parts[2])
         except ValueError:
             count = 0
-        if count < 1:
-            raise ValueError(f"--{name}: count must be an integer >= 1 (got {parts[2]!r})")
+        if count < 1 or (count == 1 and start != stop):
+            raise ValueError(f"--{name}: count must be an integer >= 1, and >= 2 when start != stop "
+                             f"(got {text!r})")
         return np.linspace(start, stop, count)
     return np.array([num(t) for t in text.split(",")])
-
-
-def _parse_set(text: str | None) -> dict:
-    out = {}
-    for item in (text or "").split(","):
-        if not item.strip():
-            continue
-        if "=" not in item:
-            raise ValueError(f"--set takes name=value pairs separated by commas (got {item!r})")
-        k, v = (s.strip() for s in item.split("=", 1))
-        if k in out:
-            raise ValueError(f"--set gives {k} twice")
-        out[k] = v
-    return out
 
 
 # -- variable-mass --------------------------------------------------------------------------------
@@ -122,7 +106,7 @@ def _sweep(args) -> int:
     import vmj
 
     params, build, field = SWEEP_MODELS[args.model]
-    fixed = _parse_set(args.set)
+    fixed = parse_set(args.set)
     a0 = fixed.pop("a0", None)
     if a0 is None:
         raise ValueError("missing a0: give --set a0=VALUE (initial deflection [m])")

@@ -10,12 +10,11 @@ speed (the paper's case), `m l''` while a drum brakes (the crane problems of the
 from __future__ import annotations
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike
 
-from ._checks import anything, check, nonnegative, positive
+from ._checks import _is_traced, anything, check, nonnegative, positive
 from ._models import _Checked, _float, validated
 
 __all__ = ["LengthProfile", "ConstantSpeed", "Braking", "Rope", "KGF"]
@@ -23,8 +22,6 @@ __all__ = ["LengthProfile", "ConstantSpeed", "Braking", "Rope", "KGF"]
 KGF = 9.80665  #: one kilogram-force (kG) [N]
 
 
-def _is_traced(x) -> bool:
-    return isinstance(x, jax.core.Tracer)
 
 
 class LengthProfile(_Checked):

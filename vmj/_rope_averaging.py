@@ -90,7 +90,8 @@ def _kbm_frequency(rope, a, t):
 @eqx.filter_jit
 def _kbm(rope, a0, t):
     rope = validated(rope)
-    a = _kbm_amplitude(rope, a0, t)
+    _, _, xp0 = _check_bounded(rope, a0)  # first order ignores b and d: refuse an unbounded swing
+    a = _kbm_amplitude(rope, a0 + 0 * xp0, t)
     return a, _kbm_frequency(rope, a, t)
 
 
@@ -166,12 +167,15 @@ def _action(rope, c, r1, r2):
 
 def _root(f, hi):
     """Root of `f` on `(0, hi]` with `f(0+) > 0 >= f(hi)` (hi doubled until it brackets):
-    safeguarded Newton, then one Newton step with gradients (implicit differentiation)."""
+    safeguarded Newton, then one Newton step with gradients (implicit differentiation).
+    Returns `(root, bracketed)`; `bracketed` is False when no root was found (an unbounded
+    swing over the potential barrier)."""
     fs = lambda y: lax.stop_gradient(f(y))  # noqa: E731
     df = jax.grad(fs)
     hi = lax.stop_gradient(hi)
     for _ in range(8):
         hi = jnp.where(fs(hi) > 0, 2 * hi, hi)
+    bracketed = fs(hi) <= 0
     lo, y = jnp.zeros_like(hi), hi
 
     def body(_, state):
@@ -185,7 +189,11 @@ def _root(f, hi):
 
     _, _, y = lax.fori_loop(0, ROOT_ITERATIONS, body, (lo, hi, y))
     slope = jax.grad(f)(lax.stop_gradient(y))
-    return y - f(y) / jnp.where(slope != 0, lax.stop_gradient(slope), 1.0)
+    return y - f(y) / jnp.where(slope != 0, lax.stop_gradient(slope), 1.0), bracketed
+
+
+_UNBOUNDED = ("no turning point: the energy of the swing is above the potential barrier of "
+              "the rope's quadratic/cubic law (the motion is unbounded)")
 
 
 def _turning_point(c, E, side):
@@ -196,7 +204,16 @@ def _turning_point(c, E, side):
         x = side * y
         return E - x * x * (c2 + x * (c3 + x * c4))
 
-    return side * _root(f, jnp.sqrt(jnp.maximum(E, 0.0) / c2))
+    y, bracketed = _root(f, jnp.sqrt(jnp.maximum(E, 0.0) / c2))
+    y = eqx.error_if(y, jnp.logical_not(bracketed), _UNBOUNDED)
+    return side * y
+
+
+def _check_bounded(rope, a0):
+    """Raise (inside jit) when a swing from `-a0` has no turning point at the initial length."""
+    c0 = _poly(rope, rope.length.l0)
+    E0 = a0 * a0 * (c0[0] - a0 * c0[1] + a0 * a0 * c0[2])  # V(-a0)
+    return c0, E0, _turning_point(c0, E0, 1.0)
 
 
 # -- exact energy map for a fixed length -------------------------------------------------------
@@ -223,12 +240,13 @@ def energy_map_sequence(rope: Rope, a0, n: int) -> DecaySequence:
             return s * (-(c2 * (2 * x + z) + c3 * (3 * x * x + 3 * x * z + z * z)
                           + c4 * (4 * x ** 3 + 6 * x * x * z + 4 * x * z * z + z ** 3)) - p1)
 
-        y = _root(g, 2 * jnp.abs(x))
+        y, bounded = _root(g, 2 * jnp.abs(x))
         x1 = x + s * y
         lo, hi = jnp.minimum(x, x1), jnp.maximum(x, x1)
         dt = _half_swing_time(rope, c, p1, lo, hi)
-        code = jnp.where(active & stuck, RESULTS.stopped, code)
-        advance = active & jnp.logical_not(stuck)
+        code = jnp.where(active & stuck, RESULTS.stopped,
+                         jnp.where(active & jnp.logical_not(bounded), RESULTS.unbounded, code))
+        advance = active & (code == RESULTS.successful)
         crossed = advance & (x1 * x < 0)
         t = jnp.where(advance, t + dt, t)
         x = jnp.where(advance, x1, x)
@@ -239,9 +257,7 @@ def energy_map_sequence(rope: Rope, a0, n: int) -> DecaySequence:
     (t, x, code), (times, positions, crossed, advanced) = lax.scan(body, init, None, length=n)
     stuck = jnp.abs(rope.spring(t, x)) <= static
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return DecaySequence(times=times, positions=positions, crossed=crossed,
-                         count=jnp.sum(advanced.astype(jnp.int32)),
-                         stopped=code == RESULTS.stopped, result=code)
+    return DecaySequence.from_scan(times, positions, crossed, advanced, code)
 
 
 @register_solver(Rope, "energy")
@@ -293,10 +309,7 @@ def _swing_of_action(rope, I, l):
 @eqx.filter_jit
 def _action_solve(rope, a0, ts):
     rope = validated(rope)
-    l0 = rope.length.l0
-    c0 = _poly(rope, l0)
-    E0 = a0 * a0 * (c0[0] - a0 * c0[1] + a0 * a0 * c0[2])  # V(-a0)
-    xp0 = _turning_point(c0, E0, 1.0)
+    c0, E0, xp0 = _check_bounded(rope, a0)
     J0 = jnp.sqrt(_action(rope, c0, -a0, xp0))
     friction = rope.friction_force()
     tiny = 1e-9 * J0

@@ -19,6 +19,7 @@ class RESULTS:
     step_limit = 3  #: no velocity zero within the step limit (overdamped or creeping motion)
     solver_failed = 4  #: the diffrax solve of the smoothed model did not finish
     length_exhausted = 5  #: the rope length l(t) reaches zero before the next turning point
+    unbounded = 6  #: no turning point: the swing goes over the potential barrier
 
     messages = (
         "reached every requested turning point",
@@ -30,8 +31,10 @@ class RESULTS:
         "the smoothed ODE solve failed (step limit or non-finite state); try a larger smoothing "
         "or max_steps",
         "the rope length l(t) reaches zero before the next turning point; the solve stopped there",
+        "no turning point: the energy of the swing is above the potential barrier (the motion is "
+        "unbounded)",
     )
-    failures = (mass_exhausted, step_limit, solver_failed, length_exhausted)
+    failures = (mass_exhausted, step_limit, solver_failed, length_exhausted, unbounded)
 
 
 def result_message(code) -> str:

@@ -12,6 +12,7 @@ from ._checks import check, check_int, positive, warn_if_float32
 from ._energy import energy_balance_sequence
 from ._exact import turning_points_exact
 from ._models import VariableMass, validated
+from ._models import _float as _as_float_array
 from ._smooth import default_smoothing, simulate_smooth, turning_points_smooth
 from ._solution import DecaySequence, Trajectory, throw_if_failed
 
@@ -29,10 +30,6 @@ def register_solver(model_type: type, method: str):
         return fn
 
     return wrap
-
-
-def _as_float_array(x):
-    return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
 def _require_scalar_fields(model) -> None:
@@ -147,6 +144,9 @@ def energy_balance(model: VariableMass, a0, n: int, *, throw: bool = False) -> D
 @eqx.filter_jit
 def _simulate(model, x0, v0, t1, smoothing, n_save, throw):
     model = validated(model)
+    if hasattr(model, "lifetime"):
+        t1 = eqx.error_if(t1, t1 >= model.lifetime(), "t1 must be below the model's lifetime "
+                          "(zero mass or zero rope length)")
     w = _smoothing(model, x0, v0, smoothing)
     traj = simulate_smooth(model, x0, v0, t1, w, n_save)
     return throw_if_failed(traj, traj.result, throw)
@@ -194,5 +194,8 @@ def simulate(
     if smoothing is not None:
         smoothing = _as_float_array(check("smoothing", smoothing, positive, "> 0 [m/s]"))
     else:
+        if not any(isinstance(v, jax.core.Tracer) for v in (x0, v0)) and x0 == 0 and v0 == 0:
+            raise ValueError("smoothing must be given (> 0 [m/s]) when x0 = v0 = 0: its default "
+                             "is relative to the initial velocity scale")
         smoothing = default_smoothing(model, x0, v0)
     return _simulate(model, x0, v0, t1, smoothing, n_save, throw)

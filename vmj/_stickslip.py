@@ -514,13 +514,20 @@ def _smooth_cycle(model, max_reversals, smoothing, throw) -> StickSlipCycle:
     code = RESULTS.successful if rev <= max_reversals else RESULTS.step_limit
     if throw and code != RESULTS.successful:
         raise RuntimeError(_TOO_MANY)
-    xi_at = np.interp(marks[1:], ts, np.asarray(traj.xs))
+    xs = np.asarray(traj.xs)
+    xi_at = np.interp(marks[1:], ts, xs)
     positions = np.zeros(n)
     positions[: min(n, len(taus))] = xi_at[:n]
+    # each slip phase oscillates about xi = -s (s: sign of the disk velocity), starting with
+    # xi' = -Omega: amplitude sqrt((xi_start + s)^2 + Omega^2), as (12) for the exact cycle
+    s_phase = np.sign(np.interp(0.5 * (np.asarray(marks[:-1]) + np.asarray(marks[1:])), ts, u))
+    amps = np.sqrt((np.interp(marks[:-1], ts, xs) + s_phase) ** 2 + float(model.Omega) ** 2)
+    amplitudes = np.zeros(n)
+    amplitudes[: min(n, len(taus))] = amps[:n]
     return StickSlipCycle(
         reversals=jnp.asarray(rev), count=jnp.asarray(min(n, len(taus))),
         slip_intervals=jnp.asarray(padded), positions=jnp.asarray(positions),
-        amplitudes=jnp.zeros(n), slip_time=jnp.asarray(d2 - b1),
+        amplitudes=jnp.asarray(amplitudes), slip_time=jnp.asarray(d2 - b1),
         stick_time=jnp.asarray(b2 - d2), period=jnp.asarray(b2 - b1),
         result=jnp.asarray(code), model=model, method="smooth",
     )
