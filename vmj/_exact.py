@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
+from ._roots import bracketed_newton, implicit_step
 from ._solution import RESULTS, DecaySequence
 
 ORDER = 26  #: degree of the Taylor polynomial of a substep
@@ -119,23 +120,11 @@ def velocity_zero_of(cs, t, h, s, t_guess):
     ddcs = _derivative(dcs)
     f_cs = [lax.stop_gradient(c * s) for c in dcs]
     fp_cs = [lax.stop_gradient(c * s) for c in ddcs]
-    lo, hi = jnp.zeros_like(h), lax.stop_gradient(h)
+    hi = lax.stop_gradient(h)
     tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
-
-    def newton_step(_, state):  # a loop (not unrolled): keeps the compiled graph small
-        tau, lo, hi = state
-        f, fp = _horner(f_cs, tau), _horner(fp_cs, tau)
-        ahead = f > 0
-        lo, hi = jnp.where(ahead, tau, lo), jnp.where(ahead, hi, tau)
-        safe_fp = jnp.where(fp != 0, fp, 1.0)
-        newton = tau - f / safe_fp
-        ok = (fp != 0) & (newton >= lo) & (newton <= hi)
-        return jnp.where(ok, newton, 0.5 * (lo + hi)), lo, hi
-
-    tau, _, _ = lax.fori_loop(0, NEWTON, newton_step, (tau, lo, hi))
-    # One Newton step with gradients: d tau / d theta = -(df/d theta) / (df/d tau).
-    acc = _horner(ddcs, tau)
-    tau = tau - _horner(dcs, tau) / jnp.where(acc != 0, acc, 1.0)
+    tau = bracketed_newton(lambda x: _horner(f_cs, x), lambda x: _horner(fp_cs, x),
+                           jnp.zeros_like(hi), hi, tau, NEWTON)
+    tau = implicit_step(lambda x: _horner(dcs, x), lambda x: _horner(ddcs, x), tau)
     return t + tau, _horner(cs, tau)
 
 

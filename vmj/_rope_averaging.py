@@ -28,6 +28,7 @@ from jax import lax
 from ._checks import check, positive, warn_if_float32
 from ._models import validated
 from ._rope import ConstantSpeed, Rope, check_horizon
+from ._roots import bracketed_newton, implicit_step
 from ._solution import RESULTS, DecaySequence
 from ._solve import _require_scalar_fields, register_solver
 
@@ -171,25 +172,13 @@ def _root(f, hi):
     Returns `(root, bracketed)`; `bracketed` is False when no root was found (an unbounded
     swing over the potential barrier)."""
     fs = lambda y: lax.stop_gradient(f(y))  # noqa: E731
-    df = jax.grad(fs)
     hi = lax.stop_gradient(hi)
     for _ in range(8):
         hi = jnp.where(fs(hi) > 0, 2 * hi, hi)
-    bracketed = fs(hi) <= 0
-    lo, y = jnp.zeros_like(hi), hi
-
-    def body(_, state):
-        lo, hi, y = state
-        fy, dfy = fs(y), df(y)
-        ahead = fy > 0
-        lo, hi = jnp.where(ahead, y, lo), jnp.where(ahead, hi, y)
-        newton = y - fy / jnp.where(dfy != 0, dfy, 1.0)
-        ok = (dfy != 0) & (newton > lo) & (newton < hi)
-        return lo, hi, jnp.where(ok, newton, 0.5 * (lo + hi))
-
-    _, _, y = lax.fori_loop(0, ROOT_ITERATIONS, body, (lo, hi, y))
-    slope = jax.grad(f)(lax.stop_gradient(y))
-    return y - f(y) / jnp.where(slope != 0, lax.stop_gradient(slope), 1.0), bracketed
+    # (a root at hi itself may evaluate to a rounding-level positive value)
+    bracketed = fs(hi) <= 1e-12 * jnp.abs(fs(0.5 * hi))
+    y = bracketed_newton(fs, jax.grad(fs), jnp.zeros_like(hi), hi, hi, ROOT_ITERATIONS)
+    return implicit_step(f, jax.grad(f), y), bracketed
 
 
 _UNBOUNDED = ("no turning point: the energy of the swing is above the potential barrier of "
