@@ -26,6 +26,7 @@ ORDER = 26  #: degree of the Taylor polynomial of a substep
 RHO_OMEGA = 2.0  #: substep length in units of 1/(sqrt(c/m) + b/m), the fastest local rate
 RHO_MASS = 0.25  #: substep length as a fraction of m(t)/|dm/dt|
 NEWTON = 8  #: safeguarded Newton iterations for the velocity zero
+TAIL_TOLERANCE = 1e-9  #: largest relative size of a substep series' last two terms
 
 
 def _taylor(coefficients, s, x, v):
@@ -61,33 +62,42 @@ def _substep_length(model, t):
     amd = jnp.abs(md)
     has_rate = amd > 0
     h_mass = jnp.where(has_rate, RHO_MASS * m / jnp.where(has_rate, amd, 1.0), jnp.inf)
-    return jnp.minimum(h_omega, h_mass), h_mass < h_omega
+    h = jnp.minimum(h_omega, h_mass)
+    return h, h_mass < h_omega, t + h
 
 
-def half_swing(model, t0, x0, s, max_substeps: int):
-    """Integrate from rest at `(t0, x0)` with friction sign `s` to the next velocity zero.
+def march_to_velocity_zero(series, substep, t0, x0, s, max_substeps: int, t_guess):
+    """From rest at `(t0, x0)` with friction sign `s`, advance by Taylor substeps to the next
+    velocity zero; shared by the exact solvers of every model.
 
-    Returns `(found, mass_limited, t1, x1)`: `found` is False when no velocity zero occurred
-    within `max_substeps` substeps; `mass_limited` tells whether the substeps were then limited
-    by the approach of zero mass.
+    - `series(t, x, v)`: the Taylor coefficients of the half-swing solution about `t`;
+    - `substep(t)`: `(h, limited, t_next)`, the substep length from `t`, whether it is limited by
+      the approach of the model's end (zero mass, zero length), and where the substep ends
+      (`t + h`, or a breakpoint of a piecewise model);
+    - `t_guess`: an estimate of the time of the velocity zero (Newton's start).
+
+    Returns `(found, limited, t1, x1)`: `found` is False when no velocity zero occurred within
+    `max_substeps` substeps, or when a series lost accuracy (its last terms not negligible).
     """
     zero = jnp.zeros_like(x0)
 
     def body(carry, _):
         t, x, v, found, limited, inaccurate, start = carry
-        h, mass_limited = _substep_length(model, t)
-        cs = _taylor(model.coefficients(t), s, x, v)
+        h, end_limited, t_next = substep(t)
+        cs = series(t, x, v)
         x1 = _horner(cs, h)
         v1 = _horner(_derivative(cs), h)
-        # truncation guard: the last terms of the series must be negligible
-        tail = jnp.abs(cs[-1]) * h**ORDER + jnp.abs(cs[-2]) * h ** (ORDER - 1)
-        bad = tail > 1e-12 * (jnp.abs(x) + jnp.abs(x1) + jnp.abs(v) * h)
+        # truncation guard: the last terms of the series must be negligible (a diverging
+        # series is off by orders of magnitude; accurate ones stay near 1e-13 or far below)
+        k = len(cs) - 1
+        tail = jnp.abs(cs[-1]) * h**k + jnp.abs(cs[-2]) * h ** (k - 1)
+        bad = tail > TAIL_TOLERANCE * (jnp.abs(x) + jnp.abs(x1) + jnp.abs(v) * h)
         inaccurate = inaccurate | (bad & jnp.logical_not(found))
         hit = jnp.logical_not(found) & (v1 * s <= 0)
         start = jax.tree.map(lambda new, old: jnp.where(hit, new, old), (t, x, v, h), start)
-        limited = jnp.where(found, limited, mass_limited)
+        limited = jnp.where(found, limited, end_limited)
         found = found | hit
-        t, x, v = (jnp.where(found, a, b) for a, b in ((t, t + h), (x, x1), (v, v1)))
+        t, x, v = (jnp.where(found, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))
         return (t, x, v, found, limited, inaccurate, start), None
 
     false = jnp.array(False)
@@ -95,8 +105,20 @@ def half_swing(model, t0, x0, s, max_substeps: int):
     (_, _, _, found, limited, inaccurate, start), _ = lax.scan(
         body, init, None, length=max_substeps
     )
-    t1, x1 = _velocity_zero(model, start, s, t0 + _half_period(model, t0))
+    t, x, v, h = start
+    t1, x1 = velocity_zero_of(series(t, x, v), t, h, s, t_guess)
     return found & jnp.logical_not(inaccurate), limited, t1, x1
+
+
+def half_swing(model, t0, x0, s, max_substeps: int):
+    """The variable-mass model's half-swing from rest at `(t0, x0)` (see
+    `march_to_velocity_zero`); `limited` tells whether the substeps were limited by the
+    approach of zero mass."""
+    return march_to_velocity_zero(
+        lambda t, x, v: _taylor(model.coefficients(t), s, x, v),
+        lambda t: _substep_length(model, t),
+        t0, x0, s, max_substeps, t0 + _half_period(model, t0),
+    )
 
 
 def _half_period(model, t0):
@@ -105,12 +127,6 @@ def _half_period(model, t0):
     m = jnp.maximum(m + 0.5 * md * jnp.pi * jnp.sqrt(m / c), 0.5 * m)
     omega2 = jnp.maximum(c / m - (b / (2 * m)) ** 2, 0.25 * c / m)
     return jnp.pi / jnp.sqrt(omega2)
-
-
-def _velocity_zero(model, start, s, t_guess):
-    """Velocity zero inside the substep `start = (t, x, v, h)` that contains it."""
-    t, x, v, h = start
-    return velocity_zero_of(_taylor(model.coefficients(t), s, x, v), t, h, s, t_guess)
 
 
 def velocity_zero_of(cs, t, h, s, t_guess):

@@ -271,5 +271,5 @@ def linear_simulate(osc: LinearOscillator, x0, v0, t1, *, n_save: int = 2001,
     v0 = check("v0", v0, lambda x: x == x, "a real number [m/s]")
     t1 = check("t1", t1, positive, "> 0 [s]")
     rtol = float(check("rtol", rtol, positive, "> 0"))
-    x0, v0, t1 = (jnp.asarray(v, dtype=jnp.result_type(float)) for v in (x0, v0, t1))
+    x0, v0, t1 = (_float(v) for v in (x0, v0, t1))
     return _simulate(osc, x0, v0, t1, n_save, rtol, throw)

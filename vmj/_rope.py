@@ -72,7 +72,7 @@ class ConstantSpeed(LengthProfile):
     _limits = {"l0": (positive, "> 0 [m]"), "u": (anything, "a real number [m/s]")}
 
     def local(self, t):
-        t = jnp.asarray(t, dtype=jnp.result_type(float))
+        t = _float(t)
         return self.l0 - self.u * t, -self.u + jnp.zeros_like(t), jnp.zeros_like(t + self.u)
 
     def lifetime(self):
@@ -116,7 +116,7 @@ class Braking(LengthProfile):
             check("t_stop", np.asarray(gap), positive, "> t_brake [s] (t_stop - t_brake)")
 
     def local(self, t):
-        t = jnp.asarray(t, dtype=jnp.result_type(float))
+        t = _float(t)
         tb, ts, u = self.t_brake, self.t_stop, self.u
         k = u / (2 * (ts - tb))  # l''/2 while braking
         braking = (t >= tb) & (t < ts)
@@ -130,7 +130,7 @@ class Braking(LengthProfile):
         return l, rate, half_acc
 
     def next_break(self, t):
-        t = jnp.asarray(t, dtype=jnp.result_type(float))
+        t = _float(t)
         return jnp.where(t < self.t_brake, self.t_brake,
                          jnp.where(t < self.t_stop, self.t_stop, jnp.inf))
 

@@ -25,8 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from ._checks import check, positive, warn_if_float32
-from ._models import validated
+from ._checks import _is_traced, check, positive, warn_if_float32
+from ._models import _float, validated
 from ._rope import ConstantSpeed, Rope, check_horizon
 from ._roots import bracketed_newton, implicit_step
 from ._solution import RESULTS, DecaySequence
@@ -53,7 +53,7 @@ def _constant_speed(rope) -> None:
 def _times(rope, t):
     t = check("t", t, lambda x: x >= 0, ">= 0 [s]")
     check_horizon(rope, t, "t")
-    return jnp.asarray(t, dtype=jnp.result_type(float))
+    return _float(t)
 
 
 # -- first-order averaging (the paper, corrected) ---------------------------------------------
@@ -101,7 +101,7 @@ def _kbm_entry(rope, a0, t):
     _constant_speed(rope)
     _require_scalar_fields(rope)
     a0 = check("a0", a0, positive, "> 0 [m]")
-    return _kbm(rope, jnp.asarray(a0, dtype=jnp.result_type(float)), _times(rope, t))
+    return _kbm(rope, _float(a0), _times(rope, t))
 
 
 def kbm_amplitude(rope: Rope, a0, t):
@@ -268,7 +268,7 @@ def rope_energy_map(rope: Rope, a0, n: int, *, throw: bool = False) -> DecaySequ
 
     _constant_speed(rope)
     u = rope.length.u
-    if not isinstance(u, jax.core.Tracer) and float(u) != 0:
+    if not _is_traced(u) and float(u) != 0:
         raise ValueError(f"u must be 0 for the energy map (a rope of fixed length; got {float(u)})")
     return turning_points(rope, a0, n, method="energy", throw=throw)
 

@@ -19,16 +19,15 @@ through one Newton step), and a fixed number of substeps per half-swing keeps th
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from ._exact import _derivative, _horner, velocity_zero_of
+from ._exact import march_to_velocity_zero
 from ._rope import Rope
 from ._smooth import turning_points_smooth
 from ._solution import RESULTS, DecaySequence
-from ._solve import _smoothing, register_solver
+from ._solve import register_solver
 
 ORDER = 26  #: degree of the Taylor polynomial of a substep
 RHO = 1.0  #: substep length in units of 1/omega_tangent(amplitude)
@@ -78,46 +77,27 @@ def _series(model: Rope, t, s, x, v):
 
 
 def _substep(model: Rope, t, amp):
-    """Substep length from `t`, whether it is limited by the approach of `l = 0`, and whether it
-    ends on a breakpoint of the profile."""
+    """Substep length from `t`, whether it is limited by the approach of `l = 0`, and where it
+    ends (`t + h`, or a breakpoint of the profile)."""
     l, rate, _ = model.length.local(t)
     h_omega = RHO / model.omega(t, amp)
     moving = rate != 0
     h_len = jnp.where(moving, RHO_LENGTH * l / jnp.where(moving, jnp.abs(rate), 1.0), jnp.inf)
     brk = model.length.next_break(t)
     h = jnp.minimum(jnp.minimum(h_omega, h_len), brk - t)
-    return h, h_len < h_omega, h >= brk - t, brk
+    return h, h_len < h_omega, jnp.where(h >= brk - t, brk, t + h)
 
 
 def half_swing(model: Rope, t0, x0, s, max_substeps: int):
     """From rest at `(t0, x0)` with friction sign `s` to the next velocity zero:
-    `(found, length_limited, t1, x1)`."""
-    zero = jnp.zeros_like(x0)
+    `(found, length_limited, t1, x1)` (see `march_to_velocity_zero`)."""
     amp = jnp.abs(x0) + jnp.abs(model.m * model.length.accel(t0)) / (model.A * model.e) * \
         model.length.length(t0)
-
-    def body(carry, _):
-        t, x, v, found, limited, start = carry
-        h, len_limited, on_break, brk = _substep(model, t, amp)
-        cs = _series(model, t, s, x, v)
-        x1 = _horner(cs, h)
-        v1 = _horner(_derivative(cs), h)
-        hit = jnp.logical_not(found) & (v1 * s <= 0)
-        start = jax.tree.map(lambda new, old: jnp.where(hit, new, old), (t, x, v, h), start)
-        limited = jnp.where(found, limited, len_limited)
-        found = found | hit
-        t_next = jnp.where(on_break, brk, t + h)
-        t, x, v = (jnp.where(found, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))
-        return (t, x, v, found, limited, start), None
-
-    init = (t0, x0, zero, jnp.array(False), jnp.array(False), (t0, x0, zero, zero))
-    (_, _, _, found, limited, start), _ = lax.scan(body, init, None, length=max_substeps)
-    t, x, v, h = start
-    guess = t0 + jnp.pi / model.omega(t0, amp)
-    t1, x1 = velocity_zero_of(_series(model, t, s, x, v), t, h, s, guess)
-    return found, limited, t1, x1
-
-
+    return march_to_velocity_zero(
+        lambda t, x, v: _series(model, t, s, x, v),
+        lambda t: _substep(model, t, amp),
+        t0, x0, s, max_substeps, t0 + jnp.pi / model.omega(t0, amp),
+    )
 
 
 PIECES = 3  #: polynomial pieces of a length profile searched for a release (Braking has 3)
@@ -200,6 +180,5 @@ def _rope_exact(model, a0, n, *, smoothing, max_substeps):
 
 @register_solver(Rope, "smooth")
 def _rope_smooth(model, a0, n, *, smoothing, max_substeps):
-    w = _smoothing(model, a0, 0.0, smoothing)
-    return turning_points_smooth(model, a0, n, w, t1=rope_horizon(model, n),
+    return turning_points_smooth(model, a0, n, smoothing, t1=rope_horizon(model, n),
                                  exhausted_code=RESULTS.length_exhausted)

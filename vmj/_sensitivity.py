@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._models import _float
 from ._sweep import _get, resolve_field
 
 __all__ = ["sensitivity"]
@@ -53,9 +54,8 @@ def sensitivity(
     for w in wrt:
         if w in solver_args and isinstance(solver_args[w], (bool, str)):
             raise ValueError(f"{w} is not a float argument of fn (got {solver_args[w]!r})")
-    theta0 = {w: jnp.asarray(solver_args[w] if w in solver_args else
-                             _get(model, paths[field_names.index(w)]),
-                             dtype=jnp.result_type(float)) for w in wrt}
+    theta0 = {w: _float(solver_args[w] if w in solver_args else
+                        _get(model, paths[field_names.index(w)])) for w in wrt}
     for w, v in theta0.items():
         if jnp.ndim(v) != 0:
             raise ValueError(f"sensitivity takes scalar parameters ({w} has shape "

@@ -8,11 +8,10 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ._checks import check, check_int, positive, warn_if_float32
+from ._checks import _is_traced, check, check_int, positive, warn_if_float32
 from ._energy import energy_balance_sequence
 from ._exact import turning_points_exact
-from ._models import VariableMass, validated
-from ._models import _float as _as_float_array
+from ._models import VariableMass, _float, validated
 from ._smooth import default_smoothing, simulate_smooth, turning_points_smooth
 from ._solution import DecaySequence, Trajectory, throw_if_failed
 
@@ -34,17 +33,11 @@ def register_solver(model_type: type, method: str):
 
 def _require_scalar_fields(model) -> None:
     for leaf in jax.tree.leaves(model):
-        if not isinstance(leaf, jax.core.Tracer) and jnp.ndim(leaf) != 0:
+        if not _is_traced(leaf) and jnp.ndim(leaf) != 0:
             raise ValueError(
                 "this entry point takes a model with scalar parameters; for arrays of parameters "
                 "use vmj.sweep or jax.vmap"
             )
-
-
-def _smoothing(model, x0, v0, smoothing):
-    if smoothing is None:
-        return default_smoothing(model, x0, v0)
-    return check("smoothing", _as_float_array(smoothing), positive, "> 0 [m/s]")
 
 
 @register_solver(VariableMass, "exact")
@@ -54,7 +47,7 @@ def _variable_mass_exact(model, a0, n, *, smoothing, max_substeps):
 
 @register_solver(VariableMass, "smooth")
 def _variable_mass_smooth(model, a0, n, *, smoothing, max_substeps):
-    return turning_points_smooth(model, a0, n, _smoothing(model, a0, 0.0, smoothing))
+    return turning_points_smooth(model, a0, n, smoothing)
 
 
 @register_solver(VariableMass, "energy")
@@ -66,6 +59,8 @@ def _variable_mass_energy(model, a0, n, *, smoothing, max_substeps):
 def _turning_points(model, a0, n, method, smoothing, max_substeps, throw):
     model = validated(model)
     a0 = check("a0", a0, positive, "> 0 [m]")
+    if smoothing is not None:
+        smoothing = check("smoothing", smoothing, positive, "> 0 [m/s]")
     solver = _SOLVERS[(type(model), method)]
     seq = solver(model, a0, n, smoothing=smoothing, max_substeps=max_substeps)
     return throw_if_failed(seq, seq.result, throw)
@@ -114,9 +109,9 @@ def turning_points(
     max_substeps = check_int("max_substeps", max_substeps, 1)
     _require_scalar_fields(model)
     # arrays, not Python floats: filter_jit would treat floats as static and recompile per value
-    a0 = _as_float_array(check("a0", a0, positive, "> 0 [m]"))
+    a0 = _float(check("a0", a0, positive, "> 0 [m]"))
     if smoothing is not None:
-        smoothing = _as_float_array(check("smoothing", smoothing, positive, "> 0 [m/s]"))
+        smoothing = _float(check("smoothing", smoothing, positive, "> 0 [m/s]"))
     elif method == "smooth":  # the default as an array too: one compilation for every w
         smoothing = default_smoothing(model, a0, 0.0)
     return _turning_points(model, a0, n, method, smoothing, max_substeps, throw)
@@ -147,7 +142,7 @@ def _simulate(model, x0, v0, t1, smoothing, n_save, throw):
     if hasattr(model, "lifetime"):
         t1 = eqx.error_if(t1, t1 >= model.lifetime(), "t1 must be below the model's lifetime "
                           "(zero mass or zero rope length)")
-    w = _smoothing(model, x0, v0, smoothing)
+    w = check("smoothing", smoothing, positive, "> 0 [m/s]")
     traj = simulate_smooth(model, x0, v0, t1, w, n_save)
     return throw_if_failed(traj, traj.result, throw)
 
@@ -185,16 +180,16 @@ def simulate(
     if hasattr(model, "lifetime"):
         lifetime = model.lifetime()
         what = getattr(model, "_lifetime_text", "the zero-mass time m0/|delta|")
-        if not isinstance(lifetime, jax.core.Tracer) and not isinstance(t1, jax.core.Tracer):
+        if not (_is_traced(lifetime) or _is_traced(t1)):
             if float(t1) >= float(lifetime):
                 raise ValueError(
                     f"t1 must be below {what} = {float(lifetime):.6g} s (got {float(t1)})"
                 )
-    x0, v0, t1 = (_as_float_array(v) for v in (x0, v0, t1))
+    x0, v0, t1 = (_float(v) for v in (x0, v0, t1))
     if smoothing is not None:
-        smoothing = _as_float_array(check("smoothing", smoothing, positive, "> 0 [m/s]"))
+        smoothing = _float(check("smoothing", smoothing, positive, "> 0 [m/s]"))
     else:
-        if not any(isinstance(v, jax.core.Tracer) for v in (x0, v0)) and x0 == 0 and v0 == 0:
+        if not (_is_traced(x0) or _is_traced(v0)) and x0 == 0 and v0 == 0:
             raise ValueError("smoothing must be given (> 0 [m/s]) when x0 = v0 = 0: its default "
                              "is relative to the initial velocity scale")
         smoothing = default_smoothing(model, x0, v0)

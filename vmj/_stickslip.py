@@ -28,7 +28,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array
 
-from ._checks import check, check_int, positive, warn_if_float32
+from ._checks import _is_traced, check, check_int, positive, warn_if_float32
 from ._models import _Checked, _float, validated
 from ._solution import RESULTS, Trajectory
 
@@ -461,7 +461,7 @@ def stick_slip_simulate(model: StickSlip, t1, *, smoothing=None, n_save: int = 4
     t1 = check("t1", t1, positive, "> 0")
     w = _check_smoothing(smoothing)
     traj, z = _simulate_smooth(model, jnp.asarray(t1, dtype=float), w, n_save)
-    if throw and not isinstance(traj.result, jax.core.Tracer) and int(traj.result) != 0:
+    if throw and not _is_traced(traj.result) and int(traj.result) != 0:
         raise RuntimeError(RESULTS.messages[RESULTS.solver_failed])
     return (traj, z) if memory else traj
 
@@ -474,7 +474,7 @@ CREEP = 20.0  #: |u| below CREEP * w counts as a stop of the smoothed disk
 def _smooth_cycle(model, max_reversals, smoothing, throw) -> StickSlipCycle:
     model = validated(model)
     for leaf in jax.tree.leaves(model):
-        if isinstance(leaf, jax.core.Tracer) or jnp.ndim(leaf) != 0:
+        if _is_traced(leaf) or jnp.ndim(leaf) != 0:
             raise ValueError("method='smooth' takes a concrete scalar model (no jit/vmap)")
     w = _check_smoothing(smoothing)
     guess = float(closed_form_cycle(model, 64).period)  # only sets the simulated horizon

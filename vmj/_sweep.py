@@ -21,11 +21,10 @@ from typing import Any, Callable
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ._checks import check_int, warn_if_float32
-from ._models import validated
+from ._models import _float, validated
 
 __all__ = ["Grid", "SweepResult", "grid", "sweep", "resolve_field"]
 
@@ -71,7 +70,7 @@ def _get(model, path):
 
 def _set_fields(model, paths, values):
     """Replace the fields at `paths` by float arrays and re-validate (ValueError on bad values)."""
-    values = [jnp.asarray(v, dtype=jnp.result_type(float)) for v in values]
+    values = [_float(v) for v in values]
     model = eqx.tree_at(lambda m: [_get(m, p) for p in paths], model, values)
     return validated(model)
 
