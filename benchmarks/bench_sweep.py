@@ -4,9 +4,10 @@
    of `vmj.turning_points` against the event-driven SciPy loop (tests/scipy_reference.py,
    DOP853, rtol 1e-12) timed point by point on a subset; accuracy on that subset; forward-mode
    sensitivities over the same batch (gradients intact). Compile time reported separately.
-2. Energy-balance recurrences, 10^6 points x 12 swings: a jitted `jax.vmap` of
-   `vmj.energy_balance` (device arrays in and out), and the same through `vmj.sweep` (chunked,
-   results copied to NumPy).
+2. Energy-balance recurrences, 10^6 points x 12 swings: the compiled chunk evaluations of
+   `vmj.sweep` on every core with the results left on the device (the recurrences themselves),
+   `vmj.sweep` end to end (plus copying the result into new NumPy arrays), and one plain jitted
+   `jax.vmap` over all points.
 3. Cold start of `vmj table 1` (a new process). A persistent compilation cache does not help:
    JAX does not store executables with host callbacks, which `equinox.error_if` uses.
 
@@ -32,6 +33,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from scipy_reference import variable_mass_turning_points  # noqa: E402
 
 M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
+ENERGY_CHUNK = 16384  #: vmj.sweep's default chunk size
 
 
 CPU = {}  #: label -> best process CPU time [s] (all threads), printed next to the wall times
@@ -110,31 +112,56 @@ def bench_exact(points, scipy_points, repeat):
 
 
 def bench_energy(points, repeat):
-    from vmj._sweep import _BLOCK, _evaluate
+    """Three ways of evaluating the recurrences for `points` random points x 12 swings."""
+    import concurrent.futures
 
-    eps, mu, delta = (jnp.asarray(v) for v in random_points(points, seed=1))
-    f = jax.jit(jax.vmap(lambda e, m, d: vmj.energy_balance(model_of(e, m, d), A0, N)))
-    t0 = time.perf_counter()
-    jax.block_until_ready(f(eps, mu, delta))
-    first = time.perf_counter() - t0
-    t_vmap, _ = best_of(lambda: f(eps, mu, delta), repeat, "vmap")
-    # the layout vmj.sweep uses: lax.map over blocks of _BLOCK points, each block a vmap
-    model = jax.tree.map(lambda x: jnp.broadcast_to(x, (points,)), model_of(eps, mu, delta))
+    from vmj._sweep import _CORES, _evaluate
+
+    eps, mu, delta = random_points(points, seed=1)
+    host = model_of(eps, mu, delta)
+    # (1) the compiled chunk evaluations of vmj.sweep (chunks of CHUNK points, one thread per
+    # core), results left on the device: the recurrences themselves
+    leaves, treedef = jax.tree.flatten(host)
+    swept = tuple(np.ndim(x) > 0 for x in leaves)
+    n_chunks = -(-points // ENERGY_CHUNK)
+    pad = n_chunks * ENERGY_CHUNK - points
+    on_device = jax.tree.unflatten(treedef, [
+        jax.device_put(np.concatenate([x, np.repeat(x[-1:], pad)]) if s else np.asarray(x))
+        for x, s in zip(leaves, swept)])
     kw = {"a0": A0, "n": N}
-    jax.block_until_ready(_evaluate(vmj.energy_balance, kw, model, _BLOCK))
-    t_block, _ = best_of(lambda: _evaluate(vmj.energy_balance, kw, model, _BLOCK), repeat,
-                         "block")
-    host = model_of(np.asarray(eps), np.asarray(mu), np.asarray(delta))
-    run = lambda: vmj.sweep(vmj.energy_balance, host, a0=A0, n=N, chunk_size=65536)  # noqa
+
+    def chunk(c):
+        start = np.asarray(c * ENERGY_CHUNK, dtype=np.int64)
+        return jax.block_until_ready(
+            _evaluate(vmj.energy_balance, kw, on_device, swept, start, ENERGY_CHUNK, None, None))
+
+    def all_chunks():
+        with concurrent.futures.ThreadPoolExecutor(_CORES) as pool:
+            return list(pool.map(chunk, range(n_chunks)))
+
+    t0 = time.perf_counter()
+    chunk(0)
+    first = time.perf_counter() - t0
+    t_chunks, _ = best_of(all_chunks, repeat, "chunks")
+    # (2) vmj.sweep end to end: the same, plus copying the result into new NumPy arrays
+    run = lambda: vmj.sweep(vmj.energy_balance, host, a0=A0, n=N,  # noqa: E731
+                            chunk_size=ENERGY_CHUNK, progress=False)
     run()
-    t_sweep, _ = best_of(lambda: run().values.positions, 2, "sweep")
-    print(f"energy balance, {points} points x {N} swings (target < 100 ms)")
-    print(f"  jit(vmap(vmj.energy_balance)):             {t_vmap * 1e3:7.1f} ms "
-          f"(CPU {CPU['vmap'] * 1e3:.0f} ms; compile + first call {first:.1f} s)")
-    print(f"  blocks of {_BLOCK} (lax.map of vmap, as in sweep): {t_block * 1e3:7.1f} ms "
-          f"(CPU {CPU['block'] * 1e3:.0f} ms; {t_vmap / t_block:.2f} x the plain vmap)")
-    print(f"  vmj.sweep (chunks of 65536, copied to NumPy): {t_sweep * 1e3:7.1f} ms "
-          f"(CPU {CPU['sweep'] * 1e3:.0f} ms)")
+    t_sweep, res = best_of(lambda: run().values.positions, repeat, "sweep")
+    size = sum(np.asarray(v).nbytes for v in jax.tree.leaves(run().values)) / 1e6
+    # (3) the plain way: one jit(vmap) over all points
+    f = jax.jit(jax.vmap(lambda e, m, d: vmj.energy_balance(model_of(e, m, d), A0, N)))
+    args = [jnp.asarray(v) for v in (eps, mu, delta)]
+    jax.block_until_ready(f(*args))
+    t_vmap, _ = best_of(lambda: f(*args), repeat, "vmap")
+    print(f"energy balance, {points} points x {N} swings (target < 100 ms), float64")
+    print(f"  recurrences: sweep's compiled chunks ({ENERGY_CHUNK} points, {_CORES} threads), "
+          f"results on the device: {t_chunks * 1e3:7.1f} ms (CPU {CPU['chunks'] * 1e3:.0f} ms; "
+          f"compile + first chunk {first:.1f} s)")
+    print(f"  vmj.sweep end to end (+ copy of the {size:.0f} MB result to NumPy): "
+          f"{t_sweep * 1e3:7.1f} ms (CPU {CPU['sweep'] * 1e3:.0f} ms)")
+    print(f"  one jit(vmap(vmj.energy_balance)) over all points: {t_vmap * 1e3:7.1f} ms "
+          f"(CPU {CPU['vmap'] * 1e3:.0f} ms)")
 
 
 def bench_cold_start():

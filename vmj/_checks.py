@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["check", "check_int", "warn_if_float32"]
+__all__ = ["check", "check_all", "check_int", "warn_if_float32"]
 
 
 def _is_traced(x) -> bool:
@@ -29,15 +29,33 @@ def check(name: str, value, ok: Callable, allowed: str):
     `ok` must work on NumPy and JAX arrays alike. `allowed` is the human description of the
     range, e.g. `"> 0"` or `"in [0, 1]"`.
     """
-    message = f"{name} must be finite and {allowed}"
-    if _is_traced(value):
-        bad = jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value)))
-        return eqx.error_if(value, bad, message)
-    arr = np.asarray(value, dtype=float)
-    if not (np.all(np.isfinite(arr)) and np.all(ok(arr))):
-        shown = arr.item() if arr.ndim == 0 else arr
-        raise ValueError(f"{message} (got {shown})")
-    return value
+    return check_all([(name, value, ok, allowed)])[0]
+
+
+def check_all(items) -> list:
+    """`check` for several `(name, value, ok, allowed)` at once: the traced values share one
+    `equinox.error_if` (one host callback per call, however many parameters), which names the
+    first parameter out of range."""
+    items = list(items)
+    out = [value for _, value, _, _ in items]
+    traced = []
+    for i, (name, value, ok, allowed) in enumerate(items):
+        message = f"{name} must be finite and {allowed}"
+        if _is_traced(value):
+            traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))),
+                           message))
+            continue
+        arr = np.asarray(value, dtype=float)
+        if not (np.all(np.isfinite(arr)) and np.all(ok(arr))):
+            shown = arr.item() if arr.ndim == 0 else arr
+            raise ValueError(f"{message} (got {shown})")
+    if traced:
+        bad = jnp.stack([b for _, b, _ in traced])
+        guarded = eqx.branched_error_if(tuple(out[i] for i, _, _ in traced), jnp.any(bad),
+                                        jnp.argmax(bad), [m for _, _, m in traced])
+        for (i, _, _), g in zip(traced, guarded):
+            out[i] = g
+    return out
 
 
 def check_int(name: str, value, minimum: int) -> int:

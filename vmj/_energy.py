@@ -1,62 +1,85 @@
-"""The paper's energy-balance recurrences (11)-(13), with (13) as corrected in SYSTEMS.md."""
+"""The paper's energy-balance recurrences (11)-(13), with (13) as corrected in SYSTEMS.md.
+
+Written for sweeps of millions of points: between swings a point's state is three numbers (time,
+mass, signed position of the turning point). A swing that cannot advance (the mass sticks for
+good, or the mass would run out) leaves the state unchanged, so stopping is absorbing and the
+count, the crossings and the status are read off the outputs after the loop instead of being
+carried through it; the loop body then compiles to three fused element-wise kernels per swing
+(see docs/performance.md for the measurements behind this layout).
+"""
 
 from __future__ import annotations
+
+import math
 
 import jax.numpy as jnp
 from jax import lax
 
+from ._models import Coulomb
 from ._solution import RESULTS, DecaySequence
 
+#: Taylor coefficients of phi(x) = (exp(x) - 1)/x = sum_j x^j/(j + 1)!
+_PHI = tuple(1.0 / math.factorial(j + 1) for j in range(10))
+#: phi by its series inside this radius (truncation below 3e-18 relative), by the quotient
+#: outside it (rounding below 1.2e-15 relative)
+_SERIES_RADIUS = 0.1
 
-def _expm1_over_x(x):
-    """(exp(x) - 1)/x, smooth through x = 0 (value and gradient)."""
-    small = jnp.abs(x) < 1e-5
-    safe = jnp.where(small, 1.0, x)
-    return jnp.where(small, 1.0 + x / 2 + x * x / 6, jnp.expm1(safe) / safe)
+
+def _exp_and_phi(x, inverse_x):
+    """`exp(x)` and `phi(x) = (exp(x) - 1)/x`, smooth through `x = 0` (value and gradient);
+    `inverse_x` is `1/x` where `|x| >= _SERIES_RADIUS` (any finite value elsewhere)."""
+    e = jnp.exp(x)
+    series = _PHI[-1]
+    for coefficient in reversed(_PHI[:-1]):
+        series = series * x + coefficient
+    return e, jnp.where(jnp.abs(x) < _SERIES_RADIUS, series, (e - 1.0) * inverse_x)
 
 
 def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
     """Amplitudes from the energy-balance recurrences (see `vmj.energy_balance`)."""
     m0, c, delta = model.m0, model.c, model.delta
+    friction = model.friction
     lam = delta - 2 * delta * model.eps - 2 * model.mu
-    dF_dm = model.friction.dforce_dmass()
+    half_per_root_mass = jnp.pi / jnp.sqrt(c)  # half-period / sqrt(m)
+    exponent_root_mass = half_per_root_mass * lam / 4  # exponent of E_k * sqrt(m)
+    nonzero = exponent_root_mass != 0
+    inverse_exponent_root_mass = jnp.where(nonzero, 1.0, 0.0) / jnp.where(
+        nonzero, exponent_root_mass, 1.0)
+    dF_dm = friction.dforce_dmass()
+    # friction that falls with the mass (f-law, delta < 0): a stuck mass waits until it has
+    # fallen below the spring force, then moves on (never with constant friction)
+    falls = dF_dm * delta < 0
+    may_release = not isinstance(friction, Coulomb)
 
-    def body(carry, _):
-        t, m, a, side, code = carry  # a >= 0: distance from x = 0 of the current turning point
-        active = code == RESULTS.successful
-        F_here = model.friction.force(m)
-        moves = c * a > F_here
-        # friction that falls with the mass (f-law, delta < 0): the mass sticks until it falls
-        # below the spring force, then moves on
-        release = jnp.logical_not(moves) & (dF_dm * delta < 0)
-        m_go = jnp.where(release, c * a / jnp.where(dF_dm > 0, dF_dm, 1.0), m)
-        t = jnp.where(release, t + (m_go - m) / jnp.where(delta != 0, delta, 1.0), t)
-        m = m_go
-        stuck = jnp.logical_not(moves | release)
-        root_m = jnp.sqrt(jnp.maximum(m, 0.0))
-        half = jnp.pi * root_m / jnp.sqrt(c)
+    def swing(state, _):
+        t_in, m_in, p = state  # p: signed position of the current turning point
+        a = jnp.abs(p)
+        moves = c * a > friction.force(m_in)
+        t, m = t_in, m_in
+        if may_release:
+            release = jnp.logical_not(moves) & falls
+            m = jnp.where(release, c * a / jnp.where(falls, dF_dm, 1.0), m_in)
+            t = jnp.where(release, t_in + (m - m_in) / jnp.where(falls, delta, 1.0), t_in)
+            moves = moves | release
+        root_m = jnp.sqrt(m)
+        half = half_per_root_mass * root_m
         m_next = m + delta * half
-        Fk = model.friction.force(m + 0.5 * delta * half)  # friction work over the half-swing
-        x = jnp.pi * lam / (4 * jnp.sqrt(c) * jnp.maximum(root_m, 1e-300))
-        a_next = a * jnp.exp(x) - (2 * Fk / c) * _expm1_over_x(x)
-        exhausted = m_next <= 0
-        new_code = jnp.where(
-            stuck, RESULTS.stopped, jnp.where(exhausted, RESULTS.mass_exhausted, code)
-        )
-        code = jnp.where(active, new_code, code)
-        advance = active & (code == RESULTS.successful)
-        crossed = a_next > 0
-        side = jnp.where(advance & crossed, -side, side)
-        t = jnp.where(advance, t + half, t)
-        m = jnp.where(advance, m_next, m)
-        a = jnp.where(advance, jnp.abs(a_next), a)
-        return (t, m, a, side, code), (t, side * a, advance & crossed, advance)
+        E, phi = _exp_and_phi(exponent_root_mass / root_m, root_m * inverse_exponent_root_mass)
+        F_k = friction.force(m + 0.5 * delta * half)  # friction work over the half-swing
+        a_next = a * E - (2 * F_k / c) * phi  # < 0: the swing did not pass x = 0
+        advance = moves & (m_next > 0)
+        t_out = jnp.where(advance, t + half, t_in)
+        p_out = jnp.where(advance, -jnp.sign(p) * a_next, p)
+        # the flags from the old and new states alone, so that every intermediate above has a
+        # single consumer and fuses into it (the half-period is > 0: a swing advanced exactly
+        # when the time grew; it crossed x = 0 exactly when the position changed sign)
+        flags = (p_out * p < 0, t_out > t_in)
+        return (t_out, jnp.where(advance, m_next, m_in), p_out), (t_out, p_out) + flags
 
-    init = (jnp.zeros_like(m0), m0, a0 * jnp.ones_like(m0), -jnp.ones_like(m0),
-            jnp.array(RESULTS.successful))
-    (t, m, a, _, code), (times, positions, crossed, advanced) = lax.scan(
-        body, init, None, length=n
-    )
-    stuck = (c * a <= model.friction.force(m)) & jnp.logical_not(dF_dm * delta < 0)
-    code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
+    init = (jnp.zeros_like(m0), m0, -a0 * jnp.ones_like(m0))
+    (_, m, p), (times, positions, crossed, advanced) = lax.scan(swing, init, None, length=n)
+    stuck = (c * jnp.abs(p) <= friction.force(m)) & jnp.logical_not(falls)
+    exhausted = jnp.logical_not(advanced[-1]) & jnp.logical_not(stuck)
+    code = jnp.where(stuck, RESULTS.stopped,
+                     jnp.where(exhausted, RESULTS.mass_exhausted, RESULTS.successful))
     return DecaySequence.from_scan(times, positions, crossed, advanced, code)

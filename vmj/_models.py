@@ -7,7 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
-from ._checks import anything, check, nonnegative, positive, unit_interval
+from ._checks import anything, check_all, nonnegative, positive, unit_interval
 
 __all__ = ["FrictionLaw", "Coulomb", "MassProportional", "VariableMass", "validated"]
 
@@ -30,16 +30,28 @@ class _Checked(eqx.Module):
 
 
 def validated(model):
-    """Check every limited field of `model` (recursively); return the guarded model."""
-    if not isinstance(model, _Checked):
+    """Check every limited field of `model` and of the models inside it (one runtime guard for
+    all traced fields); return the guarded model."""
+    paths, items = [], []
+
+    def collect(m, path):
+        if isinstance(m, _Checked):
+            for n, (ok, allowed) in m._limits.items():
+                paths.append(path + (n,))
+                items.append((n, getattr(m, n), ok, allowed))
+            for n, v in vars(m).items():
+                collect(v, path + (n,))
+
+    collect(model, ())
+    if not paths:
         return model
-    names = [n for n in model._limits]
-    values = [check(n, getattr(model, n), *model._limits[n]) for n in names]
-    children = [n for n, v in vars(model).items() if isinstance(v, _Checked)]
-    model = eqx.tree_at(lambda m: [getattr(m, n) for n in names], model, values) if names else model
-    for n in children:
-        model = eqx.tree_at(lambda m: getattr(m, n), model, validated(getattr(model, n)))
-    return model
+
+    def get(m, path):
+        for n in path:
+            m = getattr(m, n)
+        return m
+
+    return eqx.tree_at(lambda m: [get(m, p) for p in paths], model, check_all(items))
 
 
 class FrictionLaw(_Checked):

@@ -10,10 +10,12 @@ model: any `equinox.Module` whose parameters are array fields works.
 
 from __future__ import annotations
 
+import concurrent.futures
 import csv
 import dataclasses
 import json
 import math
+import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -302,18 +304,34 @@ class _Progress:
 
 
 #: points per vectorised block inside a chunk: the state of a block stays in the CPU caches while
-#: `fn` loops over swings (`lax.map` over blocks; measured 1.2 to 2 times faster than one `vmap`
-#: over the chunk for the energy balance and the exact solver, see benchmarks/bench_sweep.py)
+#: `fn` loops over swings (`lax.map` over blocks; measured 1.2 to 1.6 times faster than one `vmap`
+#: over the chunk for the exact solver, no different for the energy balance; see
+#: benchmarks/bench_sweep.py)
 _BLOCK = 2048
+#: threads evaluating chunks on a single device
+_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 @eqx.filter_jit
-def _evaluate(fn, kwargs, model, block):
-    point = lambda m: fn(m, **kwargs)  # noqa: E731
+def _evaluate(fn, kwargs, model, swept, start, size, block, sharding):
+    """`fn` at the points `start ... start + size` of a model whose swept leaves (flags in
+    `swept`) are flat arrays over the whole sweep, already on the device(s)."""
+    leaves, treedef = jax.tree.flatten(model)
+    part = [jax.lax.dynamic_slice_in_dim(x, start, size) if s else x
+            for x, s in zip(leaves, swept)]
+    if sharding is not None:
+        part = [jax.lax.with_sharding_constraint(x, sharding) if s else x
+                for x, s in zip(part, swept)]
+
+    def point(batched):
+        it = iter(batched)
+        return fn(jax.tree.unflatten(treedef, [next(it) if s else x for x, s in
+                                               zip(part, swept)]), **kwargs)
+
+    batched = [x for x, s in zip(part, swept) if s]
     if block is None:
-        return eqx.filter_vmap(point)(model)
-    dynamic, static = eqx.partition(model, eqx.is_array)
-    return jax.lax.map(lambda d: point(eqx.combine(d, static)), dynamic, batch_size=block)
+        return jax.vmap(point)(batched)
+    return jax.lax.map(point, batched, batch_size=block)
 
 
 def _devices(devices):
@@ -345,7 +363,9 @@ def sweep(
       `(N,)` are `N` paired points; shapes `(N, 1)` and `(M,)` are an `N x M` product), or a
       [`vmj.Grid`][] from [`vmj.grid`][] (named axes).
     - `chunk_size`: points evaluated per compiled call (static; the last chunk is padded, so there
-      is one compilation). Memory on the device is proportional to it, not to the sweep.
+      is one compilation). Working memory is proportional to it (times the number of cores, whose
+      threads evaluate chunks side by side); the swept parameters themselves (8 bytes per point
+      each) are put on the device once.
     - `progress`: print a progress bar to stderr; default: when stderr is a terminal and there is
       more than one chunk.
     - `devices`: devices to shard each chunk over (default: every local device); with several,
@@ -363,9 +383,9 @@ def sweep(
     else:
         dims = coords = None
     leaves, treedef = jax.tree.flatten(model)
-    arrays = [i for i, l in enumerate(leaves) if eqx.is_array_like(l)]
     try:
-        shape = tuple(np.broadcast_shapes(*(np.shape(leaves[i]) for i in arrays)))
+        shape = tuple(np.broadcast_shapes(*(np.shape(x) for x in leaves
+                                            if eqx.is_array_like(x))))
     except ValueError as e:
         raise ValueError(f"the model's parameters do not broadcast together: {e}") from None
     if dims is None:
@@ -386,28 +406,47 @@ def sweep(
     if nd > 1:
         mesh = jax.sharding.Mesh(np.array(devs), ("batch",))
         sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
-    host = [np.broadcast_to(np.asarray(leaves[i]), shape) for i in arrays]
+    # the swept parameters flattened once (C order), the last chunk padded with the last point,
+    # and put on the device(s) once; the compiled chunk slices them (no copy per chunk)
+    swept = tuple(eqx.is_array_like(x) and np.ndim(x) > 0 for x in leaves)
+    pad = n_chunks * chunk - n
+    place = devs[0] if nd == 1 else jax.sharding.NamedSharding(
+        mesh, jax.sharding.PartitionSpec())
+    on_device = []
+    for x, s in zip(leaves, swept):
+        if s:
+            f = np.broadcast_to(np.asarray(x), shape).reshape(n)
+            x = jax.device_put(np.concatenate([f, np.repeat(f[-1:], pad)]), place)
+        elif eqx.is_array_like(x):
+            x = jax.device_put(np.asarray(x), place)
+        on_device.append(x)
+    model = jax.tree.unflatten(treedef, on_device)
+    # one device: blocks of _BLOCK points; several: one vmap, partitioned by XLA (GSPMD)
+    block = _BLOCK if nd == 1 and chunk > _BLOCK else None
+
+    def evaluate(c):
+        start = np.asarray(c * chunk, dtype=np.int64)
+        return jax.tree.flatten(_evaluate(fn, solver_args, model, swept, start, chunk, block,
+                                          sharding))
+
+    def store(c, got_leaves):
+        stop = min((c + 1) * chunk, n)
+        for o, g in zip(out_leaves, got_leaves):
+            o[c * chunk:stop] = np.asarray(g)[: stop - c * chunk]
+
     show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
     bar = _Progress(n_chunks, bool(show))
-    out_leaves = out_def = None
-    for c in range(n_chunks):
-        start = c * chunk
-        flat = np.minimum(np.arange(start, start + chunk), n - 1)  # pad with the last point
-        idx = np.unravel_index(flat, shape) if shape else ()
-        batch = list(leaves)
-        for i, h in zip(arrays, host):
-            part = np.ascontiguousarray(h[idx]) if shape else np.broadcast_to(h, (chunk,))
-            batch[i] = jax.device_put(part, sharding if sharding is not None else devs[0])
-        # one device: blocks of _BLOCK points; several: one vmap, partitioned by XLA (GSPMD)
-        block = _BLOCK if nd == 1 and chunk > _BLOCK else None
-        got = _evaluate(fn, solver_args, jax.tree.unflatten(treedef, batch), block)
-        got_leaves, got_def = jax.tree.flatten(got)
-        if out_leaves is None:
-            out_def = got_def
-            out_leaves = [np.empty((n,) + g.shape[1:], dtype=g.dtype) for g in got_leaves]
-        stop = min(start + chunk, n)
-        for o, g in zip(out_leaves, got_leaves):
-            o[start:stop] = np.asarray(g)[: stop - start]
-        bar.update()
+    got_leaves, out_def = evaluate(0)  # compiles; fixes the output structure
+    out_leaves = [np.empty((n,) + g.shape[1:], dtype=g.dtype) for g in got_leaves]
+    store(0, got_leaves)
+    bar.update()
+    # A compiled chunk runs synchronously (its runtime checks call back to the host), so on a
+    # single device the chunks run in threads, one per core; results go straight into place.
+    workers = max(1, min(_CORES, n_chunks - 1)) if nd == 1 else 1
+    with concurrent.futures.ThreadPoolExecutor(workers) as pool:
+        jobs = [pool.submit(lambda c: store(c, evaluate(c)[0]), c) for c in range(1, n_chunks)]
+        for job in concurrent.futures.as_completed(jobs):
+            job.result()
+            bar.update()
     values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out_leaves])
     return SweepResult(values, tuple(dims), dict(coords), shape, nd, n_chunks)
