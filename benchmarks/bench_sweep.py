@@ -4,10 +4,10 @@
    of `vmj.turning_points` against the event-driven SciPy loop (tests/scipy_reference.py,
    DOP853, rtol 1e-12) timed point by point on a subset; accuracy on that subset; forward-mode
    sensitivities over the same batch (gradients intact). Compile time reported separately.
-2. Energy-balance recurrences, 10^6 points x 12 swings: the compiled chunk evaluations of
-   `vmj.sweep` on every core with the results left on the device (the recurrences themselves),
-   `vmj.sweep` end to end (plus copying the result into new NumPy arrays), and one plain jitted
-   `jax.vmap` over all points.
+2. Energy-balance recurrences, 10^6 points x 12 swings: `vmj.sweep` of the amplitudes (what a
+   plain `vmap` of a `lax.scan` of the recurrence returns) and of the whole `DecaySequence`
+   (times, positions, crossings, count, status), both into new NumPy arrays, and one plain
+   jitted `jax.vmap` of `vmj.energy_balance` over all points.
 3. Cold start of `vmj table 1` (a new process). A persistent compilation cache does not help:
    JAX does not store executables with host callbacks, which `equinox.error_if` uses.
 
@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from scipy_reference import variable_mass_turning_points  # noqa: E402
 
 M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
-ENERGY_CHUNK = 16384  #: vmj.sweep's default chunk size
+ENERGY_CHUNK = 65536  #: points per compiled call in the energy-balance sweeps
 
 
 CPU = {}  #: label -> best process CPU time [s] (all threads), printed next to the wall times
@@ -112,56 +112,37 @@ def bench_exact(points, scipy_points, repeat):
 
 
 def bench_energy(points, repeat):
-    """Three ways of evaluating the recurrences for `points` random points x 12 swings."""
-    import concurrent.futures
-
-    from vmj._sweep import _CORES, _evaluate
-
+    """The recurrences for `points` random points x 12 swings, three ways."""
     eps, mu, delta = random_points(points, seed=1)
     host = model_of(eps, mu, delta)
-    # (1) the compiled chunk evaluations of vmj.sweep (chunks of CHUNK points, one thread per
-    # core), results left on the device: the recurrences themselves
-    leaves, treedef = jax.tree.flatten(host)
-    swept = tuple(np.ndim(x) > 0 for x in leaves)
-    n_chunks = -(-points // ENERGY_CHUNK)
-    pad = n_chunks * ENERGY_CHUNK - points
-    on_device = jax.tree.unflatten(treedef, [
-        jax.device_put(np.concatenate([x, np.repeat(x[-1:], pad)]) if s else np.asarray(x))
-        for x, s in zip(leaves, swept)])
-    kw = {"a0": A0, "n": N}
 
-    def chunk(c):
-        start = np.asarray(c * ENERGY_CHUNK, dtype=np.int64)
-        return jax.block_until_ready(
-            _evaluate(vmj.energy_balance, kw, on_device, swept, start, ENERGY_CHUNK, None, None))
+    def swept(fn):
+        run = lambda: vmj.sweep(fn, host, a0=A0, n=N, chunk_size=ENERGY_CHUNK,  # noqa: E731
+                                progress=False)
+        t0 = time.perf_counter()
+        first = run()
+        return time.perf_counter() - t0, run, first
 
-    def all_chunks():
-        with concurrent.futures.ThreadPoolExecutor(_CORES) as pool:
-            return list(pool.map(chunk, range(n_chunks)))
-
-    t0 = time.perf_counter()
-    chunk(0)
-    first = time.perf_counter() - t0
-    t_chunks, _ = best_of(all_chunks, repeat, "chunks")
-    # (2) vmj.sweep end to end: the same, plus copying the result into new NumPy arrays
-    run = lambda: vmj.sweep(vmj.energy_balance, host, a0=A0, n=N,  # noqa: E731
-                            chunk_size=ENERGY_CHUNK, progress=False)
-    run()
-    t_sweep, res = best_of(lambda: run().values.positions, repeat, "sweep")
-    size = sum(np.asarray(v).nbytes for v in jax.tree.leaves(run().values)) / 1e6
-    # (3) the plain way: one jit(vmap) over all points
+    amplitudes = lambda m, a0, n: vmj.energy_balance(m, a0, n).amplitudes  # noqa: E731
+    first_amp, run_amp, res_amp = swept(amplitudes)
+    t_amp, _ = best_of(run_amp, repeat, "amplitudes")
+    first_seq, run_seq, res_seq = swept(vmj.energy_balance)
+    t_seq, _ = best_of(run_seq, repeat, "sequence")
+    mb = lambda r: sum(np.asarray(v).nbytes for v in jax.tree.leaves(r.values)) / 1e6  # noqa
     f = jax.jit(jax.vmap(lambda e, m, d: vmj.energy_balance(model_of(e, m, d), A0, N)))
     args = [jnp.asarray(v) for v in (eps, mu, delta)]
     jax.block_until_ready(f(*args))
     t_vmap, _ = best_of(lambda: f(*args), repeat, "vmap")
-    print(f"energy balance, {points} points x {N} swings (target < 100 ms), float64")
-    print(f"  recurrences: sweep's compiled chunks ({ENERGY_CHUNK} points, {_CORES} threads), "
-          f"results on the device: {t_chunks * 1e3:7.1f} ms (CPU {CPU['chunks'] * 1e3:.0f} ms; "
-          f"compile + first chunk {first:.1f} s)")
-    print(f"  vmj.sweep end to end (+ copy of the {size:.0f} MB result to NumPy): "
-          f"{t_sweep * 1e3:7.1f} ms (CPU {CPU['sweep'] * 1e3:.0f} ms)")
-    print(f"  one jit(vmap(vmj.energy_balance)) over all points: {t_vmap * 1e3:7.1f} ms "
+    same = np.array_equal(res_amp.values, np.abs(res_seq.values.positions))
+    print(f"energy balance, {points} points x {N} swings, float64 (target < 100 ms)")
+    print(f"  vmj.sweep, amplitudes ({mb(res_amp):.0f} MB):        {t_amp * 1e3:7.1f} ms "
+          f"(CPU {CPU['amplitudes'] * 1e3:.0f} ms; compile + first {first_amp:.1f} s)")
+    print(f"  vmj.sweep, DecaySequence ({mb(res_seq):.0f} MB):   {t_seq * 1e3:7.1f} ms "
+          f"(CPU {CPU['sequence'] * 1e3:.0f} ms; compile + first {first_seq:.1f} s)")
+    print(f"  one jit(vmap(vmj.energy_balance)), all points: {t_vmap * 1e3:7.1f} ms "
           f"(CPU {CPU['vmap'] * 1e3:.0f} ms)")
+    print(f"  (chunks of {ENERGY_CHUNK} points, one thread per core; amplitudes identical in "
+          f"both sweeps: {same})")
 
 
 def bench_cold_start():
