@@ -1,6 +1,8 @@
 """Variable-mass oscillator: exact solver vs SciPy, closed-form limits, smoothed model, gradients,
 invariants and failure reporting. Tolerances are the acceptance criteria of the foundation issue."""
 
+import math
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -227,6 +229,60 @@ def test_decay_sequence_invariants(m0, c, delta, eps, mu, F, f, use_f):
         # energy decays: amplitudes never grow when the motion decays without dry friction
         a = np.concatenate([[A0], np.abs(x[:n])])
         assert np.all(np.diff(a) <= 1e-12 * A0)
+
+
+def energy_balance_reference(m0, c, delta, eps, mu, F, f, use_f, a0, n):
+    """The recurrences of `vmj.energy_balance`'s docstring, swing by swing in plain Python
+    (math.expm1), with the stick, release and exhaustion rules written out."""
+    g = 9.81
+    force = (lambda m: f * g * m) if use_f else (lambda m: F)
+    lam = delta - 2 * delta * eps - 2 * mu
+    t, m, a, side = 0.0, m0, a0, -1.0
+    times, positions, crossed, result = [], [], [], vmj.RESULTS.successful
+    for _ in range(n):
+        if c * a <= force(m):
+            if use_f and f > 0 and delta < 0:  # friction falls with the mass: wait, move on
+                m_go = c * a / (f * g)
+                t, m = t + (m_go - m) / delta, m_go
+            else:
+                result = vmj.RESULTS.stopped
+                break
+        half = math.pi * math.sqrt(m / c)
+        if m + delta * half <= 0:
+            result = vmj.RESULTS.mass_exhausted
+            break
+        x = math.pi * lam / (4 * math.sqrt(c * m))
+        phi = math.expm1(x) / x if x else 1.0
+        a_next = a * math.exp(x) - 2 * force(m + 0.5 * delta * half) / c * phi
+        t, m = t + half, m + delta * half
+        side = -side if a_next > 0 else side
+        a = abs(a_next)
+        times.append(t)
+        positions.append(side * a)
+        crossed.append(a_next > 0)
+    else:
+        if c * a <= force(m) and not (use_f and f > 0 and delta < 0):
+            result = vmj.RESULTS.stopped
+    return np.array(times), np.array(positions), np.array(crossed, bool), result
+
+
+@given(
+    m0=st.floats(0.05, 10), delta=st.floats(-30, 30), eps=st.floats(0, 1), mu=st.floats(0, 10),
+    F=st.floats(0, 30), f=st.floats(0, 0.5), use_f=st.booleans(), a0=st.floats(1e-3, 0.1),
+)
+def test_energy_balance_matches_a_plain_swing_by_swing_reference(m0, delta, eps, mu, F, f,
+                                                                  use_f, a0):
+    """vmj's vectorised energy balance (absorbing state, flags and status read off the states)
+    against the recurrences written out: the same count, crossings and status, positions to
+    1e-12 of a0 and times to 1e-12 relative."""
+    friction = vmj.MassProportional(f) if use_f else vmj.Coulomb(F)
+    seq = vmj.energy_balance(vmj.VariableMass(m0, C, delta, eps, mu, friction), a0, 20)
+    t, x, crossed, result = energy_balance_reference(m0, C, delta, eps, mu, F, f, use_f, a0, 20)
+    k = len(t)
+    assert int(seq.count) == k and int(seq.result) == result
+    np.testing.assert_array_equal(np.asarray(seq.crossed)[:k], crossed)
+    np.testing.assert_allclose(np.asarray(seq.positions)[:k], x, rtol=0, atol=1e-12 * a0)
+    np.testing.assert_allclose(np.asarray(seq.times)[:k], t, rtol=1e-12)
 
 
 # -- bad input ----------------------------------------------------------------------------------

@@ -3,9 +3,8 @@
 Written for sweeps of millions of points: between swings a point's state is three numbers (time,
 mass, signed position of the turning point). A swing that cannot advance (the mass sticks for
 good, or the mass would run out) leaves the state unchanged, so stopping is absorbing and the
-count, the crossings and the status are read off the outputs after the loop instead of being
-carried through it; the loop body then compiles to three fused element-wise kernels per swing
-(see docs/performance.md for the measurements behind this layout).
+status is read off the final state instead of being carried through the loop
+(docs/performance.md has the measurements).
 """
 
 from __future__ import annotations
@@ -70,10 +69,7 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
         advance = moves & (m_next > 0)
         t_out = jnp.where(advance, t + half, t_in)
         p_out = jnp.where(advance, -jnp.sign(p) * a_next, p)
-        # the flags from the old and new states alone, so that every intermediate above has a
-        # single consumer and fuses into it (the half-period is > 0: a swing advanced exactly
-        # when the time grew; it crossed x = 0 exactly when the position changed sign)
-        flags = (p_out * p < 0, t_out > t_in)
+        flags = (advance & (a_next > 0), advance)  # crossed x = 0; advanced
         return (t_out, jnp.where(advance, m_next, m_in), p_out), (t_out, p_out) + flags
 
     init = (jnp.zeros_like(m0), m0, -a0 * jnp.ones_like(m0))
