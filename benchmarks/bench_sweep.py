@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from scipy_reference import variable_mass_turning_points  # noqa: E402
 
 M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
-ENERGY_CHUNK = 65536  #: points per compiled call in the energy-balance sweeps
+ENERGY_CHUNK = 32768  #: points per compiled call in the energy-balance sweeps
 
 
 CPU = {}  #: label -> best process CPU time [s] (all threads), printed next to the wall times
