@@ -14,7 +14,6 @@ import math
 import jax.numpy as jnp
 from jax import lax
 
-from ._models import Coulomb
 from ._solution import RESULTS, DecaySequence
 
 #: Taylor coefficients of phi(x) = (exp(x) - 1)/x = sum_j x^j/(j + 1)!
@@ -48,14 +47,13 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
     # friction that falls with the mass (f-law, delta < 0): a stuck mass waits until it has
     # fallen below the spring force, then moves on (never with constant friction)
     falls = dF_dm * delta < 0
-    may_release = not isinstance(friction, Coulomb)
 
     def swing(state, _):
         t_in, m_in, p = state  # p: signed position of the current turning point
         a = jnp.abs(p)
         moves = c * a > friction.force(m_in)
         t, m = t_in, m_in
-        if may_release:
+        if friction.varies_with_mass:
             release = jnp.logical_not(moves) & falls
             m = jnp.where(release, c * a / jnp.where(falls, dF_dm, 1.0), m_in)
             t = jnp.where(release, t_in + (m - m_in) / jnp.where(falls, delta, 1.0), t_in)

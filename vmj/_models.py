@@ -57,6 +57,9 @@ def validated(model):
 class FrictionLaw(_Checked):
     """Dry (Coulomb) friction law: the force magnitude as an affine function of the mass."""
 
+    #: whether the force can change with the mass (a class constant, known when tracing)
+    varies_with_mass = True
+
     def force(self, mass: ArrayLike) -> Array:
         """Friction force magnitude [N] when the oscillating mass is `mass` [kg]."""
         raise NotImplementedError
@@ -73,6 +76,8 @@ class Coulomb(FrictionLaw):
 
     - `F`: friction force magnitude `F_T` [N], `>= 0`.
     """
+
+    varies_with_mass = False
 
     F: Array = eqx.field(converter=_float)
     _limits = {"F": (nonnegative, ">= 0 [N]")}
