@@ -37,11 +37,12 @@ ENERGY_CHUNK = 32768  #: points per compiled call in the energy-balance sweeps
 
 
 CPU = {}  #: label -> best process CPU time [s] (all threads), printed next to the wall times
+MEDIAN = {}  #: label -> median wall time [s]
 
 
 def best_of(fn, repeat, label=None):
-    """Best wall time of `repeat` runs (and, under `label`, the best CPU time, which a machine
-    shared with other jobs disturbs less)."""
+    """Best wall time of `repeat` runs (and, under `label`, the median wall time and the best
+    CPU time, which a machine shared with other jobs disturbs less)."""
     times, cpus = [], []
     for _ in range(repeat):
         t, c = time.perf_counter(), time.process_time()
@@ -51,6 +52,7 @@ def best_of(fn, repeat, label=None):
         cpus.append(time.process_time() - c)
     if label:
         CPU[label] = min(cpus)
+        MEDIAN[label] = float(np.median(times))
     return min(times), out
 
 
@@ -111,19 +113,25 @@ def bench_exact(points, scipy_points, repeat):
     return first
 
 
+def amplitudes(m, a0, n):
+    return vmj.energy_balance(m, a0, n).amplitudes
+
+
+def energy_swept(fn, points):
+    """A `vmj.sweep` of `fn` over `points` random points, and the time of its first call."""
+    host = model_of(*random_points(points, seed=1))
+    run = lambda: vmj.sweep(fn, host, a0=A0, n=N, chunk_size=ENERGY_CHUNK,  # noqa: E731
+                            progress=False)
+    t0 = time.perf_counter()
+    first = run()
+    return time.perf_counter() - t0, run, first
+
+
 def bench_energy(points, repeat):
-    """The recurrences for `points` random points x 12 swings, three ways."""
+    """The recurrences for `points` random points x 12 swings, three ways, and the amplitude
+    sweep once more in a new process whose allocator was left as it is."""
     eps, mu, delta = random_points(points, seed=1)
-    host = model_of(eps, mu, delta)
-
-    def swept(fn):
-        run = lambda: vmj.sweep(fn, host, a0=A0, n=N, chunk_size=ENERGY_CHUNK,  # noqa: E731
-                                progress=False)
-        t0 = time.perf_counter()
-        first = run()
-        return time.perf_counter() - t0, run, first
-
-    amplitudes = lambda m, a0, n: vmj.energy_balance(m, a0, n).amplitudes  # noqa: E731
+    swept = lambda fn: energy_swept(fn, points)  # noqa: E731
     first_amp, run_amp, res_amp = swept(amplitudes)
     t_amp, _ = best_of(run_amp, repeat, "amplitudes")
     first_seq, run_seq, res_seq = swept(vmj.energy_balance)
@@ -134,9 +142,15 @@ def bench_energy(points, repeat):
     jax.block_until_ready(f(*args))
     t_vmap, _ = best_of(lambda: f(*args), repeat, "vmap")
     same = np.array_equal(res_amp.values, np.abs(res_seq.values.positions))
+    plain = subprocess.run([sys.executable, __file__, "--default-allocator", "--amplitudes-only",
+                            f"--energy-points={points}", f"--repeat={repeat}"],
+                           check=True, capture_output=True, text=True).stdout.split()
     print(f"energy balance, {points} points x {N} swings, float64 (target < 100 ms)")
     print(f"  vmj.sweep, amplitudes ({mb(res_amp):.0f} MB):        {t_amp * 1e3:7.1f} ms "
-          f"(CPU {CPU['amplitudes'] * 1e3:.0f} ms; compile + first {first_amp:.1f} s)")
+          f"(median {MEDIAN['amplitudes'] * 1e3:.1f} ms; CPU {CPU['amplitudes'] * 1e3:.0f} ms; "
+          f"compile + first {first_amp:.1f} s)")
+    print(f"    the same without vmj.retain_host_memory (new process): {float(plain[0]):7.1f} ms "
+          f"(median {float(plain[1]):.1f} ms)")
     print(f"  vmj.sweep, DecaySequence ({mb(res_seq):.0f} MB):   {t_seq * 1e3:7.1f} ms "
           f"(CPU {CPU['sequence'] * 1e3:.0f} ms; compile + first {first_seq:.1f} s)")
     print(f"  one jit(vmap(vmj.energy_balance)), all points: {t_vmap * 1e3:7.1f} ms "
@@ -167,9 +181,20 @@ def main():
     ap.add_argument("--scipy-points", type=int, default=40)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
+    ap.add_argument("--default-allocator", action="store_true",
+                    help="leave the C allocator as it is (no vmj.retain_host_memory)")
+    ap.add_argument("--amplitudes-only", action="store_true",
+                    help="only time the energy-balance amplitude sweep; print best and median "
+                         "wall time [ms]")
     args = ap.parse_args()
     if args.quick:
         args.points, args.energy_points, args.scipy_points, args.repeat = 256, 10**4, 5, 2
+    if not args.default_allocator:
+        vmj.retain_host_memory()  # as the vmj command does (docs/performance.md)
+    if args.amplitudes_only:
+        t, _ = best_of(energy_swept(amplitudes, args.energy_points)[1], args.repeat, "plain")
+        print(f"{t * 1e3:.1f} {MEDIAN['plain'] * 1e3:.1f}")
+        return
     print(f"jax {jax.__version__}, devices {jax.devices()}, {os.cpu_count()} CPUs, "
           f"load average {os.getloadavg()[0]:.1f}")
     bench_exact(args.points, args.scipy_points, args.repeat)

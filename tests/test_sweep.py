@@ -94,7 +94,7 @@ def test_nested_parameter_names():
 
 
 def test_chunking_gives_identical_results_and_reports_progress(capsys):
-    # one chunk of 5000 points (evaluated in blocks of 2048) against ten chunks of 500 (one vmap)
+    # one chunk of 5000 points against ten chunks of 500
     rng = np.random.default_rng(1)
     n = 5000
     model = paper_model(delta=rng.uniform(-3, 3, n), eps=rng.uniform(0, 1, n),
@@ -117,12 +117,14 @@ def _run(code: str, env_extra: dict | None = None) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def test_million_point_energy_sweep_has_bounded_memory():
-    got = _run("""
+@pytest.mark.parametrize("retain", [False, True])
+def test_million_point_energy_sweep_has_bounded_memory(retain):
+    got = _run(f"""
         import json, resource
         import jax
         jax.config.update("jax_enable_x64", True)
         import numpy as np, vmj
+        applied = vmj.retain_host_memory() if {retain} else None
         model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
         g = vmj.grid(model, eps=np.linspace(0, 1, 100), mu=np.linspace(0, 10, 100),
                      delta=np.linspace(-3, 3, 100))
@@ -131,12 +133,23 @@ def test_million_point_energy_sweep_has_bounded_memory():
         before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         r = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=65536)
         after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-        print(json.dumps({"mb": after - before, "chunks": r.chunks, "shape": r.values.shape,
-                          "finite": bool(np.isfinite(r.values).all())}))
+        print(json.dumps({{"mb": after - before, "chunks": r.chunks, "shape": r.values.shape,
+                           "finite": bool(np.isfinite(r.values).all()), "applied": applied}}))
     """)
     assert got["shape"] == [100, 100, 100, 12] and got["chunks"] == 16 and got["finite"]
+    assert got["applied"] in ((None,) if not retain else (True, False))
     # the result itself is 96 MB; an unchunked evaluation keeps several 10^6 x 12 buffers
     assert got["mb"] < 250, got
+
+
+def test_retain_host_memory_checks_its_limit():
+    for bad in (-1, 2**31, 1.5, True, "1G"):
+        with pytest.raises(ValueError, match="limit must be an integer number of bytes"):
+            vmj.retain_host_memory(bad)
+    import platform
+
+    if platform.libc_ver()[0] == "glibc":
+        assert vmj.retain_host_memory(2**30) is True
 
 
 def test_sharded_over_four_devices_equals_one_device():

@@ -11,6 +11,7 @@ from ._solution import RESULTS, DecaySequence, Trajectory
 from ._solve import energy_balance, simulate, turning_points
 from ._tables import paper_cells, paper_table
 from ._sweep import Grid, SweepResult, grid, sweep
+from ._host import retain_host_memory
 from ._sensitivity import sensitivity
 from ._stickslip import (StickSlip, StickSlipCycle, stick_slip_closed_form, stick_slip_cycle,
                          stick_slip_simulate)
@@ -26,6 +27,7 @@ __all__ = [
     "SweepResult",
     "grid",
     "sweep",
+    "retain_host_memory",
     "sensitivity",
     "Coulomb",
     "FrictionLaw",

@@ -188,6 +188,9 @@ def main(argv=None) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    from ._host import retain_host_memory
+
+    retain_host_memory()  # XLA's per-chunk buffers reused, not page-faulted again (sweeps)
     parser = build_parser()
     args = parser.parse_args(argv)
     import equinox as eqx

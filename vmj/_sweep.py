@@ -303,17 +303,12 @@ class _Progress:
         self.stream.flush()
 
 
-#: points per vectorised block inside a chunk: the state of a block stays in the CPU caches while
-#: `fn` loops over swings (`lax.map` over blocks; measured 1.2 to 1.6 times faster than one `vmap`
-#: over the chunk for the exact solver, no different for the energy balance; see
-#: benchmarks/bench_sweep.py)
-_BLOCK = 2048
 #: threads evaluating chunks on a single device
 _CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 @eqx.filter_jit
-def _evaluate(fn, kwargs, model, swept, start, size, block, sharding):
+def _evaluate(fn, kwargs, model, swept, start, size, sharding):
     """`fn` at the points `start ... start + size` of a model whose swept leaves (flags in
     `swept`) are flat arrays over the whole sweep, already on the device(s)."""
     leaves, treedef = jax.tree.flatten(model)
@@ -328,10 +323,7 @@ def _evaluate(fn, kwargs, model, swept, start, size, block, sharding):
         return fn(jax.tree.unflatten(treedef, [next(it) if s else x for x, s in
                                                zip(part, swept)]), **kwargs)
 
-    batched = [x for x, s in zip(part, swept) if s]
-    if block is None:
-        return jax.vmap(point)(batched)
-    return jax.lax.map(point, batched, batch_size=block)
+    return jax.vmap(point)([x for x, s in zip(part, swept) if s])
 
 
 def _devices(devices):
@@ -421,13 +413,10 @@ def sweep(
             x = jax.device_put(np.asarray(x), place)
         on_device.append(x)
     model = jax.tree.unflatten(treedef, on_device)
-    # one device: blocks of _BLOCK points; several: one vmap, partitioned by XLA (GSPMD)
-    block = _BLOCK if nd == 1 and chunk > _BLOCK else None
 
     def evaluate(c):
         start = np.asarray(c * chunk, dtype=np.int64)
-        return jax.tree.flatten(_evaluate(fn, solver_args, model, swept, start, chunk, block,
-                                          sharding))
+        return jax.tree.flatten(_evaluate(fn, solver_args, model, swept, start, chunk, sharding))
 
     def store(c, got_leaves):
         stop = min((c + 1) * chunk, n)
