@@ -94,18 +94,18 @@ def test_nested_parameter_names():
 
 
 def test_chunking_gives_identical_results_and_reports_progress(capsys):
-    # one chunk of 5000 points against ten chunks of 500
+    # one chunk of 5000 points against eleven chunks of 480, the last overlapping the tenth
     rng = np.random.default_rng(1)
     n = 5000
     model = paper_model(delta=rng.uniform(-3, 3, n), eps=rng.uniform(0, 1, n),
                         mu=rng.uniform(0, 10, n))
     whole = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=n)
-    parts = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=500,
+    parts = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=480,
                       progress=True)
-    assert whole.chunks == 1 and parts.chunks == 10
+    assert whole.chunks == 1 and parts.chunks == 11
     for a, b in zip(whole.values.__dict__.values(), parts.values.__dict__.values()):
         np.testing.assert_array_equal(a, b)
-    assert "10/10 chunks" in capsys.readouterr().err
+    assert "11/11 chunks" in capsys.readouterr().err
 
 
 def _run(code: str, env_extra: dict | None = None) -> dict:
@@ -164,12 +164,17 @@ def test_sharded_over_four_devices_equals_one_device():
         fn = vmj.energy_balance
         four = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=24)
         one = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=24, devices=jax.devices()[:1])
+        # five points: one chunk padded to eight, two per device
+        small = vmj.grid(model, eps=np.linspace(0, 1, 5))
+        four_small = vmj.sweep(fn, small, a0=0.06, n=12)
+        one_small = vmj.sweep(fn, small, a0=0.06, n=12, devices=jax.devices()[:1])
         diff = max(float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float))))
-                   for a, b in zip(jax.tree.leaves(four.values), jax.tree.leaves(one.values)))
+                   for x, y in ((four, one), (four_small, one_small))
+                   for a, b in zip(jax.tree.leaves(x.values), jax.tree.leaves(y.values)))
         print(json.dumps({"devices": [four.devices, one.devices], "diff": diff,
-                          "chunks": four.chunks}))
+                          "chunks": four.chunks, "small": list(four_small.values.positions.shape)}))
     """, {"XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"})
-    assert got["devices"] == [4, 1] and got["chunks"] == 3
+    assert got["devices"] == [4, 1] and got["chunks"] == 3 and got["small"] == [5, 12]
     assert got["diff"] <= 1e-15
 
 

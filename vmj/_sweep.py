@@ -354,10 +354,11 @@ def sweep(
     - `model`: a model whose array fields broadcast together as in NumPy (three fields of shape
       `(N,)` are `N` paired points; shapes `(N, 1)` and `(M,)` are an `N x M` product), or a
       [`vmj.Grid`][] from [`vmj.grid`][] (named axes).
-    - `chunk_size`: points evaluated per compiled call (static; the last chunk is padded, so there
-      is one compilation). Working memory is proportional to it (times the number of cores, whose
-      threads evaluate chunks side by side); the swept parameters themselves (8 bytes per point
-      each) are put on the device once.
+    - `chunk_size`: points evaluated per compiled call (static; the last chunk overlaps the one
+      before it, and a sweep smaller than one chunk is padded, so there is one compilation).
+      Working memory is proportional to it (times the number of cores, whose threads evaluate
+      chunks side by side); the swept parameters themselves (8 bytes per point each) are put on
+      the device once.
     - `progress`: print a progress bar to stderr; default: when stderr is a terminal and there is
       more than one chunk.
     - `devices`: devices to shard each chunk over (default: every local device); with several,
@@ -398,30 +399,36 @@ def sweep(
     if nd > 1:
         mesh = jax.sharding.Mesh(np.array(devs), ("batch",))
         sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
-    # the swept parameters flattened once (C order), the last chunk padded with the last point,
-    # and put on the device(s) once; the compiled chunk slices them (no copy per chunk)
+    # the swept parameters flattened once (C order) and put on the device(s) once; the compiled
+    # chunk slices them (no copy per chunk). The last chunk ends at the last point and overlaps
+    # the one before it; only a sweep smaller than one chunk is padded (with its last point).
     swept = tuple(eqx.is_array_like(x) and np.ndim(x) > 0 for x in leaves)
-    pad = n_chunks * chunk - n
+    size = max(n, chunk)
     place = devs[0] if nd == 1 else jax.sharding.NamedSharding(
         mesh, jax.sharding.PartitionSpec())
     on_device = []
     for x, s in zip(leaves, swept):
         if s:
             f = np.broadcast_to(np.asarray(x), shape).reshape(n)
-            x = jax.device_put(np.concatenate([f, np.repeat(f[-1:], pad)]), place)
+            if size > n:
+                f = np.concatenate([f, np.repeat(f[-1:], size - n)])
+            x = jax.device_put(f, place)
         elif eqx.is_array_like(x):
             x = jax.device_put(np.asarray(x), place)
         on_device.append(x)
     model = jax.tree.unflatten(treedef, on_device)
 
+    def first(c):  # the first point evaluated by chunk c
+        return min(c * chunk, size - chunk)
+
     def evaluate(c):
-        start = np.asarray(c * chunk, dtype=np.int64)
+        start = np.asarray(first(c), dtype=np.int64)
         return jax.tree.flatten(_evaluate(fn, solver_args, model, swept, start, chunk, sharding))
 
     def store(c, got_leaves):
-        stop = min((c + 1) * chunk, n)
+        lo, stop = c * chunk, min((c + 1) * chunk, n)
         for o, g in zip(out_leaves, got_leaves):
-            o[c * chunk:stop] = np.asarray(g)[: stop - c * chunk]
+            o[lo:stop] = np.asarray(g)[lo - first(c):stop - first(c)]
 
     show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
     bar = _Progress(n_chunks, bool(show))
