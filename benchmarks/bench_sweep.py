@@ -6,8 +6,10 @@
    sensitivities over the same batch (gradients intact). Compile time reported separately.
 2. Energy-balance recurrences, 10^6 points x 12 swings: `vmj.sweep` of the amplitudes (what a
    plain `vmap` of a `lax.scan` of the recurrence returns) and of the whole `DecaySequence`
-   (times, positions, crossings, count, status), both into new NumPy arrays, and one plain
-   jitted `jax.vmap` of `vmj.energy_balance` over all points.
+   (times, positions, crossings, count, status), both into new NumPy arrays, each against one
+   plain jitted `jax.vmap` of the same function over all points; the amplitude sweep once more
+   in a new process without `vmj.retain_host_memory` (which this benchmark, like the `vmj`
+   command, calls at start-up).
 3. Cold start of `vmj table 1` (a new process). A persistent compilation cache does not help:
    JAX does not store executables with host callbacks, which `equinox.error_if` uses.
 
@@ -123,40 +125,40 @@ def energy_swept(fn, points):
     run = lambda: vmj.sweep(fn, host, a0=A0, n=N, chunk_size=ENERGY_CHUNK,  # noqa: E731
                             progress=False)
     t0 = time.perf_counter()
-    first = run()
-    return time.perf_counter() - t0, run, first
+    run()
+    return time.perf_counter() - t0, run
 
 
 def bench_energy(points, repeat):
-    """The recurrences for `points` random points x 12 swings, three ways, and the amplitude
-    sweep once more in a new process whose allocator was left as it is."""
-    eps, mu, delta = random_points(points, seed=1)
-    swept = lambda fn: energy_swept(fn, points)  # noqa: E731
-    first_amp, run_amp, res_amp = swept(amplitudes)
-    t_amp, _ = best_of(run_amp, repeat, "amplitudes")
-    first_seq, run_seq, res_seq = swept(vmj.energy_balance)
-    t_seq, _ = best_of(run_seq, repeat, "sequence")
-    mb = lambda r: sum(np.asarray(v).nbytes for v in jax.tree.leaves(r.values)) / 1e6  # noqa
-    f = jax.jit(jax.vmap(lambda e, m, d: vmj.energy_balance(model_of(e, m, d), A0, N)))
-    args = [jnp.asarray(v) for v in (eps, mu, delta)]
-    jax.block_until_ready(f(*args))
-    t_vmap, _ = best_of(lambda: f(*args), repeat, "vmap")
-    same = np.array_equal(res_amp.values, np.abs(res_seq.values.positions))
-    plain = subprocess.run([sys.executable, __file__, "--default-allocator", "--amplitudes-only",
-                            f"--energy-points={points}", f"--repeat={repeat}"],
-                           check=True, capture_output=True, text=True).stdout.split()
+    """The recurrences for `points` random points x 12 swings: `vmj.sweep` against one plain
+    jitted `jax.vmap` of the same function, for the amplitudes and for the whole decay sequence;
+    and the amplitude sweep once more in a new process whose allocator was left as it is."""
+    args = [jnp.asarray(v) for v in random_points(points, seed=1)]
+    mb = lambda r: sum(np.asarray(v).nbytes for v in jax.tree.leaves(r)) / 1e6  # noqa: E731
     print(f"energy balance, {points} points x {N} swings, float64 (target < 100 ms)")
-    print(f"  vmj.sweep, amplitudes ({mb(res_amp):.0f} MB):        {t_amp * 1e3:7.1f} ms "
-          f"(median {MEDIAN['amplitudes'] * 1e3:.1f} ms; CPU {CPU['amplitudes'] * 1e3:.0f} ms; "
-          f"compile + first {first_amp:.1f} s)")
-    print(f"    the same without vmj.retain_host_memory (new process): {float(plain[0]):7.1f} ms "
-          f"(median {float(plain[1]):.1f} ms)")
-    print(f"  vmj.sweep, DecaySequence ({mb(res_seq):.0f} MB):   {t_seq * 1e3:7.1f} ms "
-          f"(CPU {CPU['sequence'] * 1e3:.0f} ms; compile + first {first_seq:.1f} s)")
-    print(f"  one jit(vmap(vmj.energy_balance)), all points: {t_vmap * 1e3:7.1f} ms "
-          f"(CPU {CPU['vmap'] * 1e3:.0f} ms)")
-    print(f"  (chunks of {ENERGY_CHUNK} points, one thread per core; amplitudes identical in "
-          f"both sweeps: {same})")
+    results = {}
+    for label, fn in (("amplitudes", amplitudes), ("DecaySequence", vmj.energy_balance)):
+        first, run = energy_swept(fn, points)
+        t_sweep, res = best_of(run, repeat, label)
+        del res
+        plain = jax.jit(jax.vmap(lambda e, m, d: fn(model_of(e, m, d), A0, N)))  # noqa: B023
+        jax.block_until_ready(plain(*args))
+        t_plain, results[label] = best_of(lambda: plain(*args), repeat, label + " plain")
+        print(f"  vmj.sweep, {label} ({mb(results[label]):.0f} MB): {t_sweep * 1e3:7.1f} ms "
+              f"(median {MEDIAN[label] * 1e3:.1f} ms; CPU {CPU[label] * 1e3:.0f} ms; "
+              f"compile + first {first:.1f} s)")
+        print(f"    one jit(vmap) over all points: {t_plain * 1e3:7.1f} ms (median "
+              f"{MEDIAN[label + ' plain'] * 1e3:.1f} ms); ratio {t_plain / t_sweep:.2f} x")
+        if label == "amplitudes":
+            default = subprocess.run(
+                [sys.executable, __file__, "--default-allocator", "--amplitudes-only",
+                 f"--energy-points={points}", f"--repeat={repeat}"],
+                check=True, capture_output=True, text=True).stdout.split()
+            print(f"    the same sweep without vmj.retain_host_memory (new process): "
+                  f"{float(default[0]):7.1f} ms (median {float(default[1]):.1f} ms)")
+    same = np.array_equal(results["amplitudes"], np.abs(results["DecaySequence"].positions))
+    print(f"  (chunks of {ENERGY_CHUNK} points, one thread per core; amplitudes identical: "
+          f"{same})")
 
 
 def bench_cold_start():
@@ -192,8 +194,8 @@ def main():
     if not args.default_allocator:
         vmj.retain_host_memory()  # as the vmj command does (docs/performance.md)
     if args.amplitudes_only:
-        t, _ = best_of(energy_swept(amplitudes, args.energy_points)[1], args.repeat, "plain")
-        print(f"{t * 1e3:.1f} {MEDIAN['plain'] * 1e3:.1f}")
+        t, _ = best_of(energy_swept(amplitudes, args.energy_points)[1], args.repeat, "sweep")
+        print(f"{t * 1e3:.1f} {MEDIAN['sweep'] * 1e3:.1f}")
         return
     print(f"jax {jax.__version__}, devices {jax.devices()}, {os.cpu_count()} CPUs, "
           f"load average {os.getloadavg()[0]:.1f}")

@@ -40,8 +40,10 @@ def retain_host_memory(limit: int = 2**30) -> bool:
     (macOS, Windows, musl), where it does nothing.
 
     Measured on the 2-core development machine (docs/performance.md): a 10^6-point x 12-swing
-    energy-balance sweep of the amplitudes took 69-82 ms (median of 10) with it and 93-131 ms
-    without it in the same runs.
+    energy-balance sweep of the amplitudes, best (median) of 10 in separate processes, took
+    64-75 (74-85) ms with it and 69-87 (76-136) ms without it; one `jax.jit(jax.vmap(...))` of
+    the same over all points, whose 96 MB output is allocated anew on every call, 76-94 (91-102)
+    ms with it and 156-165 (183-187) ms without it.
     """
     if isinstance(limit, bool) or not isinstance(limit, int) or not 0 <= limit <= _INT_MAX:
         raise ValueError(f"limit must be an integer number of bytes in [0, {_INT_MAX}], "
