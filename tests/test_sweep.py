@@ -3,6 +3,7 @@ bounded memory, sharding over 4 devices, CSV / NetCDF export and the `vmj sweep`
 
 import json
 import os
+import platform
 import subprocess
 import sys
 import textwrap
@@ -146,8 +147,6 @@ def test_retain_host_memory_checks_its_limit():
     for bad in (-1, 2**31, 1.5, True, "1G"):
         with pytest.raises(ValueError, match="limit must be an integer number of bytes"):
             vmj.retain_host_memory(bad)
-    import platform
-
     if platform.libc_ver()[0] == "glibc":
         assert vmj.retain_host_memory(2**30) is True
 
