@@ -16,8 +16,8 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 import vmj  # noqa: E402
-from vmj._plot import _pyplot, save  # noqa: E402
-from vmj._sensitivity import central_difference  # noqa: E402
+from vmj.plot import pyplot as _pyplot, save  # noqa: E402
+from vmj._sweep._sensitivity import central_difference  # noqa: E402
 
 A0, N = 0.06, 12
 WRT = ("F", "mu", "eps", "delta")

@@ -18,7 +18,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import vmj  # noqa: E402
-from vmj._plot import _pyplot, save  # noqa: E402
+from vmj.plot import pyplot as _pyplot, save  # noqa: E402
 
 OUT = sys.argv[1] if len(sys.argv) > 1 else "docs/figures"
 

@@ -11,11 +11,13 @@
 See docs/fits.md.
 """
 
+from vmj import AffineFriction  # re-exported: it lived here before vmj 0.2
+
 from ._decrement import decrement
 from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
 from ._io import (Record, Signal, extract_turning_points, read_peaks, read_record, read_signal,
                   record_from_sequence)
-from ._models import FORWARDS, AffineFriction, oscillator_half_swings
+from ._models import FORWARDS, oscillator_half_swings
 from ._report import paper_records, plot_fit, text_report
 
 __all__ = [
@@ -31,9 +33,9 @@ __all__ = [
     "fit_batch",
     "FitResult",
     "FORWARDS",
+    "AffineFriction",
     "LOSSES",
     "OPTIMIZERS",
-    "AffineFriction",
     "oscillator_half_swings",
     "paper_records",
     "plot_fit",

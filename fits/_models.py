@@ -16,42 +16,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-import equinox as eqx
 import jax.numpy as jnp
 from jax import lax
 
 import vmj
-from vmj._checks import nonnegative, positive
-from vmj._models import FrictionLaw, _float
 
-__all__ = ["Space", "SPACES", "FORWARDS", "AffineFriction", "oscillator_half_swings"]
+__all__ = ["Space", "SPACES", "FORWARDS", "oscillator_half_swings"]
 
 FORWARDS = ("exact", "smooth", "energy")
 
 #: how a parameter is kept in range: theta = scale p (real), scale p^2 (positive),
 #: sin(p)^2 (unit: [0, 1])
 KIND_CODES = {"real": 0, "positive": 1, "unit": 2, "damping": 2}  # damping: [0, 1)
-
-
-class AffineFriction(FrictionLaw):
-    """Dry friction `F(t) = F_T + f g m(t)`: covers [`vmj.Coulomb`][] (`f = 0`) and
-    [`vmj.MassProportional`][] (`F_T = 0`) with one compiled forward model, so fits of both laws
-    (and of their comparison) share one compilation.
-
-    **Arguments:** `FT` [N] `>= 0`, `f` [-] `>= 0`, `g` [m/s^2] `> 0`.
-    """
-
-    FT: jnp.ndarray = eqx.field(converter=_float)
-    f: jnp.ndarray = eqx.field(converter=_float)
-    g: jnp.ndarray = eqx.field(converter=_float, default=9.81)
-    _limits = {"FT": (nonnegative, ">= 0 [N]"), "f": (nonnegative, ">= 0 [-]"),
-               "g": (positive, "> 0 [m/s^2]")}
-
-    def force(self, mass):
-        return self.FT + self.f * self.g * mass
-
-    def dforce_dmass(self):
-        return self.f * self.g
 
 
 @dataclass(frozen=True)
@@ -85,7 +61,7 @@ def _sequence(seq, a0):
 
 # -- variable-mass oscillator ------------------------------------------------------------------
 def _variable_mass(theta: dict, n: int, forward: str):
-    law = AffineFriction(theta["FT"], theta["f"], theta["g"])
+    law = vmj.AffineFriction(theta["FT"], theta["f"], theta["g"])
     model = vmj.VariableMass(theta["m0"], theta["c"], theta["delta"], theta["eps"], theta["mu"],
                              law)
     return _sequence(vmj.turning_points(model, theta["a0"], n, method=forward), theta["a0"])

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 import vmj
-from vmj._tables import PAPER
 
 from ._io import record_from_sequence
 
@@ -51,9 +50,9 @@ def plot_fit(result, path: str, *, title: str | None = None) -> None:
     """Figure of a fit: the data (and raw signal) with the fitted turning points, the residuals
     (outliers circled), and the decrement diagram `A_{k+1}` against `A_k` with the
     decrement-method line and the fitted model's map."""
-    from vmj._plot import _pyplot, save
+    from vmj.plot import pyplot, save
 
-    plt = _pyplot()
+    plt = pyplot()
     rec = result.record
     res = np.asarray(result.residuals["position"])
     fitted = rec.positions + res
@@ -125,17 +124,17 @@ def paper_records(table: int | None = None, values: str = "monograph") -> list[d
     out = []
     for (tab, friction, delta, mu, eps), col in sorted(columns.items()):
         col = sorted(col, key=lambda c: c["k"])
-        amps = [PAPER["a0"]] + [c[f"{key}_cm"] / 100 for c in col]
+        amps = [vmj.PAPER["a0"]] + [c[f"{key}_cm"] / 100 for c in col]
         crossed = [1] + [0 if c[f"{key}_star"] else 1 for c in col]
         rec = record_from_sequence(amplitudes=amps, crossed=crossed,
                                    k=[0] + [c["k"] for c in col],
                                    source=f"table {tab} mu={mu:g} eps={eps:g} ({values})")
         law = "FT" if friction == "constant" else "f"
-        given = {"m0": PAPER["m0"], "c": PAPER["c"], "delta": delta, "eps": eps,
-                 "a0": PAPER["a0"], "g": PAPER["g"]}
+        given = {"m0": vmj.PAPER["m0"], "c": vmj.PAPER["c"], "delta": delta, "eps": eps,
+                 "a0": vmj.PAPER["a0"], "g": vmj.PAPER["g"]}
         notes = {c["k"]: c["note"] for c in col
                  if c["note"] and (values in c["note"] or "energy" not in c["note"])}
         out.append({"record": rec, "given": given, "free": (law, "mu"),
-                    "truth": {law: PAPER[law], "mu": mu}, "table": tab, "mu": mu, "eps": eps,
+                    "truth": {law: vmj.PAPER[law], "mu": mu}, "table": tab, "mu": mu, "eps": eps,
                     "delta": delta, "notes": notes})
     return out

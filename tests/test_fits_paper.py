@@ -12,7 +12,7 @@ import pytest
 
 import fits
 import vmj
-from vmj._tables import PAPER
+from vmj import PAPER
 
 A0 = PAPER["a0"]
 MU_SYNTH = 2.0  #: viscous coefficient of the synthetic records [kg/s]

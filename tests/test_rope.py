@@ -13,7 +13,7 @@ from scipy_rope import rope_turning_points
 
 import vmj
 from vmj._cli import main
-from vmj._rope_averaging import _kbm_printed
+from vmj._closed_forms._osinski import _kbm_printed
 
 KG_CM2 = vmj.KGF * 1e4
 E, D = 0.8e6 * KG_CM2, 0.8e11 * KG_CM2

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import vmj
-from vmj._sensitivity import central_difference
+from vmj._sweep._sensitivity import central_difference
 
 A0 = 0.06
 WRT = ("F", "mu", "eps", "delta", "a0")

@@ -4,64 +4,68 @@ Enable float64 before any computation (the `vmj` command line does it for you):
 
     import jax
     jax.config.update("jax_enable_x64", True)
+
+The public API, by concern:
+
+- models ([`VariableMass`][vmj.VariableMass], [`Rope`][vmj.Rope], [`Oscillator`][vmj.Oscillator],
+  [`LinearOscillator`][vmj.LinearOscillator], [`StickSlip`][vmj.StickSlip]) and the laws they are
+  built from (friction, restoring and dissipation laws, length profiles, forcing);
+- solvers ([`Exact`][vmj.Exact], [`Smoothed`][vmj.Smoothed], [`EnergyBalance`][vmj.EnergyBalance],
+  [`ClosedForm`][vmj.ClosedForm]) passed to one entry point per problem type:
+  [`turning_points`][vmj.turning_points], [`simulate`][vmj.simulate],
+  [`limit_cycle`][vmj.limit_cycle];
+- results ([`DecaySequence`][vmj.DecaySequence], [`Trajectory`][vmj.Trajectory],
+  [`StickSlipCycle`][vmj.StickSlipCycle]) with their status ([`RESULTS`][vmj.RESULTS]);
+- closed forms and averaged laws of the source papers;
+- sweeps, grids, sensitivities; the paper's tables; figures in `vmj.plot`.
 """
 
-from ._models import Coulomb, FrictionLaw, MassProportional, VariableMass
-from ._solution import RESULTS, DecaySequence, Trajectory
-from ._solve import energy_balance, simulate, turning_points
-from ._tables import paper_cells, paper_table
-from ._sweep import Grid, SweepResult, grid, sweep
+from ._checks import AbstractParams
 from ._host import retain_host_memory
-from ._sensitivity import sensitivity
-from ._stickslip import (StickSlip, StickSlipCycle, stick_slip_closed_form, stick_slip_cycle,
-                         stick_slip_simulate)
-from ._linear import (BaseMotion, Forcing, HarmonicForce, LinearOscillator, NoForcing,
-                      linear_simulate)
-from ._rope import KGF, Braking, ConstantSpeed, LengthProfile, Rope
-from . import _rope_solve  # noqa: F401  (registers the rope's exact and smoothed solvers)
-from ._rope_averaging import (action_amplitude, action_frequency, kbm_amplitude, kbm_frequency,
-                              rope_energy_map)
+from ._integrate import (energy_balance, limit_cycle, linear_simulate, rope_energy_map, simulate,
+                         stick_slip_closed_form, stick_slip_cycle, stick_slip_simulate,
+                         turning_points)
+from ._laws._forcing import BaseMotion, Forcing, HarmonicForce, NoForcing
+from ._laws._friction import AffineFriction, Coulomb, FrictionLaw, MassProportional
+from ._laws._length import Braking, ConstantSpeed, LengthProfile
+from ._models._base import (AbstractAnalytic, AbstractDecayModel, AbstractEnergyMap,
+                            AbstractLimitCycle, AbstractModel)
+from ._models._linear import LinearOscillator
+from ._models._rope import KGF, Rope, action_amplitude, action_frequency, kbm_amplitude, \
+    kbm_frequency
+from ._models._stick_slip import StickSlip, StickSlipCycle
+from ._models._variable_mass import VariableMass
+from ._solution import RESULTS, DecaySequence, SolverError, Trajectory
+from ._solvers._base import AbstractSolver
+from ._solvers._closed import ClosedForm, EnergyBalance
+from ._solvers._exact import Exact
+from ._solvers._smoothed import Smoothed
+from ._sweep import Grid, SweepResult, grid, resolve_field, sensitivity, sweep
+from ._tables import PAPER, paper_cells, paper_model, paper_table
+
+__version__ = "0.2.0"
 
 __all__ = [
-    "Grid",
-    "SweepResult",
-    "grid",
-    "sweep",
-    "retain_host_memory",
-    "sensitivity",
-    "Coulomb",
-    "FrictionLaw",
-    "MassProportional",
-    "VariableMass",
-    "RESULTS",
-    "DecaySequence",
-    "Trajectory",
-    "energy_balance",
-    "simulate",
-    "turning_points",
-    "paper_cells",
-    "paper_table",
-    "StickSlip",
-    "StickSlipCycle",
-    "stick_slip_cycle",
-    "stick_slip_closed_form",
-    "stick_slip_simulate",
-    "LinearOscillator",
-    "Forcing",
-    "NoForcing",
-    "HarmonicForce",
-    "BaseMotion",
-    "linear_simulate",
-    "KGF",
-    "Braking",
-    "ConstantSpeed",
-    "LengthProfile",
-    "Rope",
-    "action_amplitude",
+    # models and laws
+    "AbstractParams", "AbstractModel", "AbstractDecayModel", "AbstractEnergyMap",
+    "AbstractAnalytic", "AbstractLimitCycle",
+    "VariableMass", "Rope", "LinearOscillator", "StickSlip",
+    "FrictionLaw", "Coulomb", "MassProportional", "AffineFriction",
+    "LengthProfile", "ConstantSpeed", "Braking", "KGF",
+    "Forcing", "NoForcing", "HarmonicForce", "BaseMotion",
+    # solvers and entry points
+    "AbstractSolver", "Exact", "Smoothed", "EnergyBalance", "ClosedForm",
+    "turning_points", "simulate", "limit_cycle",
+    # results
+    "RESULTS", "SolverError", "DecaySequence", "Trajectory", "StickSlipCycle",
+    # closed forms and averaged laws
+    "energy_balance", "rope_energy_map", "kbm_amplitude", "kbm_frequency", "action_amplitude",
     "action_frequency",
-    "kbm_amplitude",
-    "kbm_frequency",
-    "rope_energy_map",
+    # the older per-model spellings
+    "stick_slip_cycle", "stick_slip_closed_form", "stick_slip_simulate", "linear_simulate",
+    # sweeps and sensitivities
+    "Grid", "SweepResult", "grid", "sweep", "sensitivity", "resolve_field",
+    "retain_host_memory",
+    # the variable-mass paper's tables
+    "PAPER", "paper_cells", "paper_model", "paper_table",
 ]
-
-__version__ = "0.1.0"

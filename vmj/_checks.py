@@ -9,18 +9,23 @@ message.
 from __future__ import annotations
 
 import warnings
-from typing import Callable
+from typing import Callable, ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["check", "check_all", "check_int", "warn_if_float32"]
+__all__ = ["AbstractParams", "validated", "check", "check_all", "check_int", "warn_if_float32"]
 
 
 def _is_traced(x) -> bool:
     return isinstance(x, jax.core.Tracer)
+
+
+def _float(x) -> jax.Array:
+    """A float array of JAX's default float type (float64 with x64 enabled)."""
+    return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
 def check(name: str, value, ok: Callable, allowed: str):
@@ -83,3 +88,50 @@ def warn_if_float32() -> None:
             "jax.config.update('jax_enable_x64', True) before any computation.",
             stacklevel=3,
         )
+
+
+# -- parameterised modules ----------------------------------------------------------------------
+class AbstractParams(eqx.Module):
+    """Base of every model and law: `_limits` maps a field name to `(predicate, allowed range)`.
+
+    Concrete values are checked once, at construction (`ValueError` naming the field and its
+    range); the entry points call [`validated`][] on the whole model tree, which guards traced
+    values (inside `jit`, `vmap`, `grad`) with one `equinox.error_if` and re-checks concrete
+    values that bypassed construction (`eqx.tree_at`).
+    """
+
+    _limits: ClassVar[dict] = {}
+
+    def __check_init__(self):
+        check_all([(n, getattr(self, n), ok, allowed) for n, (ok, allowed) in
+                   type(self)._limits.items() if not _is_traced(getattr(self, n))])
+
+
+def validated(model):
+    """Check every limited field of `model` and of the modules inside it; return the model with
+    one runtime guard over all its traced fields (concrete ones raise `ValueError` now)."""
+    paths, items = [], []
+
+    def collect(m, path):
+        if isinstance(m, AbstractParams):
+            for n, (ok, allowed) in type(m)._limits.items():
+                paths.append(path + (n,))
+                items.append((n, getattr(m, n), ok, allowed))
+            for n, v in vars(m).items():
+                collect(v, path + (n,))
+
+    collect(model, ())
+    if not paths:
+        return model
+
+    def get(m, path):
+        for n in path:
+            m = getattr(m, n)
+        return m
+
+    checked = check_all(items)
+    traced = [i for i, (_, v, _, _) in enumerate(items) if _is_traced(v)]
+    if not traced:
+        return model
+    return eqx.tree_at(lambda m: [get(m, paths[i]) for i in traced], model,
+                       [checked[i] for i in traced])

@@ -121,7 +121,7 @@ def _table(args) -> int:
 
     rows = paper_table(args.N)
     if args.plot:
-        from ._plot import plot_table
+        from .plot import plot_table
 
         plot_table(args.N, rows, args.plot)
     if args.json:

@@ -33,8 +33,8 @@ def _run(args) -> int:
     import vmj
 
     from ._checks import check, positive
-    from ._rope import check_horizon
-    from ._rope_averaging import half_swings_until
+    from ._models._base import check_horizon
+    from ._closed_forms._osinski import half_swings_until
 
     if args.brake is not None:
         length = vmj.Braking(args.l0, args.u, *args.brake)

@@ -152,7 +152,7 @@ def _sweep(args) -> int:
     if args.netcdf:
         result.to_netcdf(args.netcdf)
     if args.plot or args.error_plot:
-        from ._sweep_plot import plot_energy_error, plot_swings
+        from .plot import plot_energy_error, plot_swings
 
         cli_names = {v: k for k, v in field.items()}
         for r in [result]:
@@ -166,13 +166,13 @@ def _sweep(args) -> int:
     seq = result.values
     shape = " x ".join(f"{d} {len(result.coords[d])}" for d in result.dims)
     stopped = int(np.sum(seq.stopped))
-    failed = int(np.sum(np.asarray(seq.result) >= vmj.RESULTS.mass_exhausted))
+    failed = int(np.sum(vmj.RESULTS.failed(np.asarray(seq.result))))
     n_points = math.prod(result.shape)
     print(f"sweep: {n_points} points ({shape}), method {args.method}, {args.n} swings, "
           f"{elapsed:.2f} s; stopped within {args.n} swings: {stopped}; failed: {failed}"
           + (f"; wrote {args.out}" if args.out else ""), file=sys.stdout)
     if failed:
-        codes, counts = np.unique(np.asarray(seq.result)[np.asarray(seq.result) >= 2],
+        codes, counts = np.unique(np.asarray(seq.result)[vmj.RESULTS.failed(np.asarray(seq.result))],
                                   return_counts=True)
         for code, cnt in zip(codes, counts):
             print(f"  {cnt} points: {vmj.RESULTS.messages[int(code)]}")

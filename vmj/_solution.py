@@ -1,53 +1,101 @@
-"""Result types shared by the solvers."""
+"""Result types shared by the solvers, and the one failure vocabulary of vmj."""
 
 from __future__ import annotations
+
+import enum
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-__all__ = ["RESULTS", "DecaySequence", "Trajectory", "result_message"]
+from ._checks import _is_traced
+
+__all__ = ["RESULTS", "SolverError", "DecaySequence", "Trajectory", "throw_if_failed"]
 
 
-class RESULTS:
-    """Status codes of a solve (`DecaySequence.result`, `Trajectory.result`)."""
+class RESULTS(enum.IntEnum):
+    """Status of a solve, stored as an integer array in every result (`DecaySequence.result`,
+    `Trajectory.result`, `StickSlipCycle.result`), so that it works under `jit` and `vmap` and
+    exports as a column.
+
+    `successful` and `stopped` are *okay* ([`vmj.RESULTS.okay`][]): `stopped` is a decay that
+    ended because the mass stuck for good, not a failure. Every other member is a failure, and
+    its [`message`][vmj.RESULTS.message] says what to change.
+    """
 
     successful = 0  #: every requested turning point was reached
-    stopped = 1  #: the mass came to rest for good (stick rule); not a failure
+    stopped = 1  #: the mass came to rest for good (stick rule); okay, not a failure
     mass_exhausted = 2  #: the mass reaches zero (delta < 0) before the next turning point
     step_limit = 3  #: no velocity zero within the step limit (overdamped or creeping motion)
     solver_failed = 4  #: the diffrax solve of the smoothed model did not finish
     length_exhausted = 5  #: the rope length l(t) reaches zero before the next turning point
     unbounded = 6  #: no turning point: the swing goes over the potential barrier
+    too_many_reversals = 7  #: a stick-slip cycle with more reversals than `max_reversals`
+    no_cycle = 8  #: the smoothed stick-slip model did not settle into a cycle
 
-    messages = (
-        "reached every requested turning point",
-        "the mass came to rest for good: |spring force| <= static friction at a turning point",
-        "the mass m0 + delta*t reaches zero (at t = m0/|delta|) before the next turning point; "
-        "the solve stopped there",
-        "no velocity zero within the step limit: the motion is overdamped or creeping "
-        "(raise max_substeps if it is only slow)",
-        "the smoothed ODE solve failed (step limit or non-finite state); try a larger smoothing "
-        "or max_steps",
-        "the rope length l(t) reaches zero before the next turning point; the solve stopped there",
-        "no turning point: the energy of the swing is above the potential barrier (the motion is "
-        "unbounded)",
-    )
-    failures = (mass_exhausted, step_limit, solver_failed, length_exhausted, unbounded)
+    @property
+    def message(self) -> str:
+        """What happened, and what to change."""
+        return _MESSAGES[self]
+
+    @classmethod
+    def okay(cls, code):
+        """`successful` or `stopped` (elementwise for arrays)."""
+        return code <= cls.stopped
+
+    @classmethod
+    def failed(cls, code):
+        """Not okay (elementwise for arrays)."""
+        return code > cls.stopped
+
+    @classmethod
+    def describe(cls, code) -> str:
+        """The message of a (concrete, scalar) status code."""
+        return cls(int(np.asarray(code))).message
 
 
-def result_message(code) -> str:
-    return RESULTS.messages[int(code)]
+_MESSAGES = {
+    RESULTS.successful: "reached every requested turning point",
+    RESULTS.stopped: "the mass came to rest for good: |spring force| <= static friction at a "
+                     "turning point",
+    RESULTS.mass_exhausted: "the mass m0 + delta*t reaches zero (at t = m0/|delta|) before the "
+                            "next turning point; the solve stopped there",
+    RESULTS.step_limit: "no velocity zero within the step limit: the motion is overdamped or "
+                        "creeping (raise max_substeps if it is only slow)",
+    RESULTS.solver_failed: "the smoothed ODE solve failed (step limit or non-finite state); try a "
+                           "larger smoothing or max_steps",
+    RESULTS.length_exhausted: "the rope length l(t) reaches zero before the next turning point; "
+                              "the solve stopped there",
+    RESULTS.unbounded: "no turning point: the energy of the swing is above the potential barrier "
+                       "(the motion is unbounded)",
+    RESULTS.too_many_reversals: "more reversals per cycle than max_reversals: raise max_reversals "
+                                "(a cycle has floor((eps - 1)/2) reversals)",
+    RESULTS.no_cycle: "the smoothed model did not settle into a stick-slip cycle within the "
+                      "simulated periods; try a smaller smoothing",
+}
+#: the messages indexed by code (for `equinox.branched_error_if` and tables)
+RESULTS.messages = tuple(_MESSAGES[r] for r in RESULTS)
+
+
+class SolverError(RuntimeError):
+    """A solve failed and `throw=True` was asked for; the message is the [`vmj.RESULTS`][]
+    member's."""
 
 
 def throw_if_failed(value, result, throw: bool):
-    """With `throw=True`, raise (inside jit) the failure's message."""
+    """The one `throw=True` path: a concrete result raises [`vmj.SolverError`][] on the host
+    (compiled entry points stay free of host callbacks); a traced one (inside the user's `jit`
+    or `vmap`) is guarded with `equinox.branched_error_if`."""
     if not throw:
         return value
-    return eqx.branched_error_if(
-        value, jnp.any(result >= RESULTS.mass_exhausted), jnp.max(result), RESULTS.messages
-    )
+    if not _is_traced(result):
+        codes = np.asarray(result)
+        if np.any(RESULTS.failed(codes)):
+            raise SolverError(RESULTS(int(codes.max())).message)
+        return value
+    return eqx.branched_error_if(value, jnp.any(RESULTS.failed(result)), jnp.max(result),
+                                 RESULTS.messages)
 
 
 class DecaySequence(eqx.Module):
@@ -60,7 +108,7 @@ class DecaySequence(eqx.Module):
     **Fields:**
 
     - `times`: time of each turning point [s].
-    - `positions`: signed position `x` at each turning point [m].
+    - `positions`: signed position `x` at each turning point [m] (rad for angle models).
     - `crossed`: whether the swing ending there passed `x = 0` (the paper's `*` is `not crossed`).
     - `count`: number of turning points actually reached (`<= n`).
     - `stopped`: the mass is at rest for good after the last reached turning point.
@@ -104,11 +152,12 @@ class DecaySequence(eqx.Module):
     @property
     def message(self) -> str:
         """Readable status (for an unbatched result)."""
-        return result_message(np.asarray(self.result))
+        return RESULTS.describe(self.result)
 
     @property
     def failed(self) -> Array:
-        return self.result >= RESULTS.mass_exhausted
+        """Whether the solve failed (not [`vmj.RESULTS.okay`][])."""
+        return RESULTS.failed(self.result)
 
     def reached(self) -> dict:
         """The turning points actually reached, as NumPy arrays (unbatched results only)."""
@@ -122,7 +171,7 @@ class DecaySequence(eqx.Module):
 
 
 class Trajectory(eqx.Module):
-    """A sampled solution of a smoothed model.
+    """A sampled solution.
 
     **Fields:** `ts` [s], `xs` [m], `vs` [m/s] at the saved times, and `result` (a status code
     of [`vmj.RESULTS`][]).
@@ -135,4 +184,4 @@ class Trajectory(eqx.Module):
 
     @property
     def message(self) -> str:
-        return result_message(np.asarray(self.result))
+        return RESULTS.describe(self.result)

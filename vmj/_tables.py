@@ -10,10 +10,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._models import Coulomb, MassProportional, VariableMass
-from ._solve import energy_balance, turning_points
+from ._laws._friction import Coulomb, MassProportional
+from ._models._variable_mass import VariableMass
+from ._integrate import energy_balance, turning_points
 
-__all__ = ["PAPER", "paper_cells", "paper_table"]
+__all__ = ["PAPER", "paper_cells", "paper_model", "paper_table"]
 
 #: parameters common to the four tables (SI units)
 PAPER = {"m0": 5.0, "c": 4900.0, "a0": 0.06, "FT": 14.7, "f": 0.3, "g": 9.81}

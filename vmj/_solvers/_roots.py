@@ -4,6 +4,7 @@ final Newton step taken with gradients (the implicit-function theorem)."""
 from __future__ import annotations
 
 import jax.numpy as jnp
+import jax
 from jax import lax
 
 
@@ -31,3 +32,18 @@ def implicit_step(f, fprime, x):
     x = lax.stop_gradient(x)
     slope = fprime(x)
     return x - f(x) / jnp.where(slope != 0, slope, 1.0)
+
+
+def expanding_root(f, hi, iterations: int = 60):
+    """Root of `f` on `(0, hi]` with `f(0+) > 0 >= f(hi)` (hi doubled until it brackets):
+    safeguarded Newton, then one Newton step with gradients (implicit differentiation).
+    Returns `(root, bracketed)`; `bracketed` is False when no root was found (an unbounded
+    swing over the potential barrier)."""
+    fs = lambda y: lax.stop_gradient(f(y))  # noqa: E731
+    hi = lax.stop_gradient(hi)
+    for _ in range(8):
+        hi = jnp.where(fs(hi) > 0, 2 * hi, hi)
+    # (a root at hi itself may evaluate to a rounding-level positive value)
+    bracketed = fs(hi) <= 1e-12 * jnp.abs(fs(0.5 * hi))
+    y = bracketed_newton(fs, jax.grad(fs), jnp.zeros_like(hi), hi, hi, iterations)
+    return implicit_step(f, jax.grad(f), y), bracketed

@@ -14,7 +14,7 @@ import math
 import jax.numpy as jnp
 from jax import lax
 
-from ._solution import RESULTS, DecaySequence
+from .._solution import RESULTS, DecaySequence
 
 #: Taylor coefficients of phi(x) = (exp(x) - 1)/x = sum_j x^j/(j + 1)!
 _PHI = tuple(1.0 / math.factorial(j + 1) for j in range(10))

@@ -9,8 +9,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._models import _float
-from ._sweep import _get, resolve_field
+from .._checks import _float
+from ._tree import _get, resolve_field
 
 __all__ = ["sensitivity"]
 

@@ -8,19 +8,21 @@ eps = M1/M0): slip obeys `xi'' + xi = -sign(xi' + Omega)`, the disk rests while 
 breaks away when `xi` reaches `-eps`, and at a velocity zero during slip reverses at once when
 `|xi| > 1` (the spring overcomes sliding friction in the other direction), otherwise it sticks.
 
-Three solvers share the model:
+Three solvers of [`vmj.limit_cycle`][] share the model:
 
-- `stick_slip_cycle` (exact): event-driven; each slip phase uses the analytic harmonic solution
-  of the phase's equation of motion and its velocity zero is found by Newton root
-  finding (fixed iteration count; implicit-function-theorem gradient), then the rules above pick
-  reversal or stick. Works under `jit`, `vmap` and `grad`.
-- `stick_slip_closed_form`: the paper's formulas (11)-(20).
-- the smoothed diffrax model (`stick_slip_simulate`, `stick_slip_cycle(method="smooth")`).
+- [`vmj.Exact`][]: event-driven; each slip phase uses the analytic harmonic solution of the
+  phase's equation of motion and its velocity zero is found by the shared safeguarded Newton
+  (implicit-function-theorem gradient), then the rules above pick reversal or stick. Works
+  under `jit`, `vmap` and `grad`.
+- [`vmj.ClosedForm`][]: the paper's formulas (11)-(20) (`_closed_forms/_belokobylsky.py`).
+- [`vmj.Smoothed`][]: the cycle measured on the smoothed diffrax model (a rest memory `z` makes
+  the friction limit static while the disk rests).
 """
 
 from __future__ import annotations
 
-import diffrax as dfx
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -28,17 +30,13 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array
 
-from ._checks import _is_traced, check, check_int, positive, warn_if_float32
-from ._models import _Checked, _float, validated
-from ._solution import RESULTS, Trajectory
+from .._checks import _float, _is_traced, check, check_int, positive
+from .._closed_forms._belokobylsky import closed_form_cycle
+from .._solution import RESULTS, Trajectory
+from .._solvers._roots import bracketed_newton, implicit_step
+from ._base import AbstractLimitCycle
 
-__all__ = [
-    "StickSlip",
-    "StickSlipCycle",
-    "stick_slip_cycle",
-    "stick_slip_closed_form",
-    "stick_slip_simulate",
-]
+__all__ = ["StickSlip", "StickSlipCycle", "MAX_REVERSALS"]
 
 #: a reversal needs |xi| > 1 + REVERSAL_MARGIN at the velocity zero. At |xi| = 1 exactly the
 #: disk would leave with zero acceleration (a degenerate case); the margin 2e-5 is the one the
@@ -48,17 +46,12 @@ REVERSAL_MARGIN = 2e-5
 NEWTON = 7  #: Newton iterations per velocity zero (cubic convergence: 5 suffice in float64)
 MAX_REVERSALS = 10  #: default static bound on reversals per cycle (eps below 23)
 
-_TOO_MANY = (
-    "more reversals per cycle than max_reversals: raise max_reversals (a cycle has "
-    "floor((eps - 1)/2) reversals)"
-)
-
 
 def _greater_than_one(x):
     return x > 1
 
 
-class StickSlip(_Checked):
+class StickSlip(AbstractLimitCycle):
     """Torsional one-mass stick-slip model in the paper's dimensionless form.
 
     **Arguments:**
@@ -78,7 +71,7 @@ class StickSlip(_Checked):
     Omega: Array = eqx.field(converter=_float)
     time_scale: Array = eqx.field(converter=_float, default=1.0)
     angle_scale: Array = eqx.field(converter=_float, default=1.0)
-    _limits = {
+    _limits: ClassVar[dict] = {
         "eps": (_greater_than_one, "> 1 (static friction M1 must exceed sliding friction M0)"),
         "Omega": (positive, "> 0"),
         "time_scale": (positive, "> 0 [s]"),
@@ -113,14 +106,71 @@ class StickSlip(_Checked):
         cos, sin = jnp.cos(tau), jnp.sin(tau)
         return -s + a * cos - self.Omega * sin, -a * sin - self.Omega * cos
 
-    def acceleration(self, xi, dxi, sgn):
-        """`xi''` with `sgn` standing for `sign(xi' + Omega)` (exactly +-1 in the exact solver,
-        a smooth function in the smoothed one)."""
-        return -xi - sgn
+    def acceleration(self, t, x, v, sgn):
+        """`xi''` at `xi = x`, `xi' = v`, with `sgn` standing for `sign(xi' + Omega)` (exactly
+        +-1 in the exact solver, a smooth function in the smoothed one)."""
+        return -x - sgn
 
     def friction_peak(self, z):
         """Friction magnitude limit (units of M0) of the smoothed model with rest memory `z`."""
         return 1.0 + (self.eps - 1.0) * z
+
+    # -- the smoothed model -------------------------------------------------------------------
+    smoothed_rtol: ClassVar[float] = 1e-8
+    smoothed_max_steps: ClassVar[int] = 1_000_000
+    smoothed_stiff: ClassVar[bool] = True
+
+    def velocity_scale(self, a0):
+        """`a0` (dimensionless: the slip phases oscillate at unit frequency)."""
+        return a0 * jnp.ones_like(self.Omega)
+
+    def smoothing_scale(self, x0, v0):
+        """1: the dimensionless velocity unit `M0/sqrt(c I)` (default `w = 1e-4`)."""
+        return jnp.ones_like(self.Omega)
+
+    def length_scale(self, x0, v0):
+        return jnp.abs(x0) + jnp.zeros_like(v0)
+
+    def initial_state(self, x0, v0):
+        """`(xi, xi', z)` with the rest memory `z = 0`."""
+        return jnp.stack([x0, v0, jnp.zeros_like(x0)])
+
+    def vector_field(self, t, y, w):
+        """The smoothed model: `sign(u)` (`u = xi' + Omega`, the disk velocity) replaced by
+        `P(z) tanh(u/w)` and the rest/slip switch by a rest memory `z` in `[0, 1]`:
+
+            xi'' + xi = -(1 + (eps - 1) z) tanh(u/w),   z' = (exp(-(u/sqrt(w))^2) - z) / w**0.25.
+
+        `z` relaxes to 1 while the disk (nearly) rests, so the friction limit grows to the static
+        `eps`, and to 0 while it slides; a quick passage through `u = 0` (a reversal) leaves `z`
+        small, so the disk reverses against sliding friction only -- the paper's rule."""
+        v_mem, t_mem = jnp.sqrt(w), w**0.25
+        xi, dxi, z = y
+        u = dxi + self.Omega
+        sgn = self.friction_peak(z) * jnp.tanh(u / w)
+        rest = jnp.exp(-((u / v_mem) ** 2))
+        return jnp.stack([dxi, self.acceleration(t, xi, dxi, sgn), (rest - z) / t_mem])
+
+    # -- the limit cycle ------------------------------------------------------------------------
+    def breakaway(self):
+        """`(xi, xi') = (-eps, -Omega)`: the disk at rest at breakaway."""
+        return -self.eps, -self.Omega
+
+    def exact_cycle(self, max_reversals: int) -> "StickSlipCycle":
+        """Event-driven limit cycle (see the module docstring); traceable."""
+        return _exact_cycle(self, max_reversals)
+
+    def closed_form_cycle(self, max_reversals: int) -> "StickSlipCycle":
+        """The paper's closed forms (11)-(20)."""
+        fields = closed_form_cycle(self.eps, self.Omega, max_reversals)
+        return StickSlipCycle(**fields, result=jnp.where(
+            fields["count"] == fields["reversals"] + 1, RESULTS.successful,
+            RESULTS.too_many_reversals), model=self, method="closed")
+
+    def smoothed_cycle(self, max_reversals: int, solver) -> "StickSlipCycle":
+        """The cycle measured on the smoothed model (NumPy post-processing; concrete scalar
+        models only)."""
+        return _smooth_cycle(self, max_reversals, solver)
 
 
 class StickSlipCycle(eqx.Module):
@@ -137,7 +187,8 @@ class StickSlipCycle(eqx.Module):
     - `positions`: `xi_k` at the end of each slip interval.
     - `amplitudes`: `A_k`, amplitude of the harmonic motion within interval `k`.
     - `slip_time`, `stick_time`, `period`: `tau_*`, `tau^*`, `Lambda = tau_* + tau^*`.
-    - `result`: 0 on success, `RESULTS.step_limit` when more than `max_reversals` reversals.
+    - `result`: `RESULTS.successful`, or `RESULTS.too_many_reversals` when the cycle has more
+      than `max_reversals` reversals.
     - `model`: the [`vmj.StickSlip`][] it belongs to (for sampling and unit conversion).
     - `method`: `"exact"`, `"closed"` or `"smooth"` (static): the solver that produced it.
     """
@@ -156,11 +207,12 @@ class StickSlipCycle(eqx.Module):
 
     @property
     def message(self) -> str:
-        return "limit cycle found" if int(self.result) == RESULTS.successful else _TOO_MANY
+        code = RESULTS(int(np.asarray(self.result)))
+        return "limit cycle found" if code == RESULTS.successful else code.message
 
     @property
     def failed(self) -> Array:
-        return self.result != RESULTS.successful
+        return RESULTS.failed(self.result)
 
     def physical(self) -> dict:
         """Times in seconds: `slip_intervals`, `slip_time`, `stick_time`, `period` [s], and
@@ -243,29 +295,30 @@ def _velocity_zero(model, xi0, s):
     is the root of `h` in `(0, pi/2)` (`s = -1`) or `(pi/2, pi)` (`s = +1`, as `s a < 0`). `h` is
     a sinusoid `R sin(x - x*)`, on which Newton's iteration maps the error `e` to `e - tan e`:
     started at the middle of the quarter period (`|e| <= pi/4`) it converges cubically, to
-    float64 precision within 5 steps. The last step is taken with gradients
-    (implicit-function theorem), so `tau` differentiates in eps and Omega.
+    float64 precision within 5 steps (the shared safeguarded Newton keeps it in the bracket).
+    The last step is taken with gradients (implicit-function theorem), so `tau`
+    differentiates in eps and Omega.
     """
 
-    def h(x, a, Om):
-        return Om * jnp.sin(x) - a * jnp.cos(x)
+    def f(x, a, Om):  # s h(x), h(x) = Om sin x - a cos x: > 0 before the root, <= 0 after
+        return s * (Om * jnp.sin(x) - a * jnp.cos(x))
 
-    def hp(x, a, Om):
-        return Om * jnp.cos(x) + a * jnp.sin(x)
+    def fprime(x, a, Om):
+        return s * (Om * jnp.cos(x) + a * jnp.sin(x))
 
     a_ng, Om_ng = lax.stop_gradient(xi0 + s), lax.stop_gradient(model.Omega)
-    x = jnp.where(s > 0, 0.75 * jnp.pi, 0.25 * jnp.pi) * jnp.ones_like(a_ng)
-    for _ in range(NEWTON):
-        x = x - h(x, a_ng, Om_ng) / hp(x, a_ng, Om_ng)
+    quarter = 0.5 * jnp.pi * jnp.ones_like(a_ng)
+    lo = jnp.where(s > 0, quarter, 0.0)
+    x = bracketed_newton(lambda x: f(x, a_ng, Om_ng), lambda x: fprime(x, a_ng, Om_ng), lo,
+                         lo + quarter, lo + 0.5 * quarter, NEWTON)
     a = xi0 + s
-    x = x - h(x, a, model.Omega) / hp(x, a, model.Omega)
+    x = implicit_step(lambda x: f(x, a, model.Omega), lambda x: fprime(x, a, model.Omega), x)
     tau = 2.0 * x
     xi, _ = model.slip_phase(xi0, s, tau)
     return tau, xi
 
 
-def exact_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
-    """Event-driven limit cycle (see the module docstring); traceable."""
+def _exact_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
     n = max_reversals + 1
     xi0 = -model.eps
 
@@ -289,181 +342,11 @@ def exact_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
     count = jnp.sum(used.astype(jnp.int32))
     slip = jnp.sum(taus)
     stick = (xi_end + model.eps) / model.Omega  # xi falls at rate Omega from xi_end to -eps
-    code = jnp.where(done, RESULTS.successful, RESULTS.step_limit)
+    code = jnp.where(done, RESULTS.successful, RESULTS.too_many_reversals)
     return StickSlipCycle(
         reversals=reversals, count=count, slip_intervals=taus, positions=xis, amplitudes=amps,
         slip_time=slip, stick_time=stick, period=slip + stick, result=code, model=model,
     )
-
-
-# -- the paper's closed forms (11)-(20) ------------------------------------------------------------
-def closed_form_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
-    eps, Omega = model.eps, model.Omega
-    n = max_reversals + 1
-    kstar = jnp.floor((eps - 1.0) / 2.0 - 1e-5).astype(jnp.int32)  # (16)
-    k = jnp.arange(1, n + 1)
-    sign_k = jnp.where(k % 2 == 0, 1.0, -1.0)  # (-1)^k
-    used = k <= kstar + 1
-    tau_k = 2.0 * (jnp.pi * (1.0 - sign_k) / 2.0
-                   - sign_k * jnp.arctan((2 * k - (eps + 1.0)) / Omega))  # (14)
-    xi_k = sign_k * (2 * k - eps)  # (13)
-    A_k = jnp.sqrt((2 * k - (eps + 1.0)) ** 2 + Omega**2)  # (12)
-    slip = jnp.sum(jnp.where(used, tau_k, 0.0))  # (17)
-    sign_kstar = jnp.where(kstar % 2 == 0, 1.0, -1.0)
-    stick = (eps + sign_kstar * (eps - 2.0 * (kstar + 1))) / Omega  # (19)
-    code = jnp.where(kstar + 1 <= n, RESULTS.successful, RESULTS.step_limit)
-    return StickSlipCycle(
-        reversals=kstar, count=jnp.minimum(kstar + 1, n),
-        slip_intervals=jnp.where(used, tau_k, 0.0), positions=jnp.where(used, xi_k, 0.0),
-        amplitudes=jnp.where(used, A_k, 0.0), slip_time=slip, stick_time=stick,
-        period=slip + stick, result=code, model=model, method="closed",  # (20)
-    )
-
-
-def _throw(cycle, throw):
-    if not throw:
-        return cycle
-    return eqx.error_if(cycle, cycle.result != RESULTS.successful, _TOO_MANY)
-
-
-@eqx.filter_jit
-def _exact_entry(model, max_reversals, throw):
-    return _throw(exact_cycle(validated(model), max_reversals), throw)
-
-
-@eqx.filter_jit
-def _closed_entry(model, max_reversals, throw):
-    return _throw(closed_form_cycle(validated(model), max_reversals), throw)
-
-
-def stick_slip_cycle(
-    model: StickSlip,
-    *,
-    method: str = "exact",
-    max_reversals: int = MAX_REVERSALS,
-    smoothing=None,
-    throw: bool = False,
-) -> StickSlipCycle:
-    """The stick-slip limit cycle of `model`, from breakaway to the next breakaway.
-
-    **Arguments:**
-
-    - `model`: a [`vmj.StickSlip`][].
-    - `method`: `"exact"` (default): event-driven solution of the non-smooth rules; each slip
-      phase is the analytic solution of `xi'' + xi = -+1`, its velocity zero found by
-      Newton iteration with an implicit-function-theorem gradient. Runs under `jax.jit`,
-      `jax.vmap` (batched models) and `jax.grad` (the period, slip and stick times differentiate
-      in `eps` and `Omega`). `"smooth"`: the cycle measured on the smoothed diffrax model
-      ([`vmj.stick_slip_simulate`][]); NumPy post-processing, scalar models only, no `vmap`.
-    - `max_reversals`: static bound on reversals per cycle (arrays are padded to it + 1).
-    - `smoothing`: smoothing velocity `w` of the smoothed model (`method="smooth"`), default 1e-4.
-    - `throw`: raise when the cycle has more than `max_reversals` reversals instead of returning
-      it in `result`.
-
-    **Returns:** a [`vmj.StickSlipCycle`][] (dimensionless times; `.physical()` for seconds).
-    """
-    warn_if_float32()
-    max_reversals = check_int("max_reversals", max_reversals, 0)
-    if method == "exact":
-        return _exact_entry(model, max_reversals, throw)
-    if method == "smooth":
-        return _smooth_cycle(model, max_reversals, smoothing, throw)
-    raise ValueError(f"method must be 'exact' or 'smooth' (got {method!r})")
-
-
-def stick_slip_closed_form(
-    model: StickSlip, *, max_reversals: int = MAX_REVERSALS, throw: bool = False
-) -> StickSlipCycle:
-    """The paper's closed forms (11)-(20) for the limit cycle of `model`.
-
-    `k* = floor((eps - 1)/2 - 1e-5)` reversals (16) (the `1e-5` makes eps = 3, 5, 7, ... land
-    on the lower `k*`: at those values the disk stops with `|xi| = 1` exactly and sticks);
-    `tau_k = 2 {pi [1 - (-1)^k]/2 + (-1)^(k+1) arctan((2k - (eps + 1))/Omega)}` (14);
-    `xi_k = (-1)^k (2k - eps)` (13); `A_k = sqrt((2k - (eps + 1))^2 + Omega^2)` (12);
-    slip time (17), stick time `tau^* = (eps + (-1)^k* (eps - 2(k* + 1)))/Omega` (19) and
-    period (20). Arguments and result as in [`vmj.stick_slip_cycle`][]; jit/vmap/grad-friendly.
-    """
-    warn_if_float32()
-    max_reversals = check_int("max_reversals", max_reversals, 0)
-    return _closed_entry(model, max_reversals, throw)
-
-
-# -- the smoothed model (diffrax) -----------------------------------------------------------------
-DEFAULT_SMOOTHING = 1e-4
-RTOL = 1e-8
-
-
-def _smooth_scales(w):
-    """Rest-memory velocity `sqrt(w)` and memory time `w**0.25` of the smoothed model."""
-    return jnp.sqrt(w), w**0.25
-
-
-def _smooth_field(model, w):
-    v_mem, t_mem = _smooth_scales(w)
-
-    def field(t, y, args):
-        xi, dxi, z = y
-        u = dxi + model.Omega
-        sgn = model.friction_peak(z) * jnp.tanh(u / w)
-        rest = jnp.exp(-((u / v_mem) ** 2))
-        return jnp.stack([dxi, model.acceleration(xi, dxi, sgn), (rest - z) / t_mem])
-
-    return field
-
-
-@eqx.filter_jit
-def _simulate_smooth(model, t1, w, n_save):
-    model = validated(model)
-    field = _smooth_field(model, w)
-    ts = jnp.linspace(0.0, t1, n_save)
-    y0 = jnp.stack([-model.eps, -model.Omega, jnp.zeros_like(model.eps)])
-    sol = dfx.diffeqsolve(
-        dfx.ODETerm(field), dfx.Kvaerno5(), t0=0.0, t1=t1, dt0=None, y0=y0,
-        saveat=dfx.SaveAt(ts=ts),
-        stepsize_controller=dfx.PIDController(rtol=RTOL, atol=RTOL * model.eps),
-        max_steps=1_000_000, throw=False,
-    )
-    ok = sol.result == dfx.RESULTS.successful
-    ys = jnp.where(ok, sol.ys, jnp.nan)
-    code = jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
-    return Trajectory(ts=ts, xs=ys[:, 0], vs=ys[:, 1], result=code), ys[:, 2]
-
-
-def _check_smoothing(smoothing):
-    if smoothing is None:
-        return jnp.asarray(DEFAULT_SMOOTHING)
-    return jnp.asarray(check("smoothing", smoothing, positive, "> 0"), dtype=float)
-
-
-def stick_slip_simulate(model: StickSlip, t1, *, smoothing=None, n_save: int = 4001,
-                        throw: bool = False, memory: bool = False):
-    """Solve the smoothed stick-slip model with diffrax (Kvaerno5, rtol 1e-8) from breakaway.
-
-    The smoothed model replaces `sign(u)` (`u = xi' + Omega`, the disk velocity) by
-    `P(z) tanh(u/w)` and the rest/slip switch by a rest memory `z` in `[0, 1]`:
-
-        xi'' + xi = -(1 + (eps - 1) z) tanh(u/w),   z' = (exp(-(u/sqrt(w))^2) - z) / w**0.25.
-
-    `z` relaxes to 1 while the disk (nearly) rests, so the friction limit grows to the static
-    `eps`, and to 0 while it slides; a quick passage through `u = 0` (a reversal) leaves `z`
-    small, so the disk reverses against sliding friction only -- the paper's rule. A smoothed
-    model cannot truly stick: at rest it creeps with `u ~ w`. As `w -> 0` the cycle tends to the
-    exact one (see docs/stick-slip.md for the measured convergence).
-
-    **Arguments:** `model` ([`vmj.StickSlip`][]), `t1` final dimensionless time `> 0`,
-    `smoothing` `w > 0` (default 1e-4), `n_save` saved points, `throw` raise if diffrax failed,
-    `memory` also return the saved `z`.
-
-    **Returns:** a [`vmj.Trajectory`][] (`ts` = tau, `xs` = xi, `vs` = xi'), and `z` if `memory`.
-    """
-    warn_if_float32()
-    n_save = check_int("n_save", n_save, 2)
-    t1 = check("t1", t1, positive, "> 0")
-    w = _check_smoothing(smoothing)
-    traj, z = _simulate_smooth(model, jnp.asarray(t1, dtype=float), w, n_save)
-    if throw and not _is_traced(traj.result) and int(traj.result) != 0:
-        raise RuntimeError(RESULTS.messages[RESULTS.solver_failed])
-    return (traj, z) if memory else traj
 
 
 SMOOTH_PERIODS = 3.3  #: simulated horizon in (closed-form) periods; the last full cycle is kept
@@ -471,19 +354,38 @@ SMOOTH_SAMPLES = 20_000  #: saved points per period for the event detection
 CREEP = 20.0  #: |u| below CREEP * w counts as a stop of the smoothed disk
 
 
-def _smooth_cycle(model, max_reversals, smoothing, throw) -> StickSlipCycle:
-    model = validated(model)
+@eqx.filter_jit
+def smoothed_states(model, solver, t1, n_save: int):
+    """`(ts, ys, code)`: the smoothed model's state `(xi, xi', z)` at `n_save` times from
+    breakaway to `t1`."""
+    import diffrax as dfx
+
+    ts = jnp.linspace(0.0, t1, n_save)
+    x0, v0 = model.breakaway()
+    sol, code = solver.solve(model, x0, v0, t1, dfx.SaveAt(ts=ts))
+    return ts, jnp.where(code == RESULTS.successful, sol.ys, jnp.nan), code
+
+
+def _failed_cycle(model, max_reversals, code) -> StickSlipCycle:
+    zeros = jnp.zeros(max_reversals + 1)
+    nan = jnp.asarray(jnp.nan)
+    return StickSlipCycle(reversals=jnp.asarray(0), count=jnp.asarray(0), slip_intervals=zeros,
+                          positions=zeros, amplitudes=zeros, slip_time=nan, stick_time=nan,
+                          period=nan, result=jnp.asarray(code), model=model, method="smooth")
+
+
+def _smooth_cycle(model, max_reversals, solver) -> StickSlipCycle:
     for leaf in jax.tree.leaves(model):
         if _is_traced(leaf) or jnp.ndim(leaf) != 0:
-            raise ValueError("method='smooth' takes a concrete scalar model (no jit/vmap)")
-    w = _check_smoothing(smoothing)
-    guess = float(closed_form_cycle(model, 64).period)  # only sets the simulated horizon
+            raise ValueError("the smoothed limit cycle takes a concrete scalar model (no jit/vmap)")
+    w = solver.smoothing
+    guess = float(model.closed_form_cycle(64).period)  # only sets the simulated horizon
     n_save = int(SMOOTH_PERIODS * SMOOTH_SAMPLES)
-    traj, z = _simulate_smooth(model, jnp.asarray(SMOOTH_PERIODS * guess), w, n_save)
-    if int(traj.result) != 0:
-        raise RuntimeError(RESULTS.messages[RESULTS.solver_failed])
-    ts, u = np.asarray(traj.ts), np.asarray(traj.vs) + float(model.Omega)
-    z = np.asarray(z)
+    ts, ys, code = smoothed_states(model, solver, _float(SMOOTH_PERIODS * guess), n_save)
+    if int(code) != RESULTS.successful:
+        return _failed_cycle(model, max_reversals, RESULTS.solver_failed)
+    ts, u = np.asarray(ts), np.asarray(ys[:, 1]) + float(model.Omega)
+    z = np.asarray(ys[:, 2])
     slow = np.abs(u) <= CREEP * float(w)
 
     def level(i, target):  # linear interpolation of the crossing of `target` inside [i, i+1]
@@ -499,8 +401,7 @@ def _smooth_cycle(model, max_reversals, smoothing, throw) -> StickSlipCycle:
         if j.size and z[i:j[0] + 1].max() > 0.5:
             rests.append((level(i, over), level(j[0], over), i, j[0]))
     if len(rests) < 2:
-        raise RuntimeError("the smoothed model did not settle into a stick-slip cycle within "
-                           f"{SMOOTH_PERIODS} periods; try a smaller smoothing")
+        return _failed_cycle(model, max_reversals, RESULTS.no_cycle)
     (_, b1, _, i1), (d2, b2, i2, _) = rests[-2], rests[-1]
     # reversals: sign changes of the disk velocity while slipping between the two rests
     flips = np.nonzero((u[:-1] * u[1:] < 0) & (np.arange(len(u) - 1) > i1)
@@ -511,10 +412,8 @@ def _smooth_cycle(model, max_reversals, smoothing, throw) -> StickSlipCycle:
     rev = len(taus) - 1
     padded = np.zeros(n)
     padded[: min(n, len(taus))] = taus[:n]
-    code = RESULTS.successful if rev <= max_reversals else RESULTS.step_limit
-    if throw and code != RESULTS.successful:
-        raise RuntimeError(_TOO_MANY)
-    xs = np.asarray(traj.xs)
+    code = RESULTS.successful if rev <= max_reversals else RESULTS.too_many_reversals
+    xs = np.asarray(ys[:, 0])
     xi_at = np.interp(marks[1:], ts, xs)
     positions = np.zeros(n)
     positions[: min(n, len(taus))] = xi_at[:n]

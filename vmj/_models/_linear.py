@@ -6,82 +6,26 @@ the problem book's chapter 4 and the Lagrange-equation paper).
 with `F(t) = 0`, `F0 sin(p t)` (harmonic force) or `k y + c y'` for a harmonic base motion
 `y(t) = Y0 sin(p t)` (the spring and damper are attached to the moving base; `x` is absolute).
 Analytic responses (under-, critically and over-damped), the logarithmic decrement, the
-amplification factor and phase, and a diffrax simulation of the same equation.
+amplification factor and phase ([`vmj.ClosedForm`][]); [`vmj.Smoothed`][] integrates the same
+equation with diffrax (nothing is smoothed: the model has no dry friction).
 """
 
 from __future__ import annotations
 
-import diffrax as dfx
+from typing import ClassVar
+
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array
 
-from ._checks import check, check_int, nonnegative, positive, warn_if_float32
-from ._models import _Checked, _float, validated
-from ._solution import RESULTS, Trajectory, throw_if_failed
+from .._checks import _float, nonnegative, positive
+from .._laws._forcing import Forcing, NoForcing
+from ._base import AbstractAnalytic
 
-__all__ = ["Forcing", "NoForcing", "HarmonicForce", "BaseMotion", "LinearOscillator",
-           "linear_simulate"]
-
-
-class Forcing(_Checked):
-    """Excitation of a [`vmj.LinearOscillator`][]."""
-
-    def force(self, osc, t) -> Array:
-        """External force on the mass [N] at time `t` [s]."""
-        raise NotImplementedError
-
-    def complex_amplitude(self, osc):
-        """`(Q, p)`: the force is `Im(Q exp(i p t))` [N] with angular frequency `p` [1/s]."""
-        raise NotImplementedError
+__all__ = ["LinearOscillator"]
 
 
-class NoForcing(Forcing):
-    """No excitation (free vibration)."""
-
-    def force(self, osc, t):
-        return jnp.zeros_like(jnp.asarray(t, dtype=osc.m.dtype))
-
-    def complex_amplitude(self, osc):
-        return jnp.zeros_like(osc.m) + 0j, jnp.zeros_like(osc.m)
-
-
-class HarmonicForce(Forcing):
-    """Harmonic force `F0 sin(p t)`.
-
-    **Arguments:** `F0` force amplitude [N] (any real number); `p` angular frequency [1/s], `> 0`.
-    """
-
-    F0: Array = eqx.field(converter=_float)
-    p: Array = eqx.field(converter=_float)
-    _limits = {"F0": (lambda x: x == x, "a real number [N]"), "p": (positive, "> 0 [1/s]")}
-
-    def force(self, osc, t):
-        return self.F0 * jnp.sin(self.p * t)
-
-    def complex_amplitude(self, osc):
-        return self.F0 + 0j, self.p
-
-
-class BaseMotion(Forcing):
-    """Harmonic motion of the base `y(t) = Y0 sin(p t)` through the spring and the damper:
-    the force on the mass is `k y + c y'`, and `x` is the absolute displacement.
-
-    **Arguments:** `Y0` base amplitude [m] (any real number); `p` angular frequency [1/s], `> 0`.
-    """
-
-    Y0: Array = eqx.field(converter=_float)
-    p: Array = eqx.field(converter=_float)
-    _limits = {"Y0": (lambda x: x == x, "a real number [m]"), "p": (positive, "> 0 [1/s]")}
-
-    def force(self, osc, t):
-        return self.Y0 * (osc.k * jnp.sin(self.p * t) + osc.c * self.p * jnp.cos(self.p * t))
-
-    def complex_amplitude(self, osc):
-        return self.Y0 * (osc.k + 1j * osc.c * self.p), self.p
-
-
-class LinearOscillator(_Checked):
+class LinearOscillator(AbstractAnalytic):
     """Linear one-degree-of-freedom oscillator `m x'' + c x' + k x = F(t)`.
 
     **Arguments:**
@@ -100,19 +44,34 @@ class LinearOscillator(_Checked):
     c: Array = eqx.field(converter=_float)
     k: Array = eqx.field(converter=_float)
     forcing: Forcing = eqx.field(default_factory=NoForcing)
-    _limits = {"m": (positive, "> 0 [kg]"), "c": (nonnegative, ">= 0 [N s/m]"),
+    _limits: ClassVar[dict] = {"m": (positive, "> 0 [kg]"), "c": (nonnegative, ">= 0 [N s/m]"),
                "k": (positive, "> 0 [N/m]")}
 
     def __check_init__(self):
         if not isinstance(self.forcing, Forcing):
             raise ValueError("forcing must be vmj.NoForcing(), vmj.HarmonicForce(F0, p) or "
                              "vmj.BaseMotion(Y0, p)")
-        validated(self)
 
     # -- the equation of motion, written once --------------------------------------------------
-    def acceleration(self, t, x, v):
-        """`x''` [m/s^2] at time `t` [s], position `x` [m], velocity `v` [m/s]."""
+    def acceleration(self, t, x, v, sgn=None):
+        """`x''` [m/s^2] at time `t` [s], position `x` [m], velocity `v` [m/s] (`sgn` unused:
+        no dry friction)."""
         return (self.forcing.force(self, t) - self.c * v - self.k * x) / self.m
+
+    smoothed_rtol: ClassVar[float] = 1e-12
+
+    def velocity_scale(self, a0):
+        """`a0 omega_c` [m/s]."""
+        return a0 * self.natural_frequency
+
+    def smoothing_scale(self, x0, v0):
+        """No dry friction: the smoothing velocity is unused (any positive value)."""
+        return jnp.ones_like(self.m)
+
+    def length_scale(self, x0, v0):
+        """`|x0| + |v0|/omega_c + |Q|/k`: the free and the forced motion's scale."""
+        Q, _ = self.forcing.complex_amplitude(self)
+        return jnp.abs(x0) + jnp.abs(v0) / self.natural_frequency + jnp.abs(Q) / self.k + 1e-300
 
     # -- characteristics -------------------------------------------------------------------------
     @property
@@ -233,43 +192,3 @@ class LinearOscillator(_Checked):
         xh = e * (y0 * C + B * S)
         vh = e * (y0 * dC + B * dS) - b * xh
         return xh + xp, vh + vp
-
-
-@eqx.filter_jit
-def _simulate(osc, x0, v0, t1, n_save, rtol, throw):
-    osc = validated(osc)
-
-    def field(t, y, args):
-        return jnp.stack([y[1], osc.acceleration(t, y[0], y[1])])
-
-    ts = jnp.linspace(0.0, t1, n_save)
-    scale = jnp.abs(x0) + jnp.abs(v0) / osc.natural_frequency
-    Q, p = osc.forcing.complex_amplitude(osc)
-    scale = scale + jnp.abs(Q) / osc.k + 1e-300
-    sol = dfx.diffeqsolve(
-        dfx.ODETerm(field), dfx.Tsit5(), t0=0.0, t1=t1, dt0=None, y0=jnp.stack([x0, v0]),
-        saveat=dfx.SaveAt(ts=ts),
-        stepsize_controller=dfx.PIDController(rtol=rtol, atol=rtol * scale),
-        max_steps=500_000, throw=False,
-    )
-    ok = sol.result == dfx.RESULTS.successful
-    ys = jnp.where(ok, sol.ys, jnp.nan)
-    code = jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
-    traj = Trajectory(ts=ts, xs=ys[:, 0], vs=ys[:, 1], result=code)
-    return throw_if_failed(traj, traj.result, throw)
-
-
-def linear_simulate(osc: LinearOscillator, x0, v0, t1, *, n_save: int = 2001,
-                    rtol: float = 1e-12, throw: bool = False) -> Trajectory:
-    """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Tsit5) from `x(0) = x0` [m],
-    `x'(0) = v0` [m/s] to `t1` [s] `> 0`; `n_save` equally spaced saved times; `rtol` relative
-    tolerance (absolute tolerance `rtol` times the motion's length scale).
-    **Returns:** a [`vmj.Trajectory`][] (`ts` [s], `xs` [m], `vs` [m/s], `result`)."""
-    warn_if_float32()
-    n_save = check_int("n_save", n_save, 2)
-    x0 = check("x0", x0, lambda x: x == x, "a real number [m]")
-    v0 = check("v0", v0, lambda x: x == x, "a real number [m/s]")
-    t1 = check("t1", t1, positive, "> 0 [s]")
-    rtol = float(check("rtol", rtol, positive, "> 0"))
-    x0, v0, t1 = (_float(v) for v in (x0, v0, t1))
-    return _simulate(osc, x0, v0, t1, n_save, rtol, throw)

@@ -1,15 +1,74 @@
-"""Figures of sweeps over (eps, mu, delta) of the variable-mass model."""
+"""Figures (matplotlib, imported when a figure is drawn, never by `import vmj`).
+
+`vmj.plot.pyplot()` gives matplotlib's pyplot on the non-interactive Agg backend, and
+`vmj.plot.save(fig, path)` writes a figure atomically (a temporary file, then a rename), so that
+a full disk or a killed process never leaves a truncated PNG.
+"""
 
 from __future__ import annotations
 
+import os
+import tempfile
+
 import numpy as np
 
-from ._plot import _pyplot, save
 from ._solution import RESULTS
 
-__all__ = ["plot_swings", "plot_energy_error"]
+__all__ = ["pyplot", "save", "plot_table", "plot_swings", "plot_energy_error"]
 
 
+def pyplot():
+    """matplotlib's pyplot on the Agg backend (no display needed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig, path: str) -> None:
+    """Write `fig` to `path` (format from the extension) atomically. The directory must exist:
+    nothing is created or renamed silently."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise ValueError(f"{path}: the directory {folder} does not exist")
+    ext = os.path.splitext(path)[1] or ".png"
+    fd, tmp = tempfile.mkstemp(suffix=ext, prefix=".vmj-", dir=folder)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def plot_table(table: int, rows: list[dict], path: str) -> None:
+    """Amplitude against swing number for each column of a paper table."""
+    plt = pyplot()
+    columns = sorted({(r["mu"], r["eps"]) for r in rows})
+    fig, axes = plt.subplots(1, len(columns), figsize=(4 * len(columns), 3.6), sharey=True)
+    for ax, (mu, eps) in zip(axes, columns):
+        col = sorted((r for r in rows if (r["mu"], r["eps"]) == (mu, eps)), key=lambda r: r["k"])
+        k = [r["k"] for r in col]
+        ax.plot(k, [r["paper_energy_cm"] for r in col], "o", mfc="none", label="paper (energy)")
+        ax.plot(k, [r["paper_monograph_cm"] for r in col], "s", mfc="none", label="monograph")
+        ax.plot(k, [r["exact_cm"] for r in col], "-", lw=1.5, label="vmj exact")
+        ax.plot(k, [r["energy_cm"] for r in col], "--", lw=1, label="vmj energy balance")
+        for r in col:
+            if r["note"]:
+                ax.annotate("!", (r["k"], r["paper_monograph_cm"]), color="red")
+        ax.set_title(f"table {table}: mu={mu:g} kg/s, eps={eps:g}")
+        ax.set_xlabel("swing k")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("amplitude |x_k| [cm]")
+    axes[0].legend(fontsize=8)
+    save(fig, path)
+    plt.close(fig)
+
+
+# -- sweeps over (eps, mu, delta) of the variable-mass model ------------------------------------
 def _panels(result):
     """(delta values or [None], an index function) for one panel per delta."""
     dims = list(result.dims)
@@ -43,7 +102,7 @@ def _edges(x):
 
 
 def _grid_of_panels(n_panels):
-    plt = _pyplot()
+    plt = pyplot()
     cols = min(n_panels, 4)
     rows = -(-n_panels // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.2 * rows), squeeze=False,
@@ -68,7 +127,7 @@ def plot_swings(result, path: str, title: str = "") -> None:
     for j, (ax, d) in enumerate(zip(axes, deltas)):
         count = at(np.asarray(seq.count), j).astype(float)
         stopped = at(np.asarray(seq.stopped), j)
-        failed = at(np.asarray(seq.result), j) >= RESULTS.mass_exhausted
+        failed = RESULTS.failed(at(np.asarray(seq.result), j))
         shown = np.where(stopped, count, n + 1.0)  # still moving after n swings: "over"
         mesh = ax.pcolormesh(_edges(eps), _edges(mu), shown.T, cmap=cmap, vmin=lowest - 0.5,
                              vmax=n + 0.5, shading="flat")

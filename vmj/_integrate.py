@@ -1,0 +1,266 @@
+"""The entry points, one per problem type: [`vmj.turning_points`][] (a free decay),
+[`vmj.simulate`][] (a trajectory), [`vmj.limit_cycle`][] (a self-excited cycle). Each takes a
+model and a solver object, validates the input once (concrete values raise `ValueError` here;
+traced ones are guarded inside the caller's `jit`/`vmap`), and calls one compiled function per
+task. The older per-model functions are thin wrappers kept for compatibility."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ._checks import (_float, _is_traced, anything, check, check_int, positive, validated,
+                      warn_if_float32)
+from ._models._base import check_horizon, require_scalar_fields
+from ._models._rope import Rope
+from ._models._stick_slip import MAX_REVERSALS, StickSlip, smoothed_states
+from ._solution import DecaySequence, Trajectory, throw_if_failed
+from ._solvers._closed import ClosedForm, EnergyBalance
+from ._solvers._exact import Exact
+from ._solvers._smoothed import Smoothed
+
+__all__ = ["turning_points", "simulate", "limit_cycle", "energy_balance", "rope_energy_map",
+           "stick_slip_cycle", "stick_slip_closed_form", "stick_slip_simulate",
+           "linear_simulate"]
+
+_METHODS = {"exact": Exact, "smooth": Smoothed, "energy": EnergyBalance, "closed": ClosedForm}
+
+
+def _solver(solver, method, smoothing, max_substeps, default):
+    """The solver object, from `solver` or the older `method=`/`smoothing=`/`max_substeps=`."""
+    if isinstance(solver, str):  # turning_points(model, a0, n, "smooth"): the older positional
+        solver, method = None, solver
+    if solver is not None:
+        if method is not None:
+            raise ValueError("give either solver or method, not both")
+        if smoothing is not None or max_substeps is not None:
+            raise ValueError("smoothing and max_substeps are settings of the solver object: "
+                             "vmj.Smoothed(smoothing=...), vmj.Exact(max_substeps=...)")
+        return solver
+    if method is None:
+        kind = default
+    elif method in _METHODS:
+        kind = _METHODS[method]
+    else:
+        raise ValueError(f"method must be one of {sorted(_METHODS)} (got {method!r})")
+    if kind is Smoothed:
+        return Smoothed(smoothing=smoothing)
+    if smoothing is not None:
+        raise ValueError(f"smoothing applies to the smoothed solver (method 'smooth'), not "
+                         f"{kind.name!r}")
+    if kind is Exact and max_substeps is not None:
+        return Exact(max_substeps=check_int("max_substeps", max_substeps, 1))
+    return kind()
+
+
+# -- turning points of a free decay ------------------------------------------------------------
+@eqx.filter_jit
+def _turning_points(model, a0, n, solver):
+    return solver.turning_points(model, a0, n)
+
+
+def turning_points(model, a0, n: int, solver=None, *, method: str | None = None,
+                   smoothing=None, max_substeps: int | None = None,
+                   throw: bool = False) -> DecaySequence:
+    """Turning points (velocity zeros) of the free decay released from rest at `x(0) = -a0`.
+
+    **Arguments:**
+
+    - `model`: a decay model: [`vmj.VariableMass`][], [`vmj.Rope`][], [`vmj.Oscillator`][].
+    - `a0`: initial deflection [m] (the model's position unit), `> 0`.
+    - `n`: number of turning points to compute (static; the result is padded to `n`).
+    - `solver`: [`vmj.Exact`][] (default) integrates the non-smooth system half-swing by
+      half-swing with a fixed friction sign to each velocity zero and applies the stick rule
+      there (a stuck mass stays put while its static friction holds; friction that falls with
+      the mass releases it again). [`vmj.Smoothed`][] returns the turning points of the
+      smoothed ODE. [`vmj.EnergyBalance`][] evaluates the model's closed-form half-swing map.
+    - `method`, `smoothing`, `max_substeps`: the older spelling, `method="exact" | "smooth" |
+      "energy"` with the solver's settings (kept for compatibility).
+    - `throw`: raise [`vmj.SolverError`][] on failure (mass exhausted, step limit) instead of
+      returning it in `result`. With `throw=False` check `result`/`message`.
+
+    **Returns:** a [`vmj.DecaySequence`][]. Differentiable with `jax.grad`/`jax.jacfwd` with
+    respect to every model parameter and `a0`.
+    """
+    warn_if_float32()
+    solver = _solver(solver, method, smoothing, max_substeps, Exact)
+    n = check_int("n", n, 1)
+    solver.check(model, "turning_points")
+    require_scalar_fields(model)
+    model = validated(model)
+    # an array, not a Python float: filter_jit would treat floats as static and recompile
+    a0 = _float(check("a0", a0, positive, f"> 0 [{model.position_unit}]"))
+    if isinstance(solver, Smoothed):
+        solver = solver.with_defaults(model, a0, 0.0)
+    seq = _turning_points(model, a0, n, solver)
+    return throw_if_failed(seq, seq.result, throw)
+
+
+def energy_balance(model, a0, n: int, *, throw: bool = False) -> DecaySequence:
+    """The paper's energy-balance recurrences (11)-(12) and the corrected (13); the same as
+    `vmj.turning_points(model, a0, n, vmj.EnergyBalance())`.
+
+    With `lambda = delta - 2 delta eps - 2 mu` and `m_k = m_{k-1} + pi delta sqrt(m_{k-1}/c)`:
+
+        a_k = a_{k-1} E_k + 8 F_k sqrt(m_{k-1}) / (pi lambda sqrt(c)) (1 - E_k),
+        E_k = exp(pi lambda / (4 sqrt(c m_{k-1}))),
+
+    evaluated so that `lambda -> 0` tends smoothly to `a_k = a_{k-1} - 2 F/c`. `F_k = F_T`, or
+    `f g (m_{k-1} + (pi delta/2) sqrt(m_{k-1}/c))` for mass-proportional friction. A negative
+    `a_k` is a swing that did not pass `x = 0` (the tables' `*`); the mass stops when
+    `c |a_k| <= F`. Times are the sums of the half-periods `pi sqrt(m_{k-1}/c)`.
+
+    **Arguments:** `model` ([`vmj.VariableMass`][], or any model with an energy map), `a0` [m]
+    `> 0`, `n` (number of swings), `throw` as in [`vmj.turning_points`][].
+    **Returns:** a [`vmj.DecaySequence`][].
+    """
+    return turning_points(model, a0, n, EnergyBalance(), throw=throw)
+
+
+def rope_energy_map(rope: Rope, a0, n: int, *, throw: bool = False) -> DecaySequence:
+    """Exact turning points of a rope of fixed length (`u = 0`) from the energy balance over
+    each half-swing, `V(x_k) - V(x_{k+1}) = A T |x_k - x_{k+1}|` (for `b = 0`:
+    `V(a_k) - V(-a_{k+1}) = A T (a_k + a_{k+1})`), solved per swing; the times are the exact
+    half-swing durations (energy integral, Gauss-Legendre). The same as
+    `vmj.turning_points(rope, a0, n, vmj.EnergyBalance())`.
+
+    **Arguments:** `rope` ([`vmj.Rope`][] with `vmj.ConstantSpeed(l0, 0.0)`), `a0` [m] `> 0`,
+    `n` (number of turning points). **Returns:** a [`vmj.DecaySequence`][].
+    """
+    if not isinstance(rope, Rope):
+        raise ValueError(f"rope must be a vmj.Rope (got {type(rope).__name__})")
+    return turning_points(rope, a0, n, EnergyBalance(), throw=throw)
+
+
+# -- trajectories ------------------------------------------------------------------------------
+@eqx.filter_jit
+def _simulate(model, x0, v0, t1, n_save, solver):
+    return solver.simulate(model, x0, v0, t1, n_save)
+
+
+def simulate(model, x0, v0, t1, solver=None, *, smoothing=None, n_save: int = 2001,
+             throw: bool = False) -> Trajectory:
+    """The trajectory of `model` from `x(0) = x0`, `x'(0) = v0` to `t1`.
+
+    **Arguments:**
+
+    - `model`: any model: [`vmj.VariableMass`][], [`vmj.Rope`][], [`vmj.Oscillator`][],
+      [`vmj.LinearOscillator`][], [`vmj.StickSlip`][] (dimensionless `xi`, `xi'`).
+    - `x0`, `v0`: initial position [m] and velocity [m/s] at `t = 0`.
+    - `t1`: final time [s], `> 0`, below the model's lifetime (zero mass, zero rope length).
+    - `solver`: [`vmj.Smoothed`][] (default; `sign(v)` replaced by `tanh(v/w)`, diffrax Tsit5,
+      rtol 1e-10) or [`vmj.ClosedForm`][] (the analytic response of the linear oscillator).
+    - `smoothing`: the older spelling of `vmj.Smoothed(smoothing=w)`: the smoothing velocity
+      `w` [m/s], `> 0`; default `1e-4` of the velocity scale `|x0| sqrt(c/m0) + |v0|`, with
+      which the turning points agree with the exact solver to about 1e-8 relative.
+    - `n_save`: number of equally spaced saved times (static).
+    - `throw`: raise [`vmj.SolverError`][] if the ODE solve failed.
+
+    **Returns:** a [`vmj.Trajectory`][] (`ts`, `xs`, `vs`, `result`).
+    """
+    warn_if_float32()
+    solver = _solver(solver, None, smoothing, None, Smoothed)
+    n_save = check_int("n_save", n_save, 2)
+    solver.check(model, "simulate")
+    require_scalar_fields(model)
+    model = validated(model)
+    unit = model.position_unit
+    x0 = _float(check("x0", x0, anything, f"a real number [{unit}]"))
+    v0 = _float(check("v0", v0, anything, f"a real number [{unit}/s]"))
+    t1 = _float(check("t1", t1, positive, "> 0 [s]"))
+    check_horizon(model, t1)
+    if _is_traced(t1) or _is_traced(model.lifetime()):
+        t1 = eqx.error_if(t1, t1 >= model.lifetime(),
+                          f"t1 must be below {model.lifetime_text}")
+    if isinstance(solver, Smoothed):
+        solver = solver.with_defaults(model, x0, v0)
+    traj = _simulate(model, x0, v0, t1, n_save, solver)
+    return throw_if_failed(traj, traj.result, throw)
+
+
+def linear_simulate(osc, x0, v0, t1, *, n_save: int = 2001, rtol: float = 1e-12,
+                    throw: bool = False) -> Trajectory:
+    """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Tsit5) from `x(0) = x0` [m],
+    `x'(0) = v0` [m/s] to `t1` [s] `> 0`: `vmj.simulate(osc, x0, v0, t1,
+    vmj.Smoothed(rtol=rtol))`. `rtol` is the relative tolerance (the absolute one is `rtol`
+    times the motion's length scale). **Returns:** a [`vmj.Trajectory`][]."""
+    rtol = float(check("rtol", rtol, positive, "> 0"))
+    return simulate(osc, x0, v0, t1, Smoothed(rtol=rtol), n_save=n_save, throw=throw)
+
+
+# -- limit cycles ------------------------------------------------------------------------------
+@eqx.filter_jit
+def _limit_cycle(model, max_reversals, solver):
+    return solver.limit_cycle(model, max_reversals)
+
+
+def limit_cycle(model, solver=None, *, max_reversals: int = MAX_REVERSALS,
+                throw: bool = False):
+    """The limit cycle of a self-excited model ([`vmj.StickSlip`][]), from breakaway to the
+    next breakaway.
+
+    **Arguments:**
+
+    - `model`: a [`vmj.StickSlip`][].
+    - `solver`: [`vmj.Exact`][] (default): event-driven solution of the non-smooth rules; each
+      slip phase is the analytic solution of `xi'' + xi = -+1`, its velocity zero found by
+      Newton iteration with an implicit-function-theorem gradient. Runs under `jax.jit`,
+      `jax.vmap` (batched models) and `jax.grad` (the period, slip and stick times
+      differentiate in `eps` and `Omega`). [`vmj.ClosedForm`][]: the paper's formulas
+      (11)-(20). [`vmj.Smoothed`][]: the cycle measured on the smoothed diffrax model (NumPy
+      post-processing; concrete scalar models only).
+    - `max_reversals`: static bound on reversals per cycle (arrays are padded to it + 1).
+    - `throw`: raise [`vmj.SolverError`][] when the cycle has more than `max_reversals`
+      reversals (or the smoothed model did not settle) instead of returning it in `result`.
+
+    **Returns:** a [`vmj.StickSlipCycle`][] (dimensionless times; `.physical()` for seconds).
+    """
+    warn_if_float32()
+    solver = Exact() if solver is None else solver
+    max_reversals = check_int("max_reversals", max_reversals, 0)
+    solver.check(model, "limit_cycle")
+    model = validated(model)
+    if isinstance(solver, Smoothed):
+        x0, v0 = model.breakaway()
+        cycle = model.smoothed_cycle(max_reversals, solver.with_defaults(model, x0, v0))
+    else:
+        cycle = _limit_cycle(model, max_reversals, solver)
+    return throw_if_failed(cycle, cycle.result, throw)
+
+
+def stick_slip_cycle(model: StickSlip, *, method: str = "exact",
+                     max_reversals: int = MAX_REVERSALS, smoothing=None, throw: bool = False):
+    """`vmj.limit_cycle` with `method="exact" | "smooth"` (the older spelling)."""
+    if method not in ("exact", "smooth"):
+        raise ValueError(f"method must be 'exact' or 'smooth' (got {method!r})")
+    solver = _solver(None, method, smoothing, None, Exact)
+    return limit_cycle(model, solver, max_reversals=max_reversals, throw=throw)
+
+
+def stick_slip_closed_form(model: StickSlip, *, max_reversals: int = MAX_REVERSALS,
+                           throw: bool = False):
+    """The paper's closed forms (11)-(20) for the limit cycle of `model`:
+    `vmj.limit_cycle(model, vmj.ClosedForm())` (see `_closed_forms/_belokobylsky.py`)."""
+    return limit_cycle(model, ClosedForm(), max_reversals=max_reversals, throw=throw)
+
+
+def stick_slip_simulate(model: StickSlip, t1, *, smoothing=None, n_save: int = 4001,
+                        throw: bool = False, memory: bool = False):
+    """The smoothed stick-slip model (diffrax Kvaerno5, rtol 1e-8) from breakaway:
+    `vmj.simulate(model, -eps, -Omega, t1, vmj.Smoothed(smoothing=w))` (default `w = 1e-4`;
+    see `vmj.StickSlip.vector_field` for the smoothed equations).
+
+    **Returns:** a [`vmj.Trajectory`][] (`ts` = tau, `xs` = xi, `vs` = xi'), and the rest memory
+    `z` at the same times if `memory`.
+    """
+    if not isinstance(model, StickSlip):
+        raise ValueError(f"model must be a vmj.StickSlip (got {type(model).__name__})")
+    x0, v0 = model.breakaway()
+    traj = simulate(model, x0, v0, t1, Smoothed(smoothing=smoothing), n_save=n_save,
+                    throw=throw)
+    if not memory:
+        return traj
+    solver = Smoothed(smoothing=smoothing).with_defaults(model, x0, v0)
+    _, ys, _ = smoothed_states(model, solver, _float(t1), check_int("n_save", n_save, 2))
+    return traj, ys[:, 2]
+

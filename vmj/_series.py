@@ -1,0 +1,31 @@
+"""Truncated power series: evaluation, derivative and products (the exact solvers' Taylor
+arithmetic)."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["horner", "derivative", "cauchy"]
+
+
+def horner(cs, tau):
+    """`sum_j cs[j] tau^j` for a list of coefficients."""
+    acc = cs[-1]
+    for c in cs[-2::-1]:
+        acc = acc * tau + c
+    return acc
+
+
+def derivative(cs):
+    """Coefficients of the derivative of the series `cs` (a list)."""
+    return [n * c for n, c in enumerate(cs)][1:]
+
+
+def cauchy(a, b):
+    """First `len(a)` coefficients of the product of two series (1-D arrays)."""
+    k = a.shape[0]
+    i = np.arange(k)
+    idx = i[:, None] - i[None, :]  # row n, column j -> b[n - j]
+    mat = jnp.where(idx >= 0, b[np.clip(idx, 0, k - 1)], 0.0)
+    return mat @ a

@@ -1,0 +1,58 @@
+"""Solvers that evaluate a model's closed forms: the energy-balance half-swing map of a decay
+model ([`vmj.EnergyBalance`][]) and the closed-form response or limit cycle
+([`vmj.ClosedForm`][])."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import jax.numpy as jnp
+
+from .._models._base import AbstractAnalytic, AbstractEnergyMap, AbstractLimitCycle
+from .._solution import RESULTS, Trajectory
+from ._base import AbstractSolver, unsupported
+
+__all__ = ["EnergyBalance", "ClosedForm"]
+
+
+class EnergyBalance(AbstractSolver):
+    """Turning points from the model's energy balance over each half-swing, a closed-form map
+    from one turning point to the next: the variable-mass paper's recurrences (11)-(13) (an
+    approximation for a varying mass, as the paper's), the exact energy map of a rope of fixed
+    length, the exact map of the identification oscillator with Coulomb friction (and its
+    first-order averaged map with viscous or quadratic damping)."""
+
+    name: ClassVar[str] = "energy"
+
+    def check(self, model, task):
+        if task != "turning_points" or not isinstance(model, AbstractEnergyMap):
+            raise unsupported(self, model, task.replace("_", " "),
+                              "the energy balance gives the turning points of the variable-mass "
+                              "model, the rope of fixed length and the oscillator")
+        model.check_energy_map()
+
+    def turning_points(self, model, a0, n: int):
+        return model.energy_map(a0, n)
+
+
+class ClosedForm(AbstractSolver):
+    """The model's closed forms: the analytic response of [`vmj.LinearOscillator`][]
+    ([`vmj.simulate`][]) and the paper's limit cycle of [`vmj.StickSlip`][]
+    ([`vmj.limit_cycle`][])."""
+
+    name: ClassVar[str] = "closed"
+
+    def check(self, model, task):
+        ok = {"simulate": AbstractAnalytic, "limit_cycle": AbstractLimitCycle}.get(task)
+        if ok is None or not isinstance(model, ok):
+            raise unsupported(self, model, task.replace("_", " "),
+                              "closed forms exist for the linear oscillator's response and the "
+                              "stick-slip limit cycle")
+
+    def simulate(self, model, x0, v0, t1, n_save: int) -> Trajectory:
+        ts = jnp.linspace(0.0, t1, n_save)
+        xs, vs = model.response(ts, x0, v0)
+        return Trajectory(ts=ts, xs=xs, vs=vs, result=jnp.array(RESULTS.successful))
+
+    def limit_cycle(self, model, max_reversals: int):
+        return model.closed_form_cycle(max_reversals)

@@ -1,0 +1,167 @@
+"""The result of a sweep with named axes, and its export (CSV, xarray, NetCDF)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax
+import numpy as np
+
+__all__ = ["SweepResult"]
+
+
+def _leaf_names(tree) -> list[str]:
+    def name(path):
+        parts = []
+        for k in path:
+            parts.append(str(getattr(k, "name", getattr(k, "key", getattr(k, "idx", k)))))
+        return ".".join(parts) or "value"
+
+    return [name(p) for p, _ in jax.tree_util.tree_flatten_with_path(tree)[0]]
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """Values of a solution over a sweep, with named axes.
+
+    **Fields:**
+
+    - `values`: what the swept function returns (e.g. a [`vmj.DecaySequence`][]), with NumPy
+      leaves whose leading axes are the sweep's `shape` (e.g. `values.positions[i, j, l, k]`).
+    - `dims`: the names of the leading axes (`("eps", "mu", "delta")` for a grid, `("point",)`
+      for paired points).
+    - `coords`: parameter values: for a grid one 1-D array per axis; for paired points every
+      swept parameter broadcast to `shape`.
+    - `shape`: the sweep's shape (the broadcast shape of the model's parameters).
+    - `devices`: number of devices the evaluation was sharded over.
+    """
+
+    values: Any
+    dims: tuple
+    coords: dict
+    shape: tuple
+    devices: int = 1
+    chunks: int = field(default=1, compare=False)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Flat columns, one row per point (C order): the parameters, then every field of
+        `values`; a field with inner axes gives one column per entry, `name_1 ... name_n`
+        (1-based, as the turning points k)."""
+        n = math.prod(self.shape)
+        cols = {}
+        if self._is_grid:
+            mesh = np.meshgrid(*(self.coords[d] for d in self.dims), indexing="ij")
+            for d, g in zip(self.dims, mesh):
+                cols[d] = g.reshape(n)
+        else:
+            for name, c in self.coords.items():
+                cols[name] = np.broadcast_to(c, self.shape).reshape(n)
+        for name, leaf in zip(_leaf_names(self.values), jax.tree.leaves(self.values)):
+            leaf = np.asarray(leaf).reshape((n,) + np.shape(leaf)[len(self.shape):])
+            if leaf.ndim == 1:
+                cols[name] = leaf
+            else:
+                for idx in np.ndindex(*leaf.shape[1:]):
+                    cols[name + "".join(f"_{i + 1}" for i in idx)] = leaf[(slice(None),) + idx]
+        return cols
+
+    @property
+    def _is_grid(self) -> bool:
+        return all(d in self.coords and np.ndim(self.coords[d]) == 1 for d in self.dims) and \
+            tuple(len(self.coords[d]) for d in self.dims) == tuple(self.shape)
+
+    def to_csv(self, path: str) -> None:
+        """Write the `columns()` to `path`; a first comment line records the axes, so that
+        [`vmj.SweepResult.read_csv`][] restores the result's shape. Floats are written with 17
+        significant digits (exact round trip)."""
+        cols = self.columns()
+        leaves = dict(zip(_leaf_names(self.values), jax.tree.leaves(self.values)))
+        meta = {
+            "dims": list(self.dims),
+            "shape": list(self.shape),
+            "grid": self._is_grid,
+            "fields": {k: [str(np.asarray(v).dtype), list(np.shape(v)[len(self.shape):])]
+                       for k, v in leaves.items()},
+            "coords": [k for k in self.coords],
+        }
+        header = list(cols)
+        data = [np.asarray(c) for c in cols.values()]
+        fmts = ["%d" if c.dtype.kind in "biu" else "%.17g" for c in data]
+        table = np.empty((len(data[0]), len(data)), dtype=object)
+        for j, c in enumerate(data):
+            table[:, j] = c.astype(np.int64) if c.dtype.kind == "b" else c
+        with open(path, "w", newline="") as fh:
+            fh.write("# vmj-sweep " + json.dumps(meta) + "\n")
+            fh.write(",".join(header) + "\n")
+            np.savetxt(fh, table, fmt=fmts, delimiter=",")
+
+    @staticmethod
+    def read_csv(path: str) -> "SweepResult":
+        """Read a file written by `to_csv`; `values` becomes a dict of field name to array."""
+        with open(path, newline="") as fh:
+            first = fh.readline()
+            if not first.startswith("# vmj-sweep "):
+                raise ValueError(f"{path} is not a CSV written by vmj.SweepResult.to_csv")
+            meta = json.loads(first[len("# vmj-sweep "):])
+            reader = csv.reader(fh)
+            header = next(reader)
+            raw = np.array([row for row in reader], dtype=object).reshape(-1, len(header))
+        col = {h: raw[:, j] for j, h in enumerate(header)}
+        shape = tuple(meta["shape"])
+        if meta["grid"]:
+            coords = {}
+            for i, d in enumerate(meta["dims"]):
+                full = col[d].astype(float).reshape(shape)
+                coords[d] = full[tuple(slice(None) if k == i else 0 for k in range(len(shape)))]
+        else:
+            coords = {k: col[k].astype(float).reshape(shape) for k in meta["coords"]}
+        values = {}
+        for name, (dtype, inner) in meta["fields"].items():
+            kind = np.dtype(dtype)
+            if inner:
+                keys = [name + "".join(f"_{i + 1}" for i in idx) for idx in np.ndindex(*inner)]
+                flat = np.stack([col[k] for k in keys], axis=-1)
+            else:
+                flat = col[name]
+            conv = flat.astype(np.int64).astype(kind) if kind.kind in "biu" else \
+                flat.astype(float).astype(kind)
+            values[name] = conv.reshape(shape + tuple(inner))
+        return SweepResult(values, tuple(meta["dims"]), coords, shape)
+
+    def to_xarray(self):
+        """An `xarray.Dataset` with one variable per field of `values` (needs the optional
+        extra: `pip install 'vmj[xarray]'`). Inner axes are named `k` (1-based, the turning
+        point index) when all fields agree on their length, else `NAME_k`."""
+        try:
+            import xarray as xr
+        except ImportError:  # pragma: no cover - exercised only without the extra
+            raise ImportError("SweepResult.to_xarray needs xarray: pip install 'vmj[xarray]'") \
+                from None
+        names = _leaf_names(self.values)
+        leaves = [np.asarray(v) for v in jax.tree.leaves(self.values)]
+        inner_lengths = {v.shape[len(self.shape)] for v in leaves if v.ndim > len(self.shape)}
+        shared_k = len(inner_lengths) == 1
+        data_vars, extra_coords = {}, {}
+        for name, v in zip(names, leaves):
+            inner = v.ndim - len(self.shape)
+            kdims = []
+            for j in range(inner):
+                kd = ("k" if shared_k else f"{name}_k") + (f"{j}" if j else "")
+                kdims.append(kd)
+                extra_coords[kd] = np.arange(1, v.shape[len(self.shape) + j] + 1)
+            data_vars[name.replace(".", "_")] = (tuple(self.dims) + tuple(kdims), v)
+        if self._is_grid:
+            coords = {d: self.coords[d] for d in self.dims}
+        else:
+            coords = {k: (tuple(self.dims), np.broadcast_to(c, self.shape))
+                      for k, c in self.coords.items()}
+        return xr.Dataset(data_vars, coords={**coords, **extra_coords})
+
+    def to_netcdf(self, path: str) -> None:
+        """Write `to_xarray()` to a NetCDF file (needs the optional extra `vmj[xarray]`)."""
+        self.to_xarray().to_netcdf(path)
+

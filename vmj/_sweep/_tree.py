@@ -1,0 +1,57 @@
+"""Naming the array fields of a model tree: paths, short names, replacement."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+
+from .._checks import _float, validated
+
+__all__ = ["resolve_field"]
+
+def _field_paths(model, prefix=()):
+    """Paths (tuples of attribute names) to every array field of a module tree."""
+    out = []
+    if isinstance(model, eqx.Module):
+        for name in (f.name for f in dataclasses.fields(model)):
+            out += _field_paths(getattr(model, name), prefix + (name,))
+    elif eqx.is_array_like(model) and not isinstance(model, (str, bytes)):
+        out.append(prefix)
+    return out
+
+
+def resolve_field(model, name: str) -> tuple[str, ...]:
+    """The path of the array field `name` of `model`: a field name (`"eps"`), unique among the
+    nested modules (`"F"` is `friction.F`), or a dotted path (`"friction.F"`)."""
+    paths = _field_paths(model)
+    want = tuple(name.split("."))
+    hits = [p for p in paths if p[-len(want):] == want]
+    if len(hits) != 1:
+        known = ", ".join(sorted(".".join(p) for p in paths))
+        why = "is ambiguous" if hits else "is not a parameter"
+        raise ValueError(f"{name!r} {why} of {type(model).__name__} (parameters: {known})")
+    return hits[0]
+
+
+def _short_name(paths, path) -> str:
+    """The shortest dotted suffix of `path` that names it uniquely among `paths`."""
+    for k in range(1, len(path) + 1):
+        if sum(p[-k:] == path[-k:] for p in paths) == 1:
+            return ".".join(path[-k:])
+    return ".".join(path)
+
+
+def _get(model, path):
+    for p in path:
+        model = getattr(model, p)
+    return model
+
+
+def _set_fields(model, paths, values):
+    """Replace the fields at `paths` by float arrays and re-validate (ValueError on bad values)."""
+    values = [_float(v) for v in values]
+    model = eqx.tree_at(lambda m: [_get(m, p) for p in paths], model, values)
+    return validated(model)
+
+
