@@ -1,0 +1,120 @@
+"""Every model against every solver and entry point: each combination that applies runs and
+returns an okay result; each that does not gives a clear ValueError naming the solver, the model
+and what to use instead (as diffrax's suite is parametrised over all its solvers)."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import vmj
+
+MODELS = {
+    "variable-mass": lambda: vmj.VariableMass(5.0, 4900.0, 3.0, 0.5, 2.0, vmj.Coulomb(14.7)),
+    "variable-mass-f": lambda: vmj.VariableMass(5.0, 4900.0, -0.2, 0.5, 1.0,
+                                                vmj.MassProportional(0.3)),
+    "rope": lambda: vmj.Rope.paper(u=0.0, T=40.0),
+    "rope-hoisting": lambda: vmj.Rope.paper(u=1.0, T=40.0),
+    "linear": lambda: vmj.LinearOscillator(1.0, 0.2, 100.0),
+    "linear-forced": lambda: vmj.LinearOscillator(1.0, 0.2, 100.0, vmj.HarmonicForce(1.0, 7.0)),
+    "stick-slip": lambda: vmj.StickSlip(5.5, 1.0),
+}
+SOLVERS = {
+    "exact": vmj.Exact,
+    "smoothed": vmj.Smoothed,
+    "energy": vmj.EnergyBalance,
+    "closed": vmj.ClosedForm,
+}
+#: (model, solver) pairs that apply, per task
+TURNING_POINTS = {("variable-mass", "exact"), ("variable-mass", "smoothed"),
+                  ("variable-mass", "energy"), ("variable-mass-f", "exact"),
+                  ("variable-mass-f", "smoothed"), ("variable-mass-f", "energy"),
+                  ("rope", "exact"), ("rope", "smoothed"), ("rope", "energy"),
+                  ("rope-hoisting", "exact"), ("rope-hoisting", "smoothed")}
+SIMULATE = {(m, "smoothed") for m in MODELS} | {("linear", "closed"), ("linear-forced", "closed")}
+LIMIT_CYCLE = {("stick-slip", s) for s in ("exact", "smoothed", "closed")}
+
+
+def _a0(name):
+    return 0.01 if name.startswith("rope") else 0.06
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("model", MODELS)
+def test_turning_points(model, solver):
+    m, s = MODELS[model](), SOLVERS[solver]()
+    if (model, solver) not in TURNING_POINTS:
+        with pytest.raises(ValueError, match=f"{type(s).__name__} does not solve|energy map"):
+            vmj.turning_points(m, _a0(model), 6, s)
+        return
+    seq = vmj.turning_points(m, _a0(model), 6, s)
+    assert vmj.RESULTS.okay(int(seq.result)), seq.message
+    assert int(seq.count) >= 2
+    assert np.all(np.isfinite(np.asarray(seq.positions)))
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("model", MODELS)
+def test_simulate(model, solver):
+    m, s = MODELS[model](), SOLVERS[solver]()
+    x0, v0 = (-5.5, -1.0) if model == "stick-slip" else (-_a0(model), 0.0)
+    if (model, solver) not in SIMULATE:
+        with pytest.raises(ValueError, match=f"{type(s).__name__} does not solve"):
+            vmj.simulate(m, x0, v0, 0.5, s, n_save=11)
+        return
+    traj = vmj.simulate(m, x0, v0, 0.5, s, n_save=11)
+    assert int(traj.result) == vmj.RESULTS.successful, traj.message
+    assert traj.xs.shape == (11,) and np.all(np.isfinite(np.asarray(traj.xs)))
+    assert float(traj.xs[0]) == pytest.approx(x0)
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("model", MODELS)
+def test_limit_cycle(model, solver):
+    m, s = MODELS[model](), SOLVERS[solver]()
+    if (model, solver) not in LIMIT_CYCLE:
+        with pytest.raises(ValueError, match=f"{type(s).__name__} does not solve"):
+            vmj.limit_cycle(m, s)
+        return
+    cycle = vmj.limit_cycle(m, s)
+    assert int(cycle.result) == vmj.RESULTS.successful, cycle.message
+    assert int(cycle.reversals) == 2  # floor((5.5 - 1)/2)
+
+
+def test_linear_closed_form_equals_ode():
+    m = MODELS["linear-forced"]()
+    ode = vmj.simulate(m, 0.01, 0.0, 2.0, vmj.Smoothed(), n_save=21)
+    exact = vmj.simulate(m, 0.01, 0.0, 2.0, vmj.ClosedForm(), n_save=21)
+    np.testing.assert_allclose(ode.xs, exact.xs, rtol=0, atol=1e-9)
+
+
+def test_solver_and_method_together_refused():
+    m = MODELS["variable-mass"]()
+    with pytest.raises(ValueError, match="either solver or method"):
+        vmj.turning_points(m, 0.06, 4, vmj.Exact(), method="smooth")
+    with pytest.raises(ValueError, match="settings of the solver object"):
+        vmj.turning_points(m, 0.06, 4, vmj.Exact(), smoothing=1e-3)
+    with pytest.raises(ValueError, match="method must be one of"):
+        vmj.turning_points(m, 0.06, 4, method="rk4")
+
+
+def test_older_spellings_agree_with_solver_objects():
+    m = MODELS["variable-mass"]()
+    a = vmj.turning_points(m, 0.06, 8, method="smooth", smoothing=1e-4)
+    b = vmj.turning_points(m, 0.06, 8, vmj.Smoothed(smoothing=1e-4))
+    np.testing.assert_array_equal(a.positions, b.positions)
+    c = vmj.turning_points(m, 0.06, 8, "energy")
+    np.testing.assert_array_equal(c.positions, vmj.energy_balance(m, 0.06, 8).positions)
+
+
+def test_results_enumeration():
+    assert vmj.RESULTS.okay(vmj.RESULTS.stopped) and not vmj.RESULTS.failed(vmj.RESULTS.stopped)
+    assert all(vmj.RESULTS.failed(r) for r in vmj.RESULTS if r > vmj.RESULTS.stopped)
+    assert all(r.message for r in vmj.RESULTS)
+    np.testing.assert_array_equal(vmj.RESULTS.failed(jnp.array([0, 1, 2, 5])),
+                                  [False, False, True, True])
+
+
+def test_throw_raises_solver_error_with_the_message():
+    m = vmj.VariableMass(5.0, 4900.0, -3.0, 0.0, 0.0, vmj.Coulomb(0.1))  # mass runs out
+    with pytest.raises(vmj.SolverError, match="reaches zero"):
+        vmj.turning_points(m, 0.06, 60, throw=True)
