@@ -26,9 +26,9 @@ import numpy as np
 from jax import lax
 
 from .._solution import RESULTS
-from .._solvers._base import decay_scan
-from .._solvers._roots import expanding_root
-from .._solvers._smoothed import ode_solve
+from .._numerics._scan import decay_scan
+from .._numerics._roots import expanding_root
+from .._numerics._ode import ode_solve
 
 __all__ = ["kbm", "action_law", "energy_map_sequence", "half_swings_until"]
 

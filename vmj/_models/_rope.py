@@ -21,7 +21,7 @@ from .._checks import (_float, _is_traced, anything, check, nonnegative, positiv
                        warn_if_float32)
 from .._closed_forms._osinski import action_law, energy_map_sequence, kbm
 from .._laws._length import ConstantSpeed, LengthProfile
-from .._series import cauchy
+from .._numerics._series import cauchy
 from .._solution import RESULTS
 from ._base import AbstractEnergyMap, check_horizon, require_scalar_fields
 

@@ -33,7 +33,7 @@ from jaxtyping import Array
 from .._checks import _float, _is_traced, check, check_int, positive
 from .._closed_forms._belokobylsky import closed_form_cycle
 from .._solution import RESULTS, Trajectory
-from .._solvers._roots import bracketed_newton, implicit_step
+from .._numerics._roots import bracketed_newton, implicit_step
 from ._base import AbstractLimitCycle
 
 __all__ = ["StickSlip", "StickSlipCycle", "MAX_REVERSALS"]

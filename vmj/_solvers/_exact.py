@@ -21,10 +21,11 @@ import jax.numpy as jnp
 from jax import lax
 
 from .._models._base import AbstractDecayModel, AbstractLimitCycle
-from .._series import derivative, horner
+from .._numerics._series import derivative, horner
 from .._solution import RESULTS
-from ._base import AbstractSolver, decay_scan, unsupported
-from ._roots import bracketed_newton, implicit_step
+from .._numerics._scan import decay_scan
+from ._base import AbstractSolver, unsupported
+from .._numerics._roots import bracketed_newton, implicit_step
 
 __all__ = ["Exact"]
 

@@ -1,5 +1,4 @@
-"""The smoothed solver: `sign(v)` replaced by `tanh(v/w)`, the ODE solved with diffrax. The one
-diffrax wrapper of vmj."""
+"""The smoothed solver: `sign(v)` replaced by `tanh(v/w)`, the ODE solved with diffrax."""
 
 from __future__ import annotations
 
@@ -12,27 +11,19 @@ import jax.numpy as jnp
 from jaxtyping import Array
 
 from .._checks import _float, _is_traced, check, positive
+from .._numerics._ode import ode_solve
+from .._numerics._roots import bracketed_newton, implicit_step
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
-from ._roots import bracketed_newton, implicit_step
 
-__all__ = ["Smoothed", "ode_solve"]
+
+__all__ = ["Smoothed"]
 
 DEFAULT_SMOOTHING = 1e-4  #: default w as a fraction of the model's velocity scale
 CREEP = 20.0  #: |v| below CREEP * w after the last reversal counts as the smoothed model's arrest
 GRID_PER_SWING = 64  #: velocity samples per half-swing searched for reversals
 ROOT_ITERATIONS = 30  #: safeguarded Newton iterations on the dense interpolant
-
-
-def ode_solve(field, y0, t1, saveat, *, rtol, atol, max_steps: int, solver=None):
-    """`field(t, y, args)` integrated from `t = 0` to `t1` with diffrax (`solver`, default
-    Tsit5) under a PID step-size controller; never raises (check `sol.result`)."""
-    return dfx.diffeqsolve(
-        dfx.ODETerm(field), dfx.Tsit5() if solver is None else solver, t0=0.0, t1=t1, dt0=None,
-        y0=y0, saveat=saveat, stepsize_controller=dfx.PIDController(rtol=rtol, atol=atol),
-        max_steps=max_steps, throw=False,
-    )
 
 
 class Smoothed(AbstractSolver):
