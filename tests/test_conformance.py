@@ -118,3 +118,15 @@ def test_throw_raises_solver_error_with_the_message():
     m = vmj.VariableMass(5.0, 4900.0, -3.0, 0.0, 0.0, vmj.Coulomb(0.1))  # mass runs out
     with pytest.raises(vmj.SolverError, match="reaches zero"):
         vmj.turning_points(m, 0.06, 60, throw=True)
+
+
+def test_applicability_that_depends_on_traced_values_is_guarded():
+    import jax
+
+    def amplitudes(u):
+        rope = vmj.Rope.paper(u=u, T=40.0)
+        return vmj.turning_points(rope, 0.01, 4, vmj.EnergyBalance()).amplitudes
+
+    assert np.all(np.isfinite(np.asarray(jax.jit(amplitudes)(0.0))))
+    with pytest.raises(Exception, match="u must be 0 for the energy map"):
+        jax.jit(amplitudes)(1.0).block_until_ready()

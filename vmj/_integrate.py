@@ -85,9 +85,8 @@ def turning_points(model, a0, n: int, solver=None, *, method: str | None = None,
     warn_if_float32()
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
     n = check_int("n", n, 1)
-    solver.check(model, "turning_points")
     require_scalar_fields(model)
-    model = validated(model)
+    model = solver.check(validated(model), "turning_points")
     # an array, not a Python float: filter_jit would treat floats as static and recompile
     a0 = _float(check("a0", a0, positive, f"> 0 [{model.position_unit}]"))
     if isinstance(solver, Smoothed):
@@ -161,9 +160,8 @@ def simulate(model, x0, v0, t1, solver=None, *, smoothing=None, n_save: int = 20
     warn_if_float32()
     solver = _solver(solver, None, smoothing, None, Smoothed)
     n_save = check_int("n_save", n_save, 2)
-    solver.check(model, "simulate")
     require_scalar_fields(model)
-    model = validated(model)
+    model = solver.check(validated(model), "simulate")
     unit = model.position_unit
     x0 = _float(check("x0", x0, anything, f"a real number [{unit}]"))
     v0 = _float(check("v0", v0, anything, f"a real number [{unit}/s]"))
@@ -218,8 +216,7 @@ def limit_cycle(model, solver=None, *, max_reversals: int = MAX_REVERSALS,
     warn_if_float32()
     solver = Exact() if solver is None else solver
     max_reversals = check_int("max_reversals", max_reversals, 0)
-    solver.check(model, "limit_cycle")
-    model = validated(model)
+    model = solver.check(validated(model), "limit_cycle")
     if isinstance(solver, Smoothed):
         x0, v0 = model.breakaway()
         cycle = model.smoothed_cycle(max_reversals, solver.with_defaults(model, x0, v0))

@@ -143,9 +143,6 @@ def _check_bounded(rope, a0):
 def energy_map_sequence(rope, a0, n: int):
     """Turning points of a rope of fixed length from the exact half-swing energy map
     `W(x_k) = W(x_{k+1})`, `W = V + s A T x`, and the exact half-swing times."""
-    u = rope.length.u
-    rope = eqx.tree_at(lambda r: r.T, rope, eqx.error_if(
-        rope.T, u != 0, "the energy map needs a rope of fixed length (u = 0)"))
     c = _poly(rope, rope.length.l0)
     static = rope.friction_force()
 

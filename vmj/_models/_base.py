@@ -148,8 +148,10 @@ class AbstractEnergyMap(AbstractDecayModel):
     def energy_map(self, a0, n: int):
         """The first `n` turning points from the energy balance: a [`vmj.DecaySequence`][]."""
 
-    def check_energy_map(self) -> None:
-        """Raise `ValueError` when this model's energy map does not apply (concrete values)."""
+    def guard_energy_map(self):
+        """Raise `ValueError` when this model's energy map does not apply; return the model,
+        guarded with `equinox.error_if` where that depends on traced values."""
+        return self
 
 
 class AbstractAnalytic(AbstractModel):

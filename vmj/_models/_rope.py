@@ -232,14 +232,18 @@ class Rope(AbstractEnergyMap):
         each half-swing (see [`vmj.rope_energy_map`][])."""
         return energy_map_sequence(self, a0, n)
 
-    def check_energy_map(self) -> None:
+    def guard_energy_map(self):
         if not isinstance(self.length, ConstantSpeed):
             raise ValueError("the energy map needs a vmj.ConstantSpeed length profile "
                              f"(got {type(self.length).__name__})")
         u = self.length.u
-        if not _is_traced(u) and float(u) != 0:
-            raise ValueError(f"u must be 0 for the energy map (a rope of fixed length; got "
-                             f"{float(u)})")
+        if not _is_traced(u):
+            if float(u) != 0:
+                raise ValueError(f"u must be 0 for the energy map (a rope of fixed length; got "
+                                 f"{float(u)})")
+            return self
+        return eqx.tree_at(lambda r: r.length.u, self, eqx.error_if(
+            u, u != 0, "u must be 0 for the energy map (a rope of fixed length)"))
 
 
 # -- the averaged laws (closed forms in _closed_forms/_osinski.py) -------------------------------

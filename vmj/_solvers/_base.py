@@ -18,9 +18,10 @@ class AbstractSolver(eqx.Module):
     name: ClassVar[str]
 
     @abc.abstractmethod
-    def check(self, model, task: str) -> None:
+    def check(self, model, task: str):
         """Raise `ValueError` when this solver does not apply to `model` for `task`
-        (`"turning_points"`, `"simulate"` or `"limit_cycle"`), saying what does."""
+        (`"turning_points"`, `"simulate"` or `"limit_cycle"`), saying what does; return the
+        model (guarded with `equinox.error_if` where applicability depends on traced values)."""
 
 
 def unsupported(solver, model, task: str, use: str) -> ValueError:

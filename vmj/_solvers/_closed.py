@@ -29,7 +29,7 @@ class EnergyBalance(AbstractSolver):
             raise unsupported(self, model, task.replace("_", " "),
                               "the energy balance gives the turning points of the variable-mass "
                               "model, the rope of fixed length and the oscillator")
-        model.check_energy_map()
+        return model.guard_energy_map()
 
     def turning_points(self, model, a0, n: int):
         return model.energy_map(a0, n)
@@ -48,6 +48,7 @@ class ClosedForm(AbstractSolver):
             raise unsupported(self, model, task.replace("_", " "),
                               "closed forms exist for the linear oscillator's response and the "
                               "stick-slip limit cycle")
+        return model
 
     def simulate(self, model, x0, v0, t1, n_save: int) -> Trajectory:
         ts = jnp.linspace(0.0, t1, n_save)

@@ -59,9 +59,9 @@ class Exact(AbstractSolver):
 
     def check(self, model, task):
         if task == "turning_points" and isinstance(model, AbstractDecayModel):
-            return
+            return model
         if task == "limit_cycle" and isinstance(model, AbstractLimitCycle):
-            return
+            return model
         raise unsupported(self, model, task.replace("_", " "),
                           "use vmj.Smoothed() or the model's closed forms")
 

@@ -63,6 +63,7 @@ class Smoothed(AbstractSolver):
         if not isinstance(model, ok):
             raise unsupported(self, model, task.replace("_", " "), "see vmj.turning_points, "
                               "vmj.simulate and vmj.limit_cycle for the models each solves")
+        return model
 
     # -- settings ----------------------------------------------------------------------------
     def with_defaults(self, model, x0, v0) -> "Smoothed":
