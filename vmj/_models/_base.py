@@ -102,6 +102,9 @@ class AbstractDecayModel(AbstractModel):
     mass moves on.
     """
 
+    #: the exact solver's default step limit per half-swing (`vmj.Exact().max_substeps`)
+    exact_substeps: ClassVar[int] = 8
+
     @abc.abstractmethod
     def rest(self, t, x):
         """The stick rule at rest at `(t, x)`: `(s, t_go, stuck)`, the direction of the next
