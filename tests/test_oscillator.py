@@ -297,3 +297,14 @@ def test_traced_fields_of_laws_in_the_tuple_are_validated():
     bad = eqx.tree_at(lambda m: m.dissipation[0].zeta, base, jnp.asarray(-0.01))
     with pytest.raises(Exception, match="zeta must be finite and >= 0"):
         f(bad)
+
+
+def test_sweep_reaches_the_laws_parameters():
+    """`vmj.grid`/`vmj.sweep` name the laws' fields (`zeta`, or a dotted path into the tuple of
+    dissipation laws) and agree with one-by-one solutions."""
+    osc = vmj.Oscillator.pendulum(OMEGA, zeta=0.01, xF=0.01)
+    g = vmj.grid(osc, zeta=[0.0, 0.02], **{"dissipation.1.xF": [0.0, 0.01]})
+    res = vmj.sweep(vmj.turning_points, g, a0=1.0, n=4, chunk_size=4)
+    assert res.dims == ("zeta", "dissipation.1.xF")
+    one = vmj.turning_points(vmj.Oscillator.pendulum(OMEGA, zeta=0.02, xF=0.0), 1.0, 4)
+    np.testing.assert_allclose(res.values.positions[1, 0], one.positions, rtol=1e-13)

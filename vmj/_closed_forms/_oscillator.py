@@ -40,11 +40,12 @@ NEWTON = 30  #: safeguarded Newton iterations of the averaged map's end point
 def chord_swing(law, omega, r1, r2):
     """The swing between turning points `r1 < r2` whose kinetic energy per unit mass is
     `omega^2 (x - r1)(r2 - x) V[r1, r2, x]`: quadrature nodes `x`, their weights in position
-    `dx`, the speed `|v|` there, and the duration [s]."""
+    `dx`, the speed `|v|` there, and the duration [s]. (`V[r1, r2, x] > 0` on a real swing; on
+    the trial swings of a root search it may not be, and counts as 0.)"""
     x, w, cos = swing_nodes(r1, r2)
     half = 0.5 * (r2 - r1)
-    q = (law.chord(x, r1 - x) - law.chord(x, r2 - x)) / (r1 - r2)  # V[r1, r2, x] > 0
-    root = jnp.sqrt(2 * q)
+    q = (law.chord(x, r1 - x) - law.chord(x, r2 - x)) / (r1 - r2)  # V[r1, r2, x]
+    root = jnp.sqrt(jnp.where(q > 0, 2 * q, 0.0))
     return x, w * half * cos, omega * half * cos * root, jnp.sum(w / root) / omega
 
 
