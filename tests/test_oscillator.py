@@ -270,6 +270,8 @@ def test_simulate_passes_the_turning_points():
     (lambda: vmj.Oscillator(6.0, "sine"), "restoring"),
     (lambda: vmj.Oscillator(6.0, dissipation=(0.1,)), "dissipation"),
     (lambda: vmj.turning_points(vmj.Oscillator.pendulum(6.0), -1.0, 5), r"a0 .*\[rad\]"),
+    (lambda: vmj.turning_points(vmj.Oscillator.pendulum(6.0), 80.0, 5), r"a0 .*deg2rad"),
+    (lambda: vmj.turning_points(vmj.Oscillator.linear(6.0), 0.0, 5), r"a0 .*> 0"),
 ])
 def test_bad_input_names_the_parameter(build, name):
     with pytest.raises(ValueError, match=name):

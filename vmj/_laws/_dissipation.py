@@ -142,8 +142,7 @@ class CoulombDamping(DissipationLaw):
         self.xF = _float(xF)
         self.xS = self.xF if xS is None else _float(xS)
 
-    def __check_init__(self):
-        super().__check_init__()
+    def __check_init__(self):  # (equinox runs the base's field checks too)
         if not (_is_traced(self.xF) or _is_traced(self.xS)) and not np.all(
                 np.asarray(self.xS) >= np.asarray(self.xF)):
             raise ValueError(f"xS must be >= xF [position unit] (got xS = {np.asarray(self.xS)}, "

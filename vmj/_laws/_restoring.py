@@ -68,7 +68,8 @@ class RestoringLaw(AbstractParams):
         `omega` (1 for small amplitude)."""
 
     def stiffness_bound(self, a) -> Array:
-        """An upper bound on `|r'(x)|` for `|x| <= a`."""
+        """An upper bound on the tangent stiffness `|r'(x)|` for `|x| <= a` (sizes the exact
+        solver's substeps through `radius`)."""
         return jnp.ones_like(jnp.asarray(a, dtype=float))
 
 
@@ -178,7 +179,7 @@ class PolynomialRestoring(RestoringLaw):
     def radius(self, a):
         # the Duffing solution a cn(Omega t, k) has its poles at distance K'(k)/Omega >= 1.85/
         # Omega; pi/2 over the root of the tangent-stiffness bound is below that
-        return 0.5 * jnp.pi / jnp.sqrt(_cubic_bound(self, a))
+        return 0.5 * jnp.pi / jnp.sqrt(self.stiffness_bound(a))
 
     def frequency(self, a):
         return _cubic_frequency(self, a)
@@ -237,8 +238,7 @@ class SineRestoring(RestoringLaw):
         # x = 2 arcsin(k sn(omega t, k)), k = sin(a/2), is singular at distance K'(k)/omega from
         # the real axis, and K'(k) > max(pi/2, ln(4/k))
         k = jnp.sin(0.5 * jnp.clip(jnp.abs(a), 1e-300, jnp.pi))
-        return jnp.maximum(0.5 * jnp.pi, jnp.log(4 / k)) / jnp.sqrt(
-            1 + 2 * jnp.abs(self.b2) * jnp.abs(a) + 3 * jnp.abs(self.b3) * a * a)
+        return jnp.maximum(0.5 * jnp.pi, jnp.log(4 / k)) / jnp.sqrt(self.stiffness_bound(a))
 
     def frequency(self, a):
         # pi / (2 K(sin(a/2))) = AGM(1, cos(a/2)), times the polynomial terms' factor

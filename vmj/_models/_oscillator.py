@@ -10,6 +10,7 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 from jaxtyping import Array
 
@@ -98,6 +99,13 @@ class Oscillator(AbstractEnergyMap):
     @property
     def position_unit(self) -> str:
         return "rad" if self.restoring.angular else "position unit"
+
+    def release_range(self):
+        """A pendulum is released below the upright position: `0 < a0 < pi` [rad]."""
+        if self.restoring.angular:
+            return (lambda a: (a > 0) & (a < np.pi),
+                    "in (0, pi) [rad] (angles are in radians: convert degrees with np.deg2rad)")
+        return super().release_range()
 
     # -- the equation of motion, written once ---------------------------------------------------
     def levels(self):
