@@ -17,7 +17,7 @@ from ._decrement import decrement
 from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
 from ._io import (Record, Signal, extract_turning_points, read_peaks, read_record, read_signal,
                   record_from_sequence)
-from ._models import FORWARDS, oscillator_half_swings
+from ._models import FORWARDS
 from ._report import paper_records, plot_fit, text_report
 
 __all__ = [
@@ -36,7 +36,6 @@ __all__ = [
     "AffineFriction",
     "LOSSES",
     "OPTIMIZERS",
-    "oscillator_half_swings",
     "paper_records",
     "plot_fit",
     "text_report",
