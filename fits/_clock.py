@@ -52,11 +52,14 @@ def _lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.asarray(hull)
 
 
-def _envelope_lp(m: np.ndarray, stamps: np.ndarray) -> tuple[float, float]:
+def _envelope_lp(m: np.ndarray, stamps: np.ndarray, starts: np.ndarray) -> tuple[float, float]:
     """`(t0, period)` of the line `t0 + period m` below every stamp with the least total gap
     `sum(stamp - line)`: a linear program whose optimum is the lower-hull edge over the mean
-    of `m`."""
-    hull = _lower_hull(m, stamps)
+    of `m`. Only the lowest row of each burst (against the mean step) can be a hull vertex."""
+    slope = (stamps[-1] - stamps[0]) / (m[-1] - m[0])
+    rows = _touches(stamps, m, starts, stamps[0], slope)
+    rows = np.unique(np.concatenate([[0], rows, [len(m) - 1]]))
+    hull = rows[_lower_hull(m[rows], stamps[rows])]
     j = int(np.clip(np.searchsorted(m[hull], np.mean(m)), 1, len(hull) - 1))
     a, b = hull[j - 1], hull[j]
     period = (stamps[b] - stamps[a]) / (m[b] - m[a])
@@ -84,8 +87,11 @@ def _bursts(stamps: np.ndarray, mean_step: float) -> np.ndarray:
 def _touches(stamps, m, starts, t0, period):
     """Row of each burst closest to (least above) the line `t0 + period m`."""
     r = stamps - (t0 + period * m)
-    ends = np.concatenate([starts[1:], [len(stamps)]])
-    return np.array([s + int(np.argmin(r[s:e])) for s, e in zip(starts, ends)])
+    low = np.minimum.reduceat(r, starts)
+    burst = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(r))))
+    hit = np.nonzero(r == low[burst])[0]
+    first = np.unique(burst[hit], return_index=True)[1]
+    return hit[first]
 
 
 def _steps(b: np.ndarray, w: int = 3, width: int = 20) -> np.ndarray:
@@ -101,9 +107,9 @@ def _steps(b: np.ndarray, w: int = 3, width: int = 20) -> np.ndarray:
     n = len(b)
     if n < 2 * w + 2:
         return np.zeros((0, 2), dtype=int)
+    med = np.median(np.lib.stride_tricks.sliding_window_view(b, w), axis=1)  # of b[i:i + w]
     e = np.zeros(n)
-    for j in range(w, n - w + 1):
-        e[j] = np.median(b[j:j + w]) - np.median(b[j - w:j])
+    e[w:n - w + 1] = med[w:] - med[:-w]
     scale = 1.4826 * float(np.median(np.abs(e[w:n - w + 1])))
     candidates = np.nonzero(e > max(0.5, 5 * scale))[0]
     out = []
@@ -130,7 +136,7 @@ def _arrival(stamps, rate, mean_step):
     m = np.arange(n, dtype=float)
     starts = _bursts(stamps, mean_step)
     if rate is None:
-        t0, period = _envelope_lp(m, stamps)
+        t0, period = _envelope_lp(m, stamps, starts)
     else:
         t0, period = float(np.min(stamps)), 1.0 / rate
     dropped_at = np.zeros(n)
@@ -292,7 +298,7 @@ def recover_clock(stamps, *, clock: str = "auto", rate: float | None = None,
         report.update(rate_hz=1.0 / period, t0=t0, jitter_s=jitter, dropped=dropped)
         what = (f"{name} are uniform at {_fmt_rate(1 / period)} (rms deviation "
                 f"{jitter * 1e3:.2g} ms, {dropped} dropped samples)")
-        if clock == "auto" or clock == "stamps" and rate is None:
+        if rate is None and clock in ("auto", "stamps"):
             report.update(method="stamps", t0=float(stamps[0]), message=what + ": kept")
             return None, report
         report.update(method="rate" if rate is not None else "grid",

@@ -217,7 +217,7 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
     """Header, separator and first data row of a text table (a header line is optional unless
     `need_header`; lines of units below the header are skipped)."""
     pos, no = 0, 0
-    header = header_cells = None
+    header = None
     while pos < len(text):
         end = text.find("\n", pos)
         end = len(text) if end < 0 else end
@@ -231,13 +231,16 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
             if header is None and need_header:
                 _fail(source, f"line {no}: expected a header line naming the columns, found "
                               f"numbers: {line.strip()!r}")
-            if header is not None and len(header_cells) != len(cells) and sep is None:
-                pass
             hdr = None if header is None else _splitter(sep)(header)
+            if hdr is not None and sep is None and len(hdr) != len(cells):
+                hdr = [h for h in re.split(r"\s{2,}|\t", header.strip()) if h]  # "time (s)"
+            if hdr is not None and len(hdr) < len(cells):
+                _fail(source, f"line {no}: {len(cells)} cells, but the header names only "
+                              f"{len(hdr)} columns: {hdr}")
             ncols = len(hdr) if hdr else len(cells)
             return _Table(text, source, hdr, sep, ncols, start, no, cells)
         if header is None:
-            header, header_cells = line, cells
+            header = line
     if header is None:
         _fail(source, "the file is empty")
     _fail(source, "the file has a header but no data rows")
@@ -255,6 +258,7 @@ def _slow_columns(tab: _Table, cols: list, clock_cols: set) -> list:
     out = [[] for _ in cols]
     lines = tab.text[tab.body:].split("\n")
     for offset, line in enumerate(lines):
+        line = line.split("#", 1)[0]  # an inline comment, as NumPy's parser drops it
         if _skip(line):
             continue
         no = tab.first_line + offset
@@ -323,12 +327,22 @@ def _rows_ok(n: int, source: str, max_rows: int | None, need: int, what: str):
         _fail(source, f"only {n} data row{'s' if n != 1 else ''}: {what} needs at least {need}")
 
 
-def _strictly_increasing(values, source, name, tab):
+def _line_of(tab: _Table, row: int) -> int:
+    """Line number (1-based) of data row `row` (0-based); for error messages only."""
+    for offset, line in enumerate(tab.text[tab.body:].split("\n")):
+        if not _skip(line.split("#", 1)[0]):
+            if row == 0:
+                return tab.first_line + offset
+            row -= 1
+    return -1
+
+
+def _strictly_increasing(values, tab: _Table, name: str):
     bad = np.nonzero(np.diff(values) <= 0)[0]
     if bad.size:
         i = int(bad[0])
-        _fail(source, f"column {name!r} must be strictly increasing (data row {i + 2} has "
-                      f"{values[i + 1]!r} after {values[i]!r})")
+        _fail(tab.source, f"line {_line_of(tab, i + 1)}, column {name!r}: must be strictly "
+                          f"increasing ({values[i + 1]:g} after {values[i]:g})")
 
 
 # -- peak sequences ----------------------------------------------------------------------------
@@ -359,26 +373,33 @@ def read_peaks(path, *, max_rows: int | None = MAX_ROWS) -> Record:
     values = dict(zip(wanted, _columns(tab, [names[c] for c in wanted])))
     n = len(values[wanted[0]])
     _rows_ok(n, source, max_rows, 2, "a decay")
+    label = {c: tab.header[names[c]].strip() for c in wanted}
+
+    def check(column, bad, what):
+        rows = np.nonzero(bad)[0]
+        if rows.size:
+            _fail(source, f"line {_line_of(tab, int(rows[0]))}, column {label[column]!r}: "
+                          f"{values[column][rows[0]]:g}: {what}")
+
     if "k" in values:
         k = values["k"]
-        if np.any(k != np.round(k)) or np.any(k < 0):
-            _fail(source, "column 'k' must hold integers >= 0")
+        check("k", (k != np.round(k)) | (k < 0), "k must hold integers >= 0")
         k = k.astype(int)
-        _strictly_increasing(k, source, "k", tab)
+        _strictly_increasing(k, tab, label["k"])
     else:
         k = np.arange(n)
     times = values.get("time")
     if times is not None:
-        _strictly_increasing(times, source, "time", tab)
+        _strictly_increasing(times, tab, label["time"])
     crossed = values.get("crossed")
-    if crossed is not None and not np.all(np.isin(crossed, (0.0, 1.0))):
-        _fail(source, "column 'crossed' must hold 0 or 1")
+    if crossed is not None:
+        check("crossed", ~np.isin(crossed, (0.0, 1.0)), "crossed must hold 0 or 1")
     if "position" in values:
         return record_from_sequence(positions=values["position"], k=k, times=times,
                                     source=source)
     amplitudes = values["amplitude"]
-    if np.any(amplitudes < 0):
-        _fail(source, "column 'amplitude' must be >= 0 (use a 'position' column for signed values)")
+    check("amplitude", amplitudes < 0, "an amplitude must be >= 0 (use a 'position' column for "
+                                       "signed values)")
     return record_from_sequence(amplitudes=amplitudes, crossed=crossed, k=k, times=times,
                                 source=source)
 
@@ -473,6 +494,43 @@ def _time_candidates(tab: _Table, yi: int) -> list:
     return out
 
 
+def _stamps(tab: _Table, candidates: list, names: list) -> tuple[np.ndarray, str, str]:
+    """The time stamps [s] from the finest of the candidate columns (the most distinct values
+    among those that parse and never decrease), its name, and a note on the others."""
+    parsed, first_error = [], None
+    for c in candidates:
+        try:
+            values = _columns(tab, [c])[0]
+        except ValueError as err:
+            if len(candidates) == 1:
+                raise
+            first_error = first_error or err
+            continue
+        if _CLOCK.match(tab.first[c].strip()):  # clock stamps through midnight
+            values = values + 86400.0 * np.cumsum(np.concatenate([[0.0],
+                                                                  np.diff(values) < -43200.0]))
+        parsed.append((c, values, bool(np.all(np.diff(values) >= 0))))
+    if not parsed:
+        raise first_error
+    usable = [p for p in parsed if p[2]] or parsed[:1]
+    distinct = [np.unique(v).size for _, v, _ in usable]
+    ti, stamps, _ = usable[int(np.argmax(distinct))]  # the first of the finest
+    dt = np.diff(stamps)
+    if np.any(dt < 0):
+        i = int(np.nonzero(dt < 0)[0][0])
+        _fail(tab.source, f"line {_line_of(tab, i + 1)}, column {names[ti]!r}: time must be "
+                          f"non-decreasing (goes back from {stamps[i]:.6g} to "
+                          f"{stamps[i + 1]:.6g})")
+    if stamps[-1] <= stamps[0]:
+        _fail(tab.source, f"time must increase (column {names[ti]!r} is constant)")
+    others = [f"{names[c]!r}" + (f" ({d} distinct values)" if ok else " (not monotone)")
+              for (c, _, ok), d in zip(parsed, [np.unique(v).size for _, v, _ in parsed])
+              if c != ti]
+    note = (f"; time column{'s' if len(others) > 1 else ''} {', '.join(others)} ignored"
+            if others else "")
+    return stamps, names[ti], note
+
+
 def read_signal(path, time_col=None, signal_col=None, clock: str = "auto", *,
                 rate: float | None = None, max_rows: int | None = MAX_ROWS) -> Signal:
     """Read a raw signal from a CSV (`,` or `;`), tab- or whitespace-separated text file.
@@ -520,32 +578,9 @@ def read_signal(path, time_col=None, signal_col=None, clock: str = "auto", *,
         candidates = []
     else:
         candidates = _time_candidates(tab, yi) or [0 if yi != 0 else 1]
-    columns = _columns(tab, [yi] + candidates)
-    y = columns[0]
+    y = _columns(tab, [yi])[0]
     _rows_ok(len(y), source, max_rows, 3, "a raw signal")
-    ignored = ""
-    if candidates:
-        distinct = [np.unique(c).size for c in columns[1:]]
-        best = int(np.argmax(distinct))  # the first of the finest
-        ti, stamps = candidates[best], columns[1 + best]
-        others = [f"{names[c]!r} ({d} distinct values)" for c, d in zip(candidates, distinct)
-                  if c != ti]
-        if others:
-            ignored = f"; coarser time column{'s' if len(others) > 1 else ''} " \
-                      f"{', '.join(others)} ignored"
-        if ti in {c for c in candidates if _CLOCK.match(tab.first[c].strip())}:
-            wraps = np.cumsum(np.concatenate([[0.0], np.diff(stamps) < -43200.0]))
-            stamps = stamps + 86400.0 * wraps  # clock stamps through midnight
-        dt = np.diff(stamps)
-        if np.any(dt < 0):
-            i = int(np.nonzero(dt < 0)[0][0])
-            _fail(source, f"time must be non-decreasing (column {names[ti]!r}: data row "
-                          f"{i + 2} goes back from {stamps[i]:.6g} to {stamps[i + 1]:.6g})")
-        if stamps[-1] <= stamps[0]:
-            _fail(source, f"time must increase (column {names[ti]!r} is constant)")
-        tname = names[ti]
-    else:
-        stamps, tname = None, "sample index"
+    stamps, tname, ignored = _stamps(tab, candidates, names) if candidates else (None, None, "")
     try:
         t, report = recover_clock(stamps, clock=clock, rate=rate, column=tname, rows=len(y))
     except ValueError as err:
@@ -557,8 +592,8 @@ def read_signal(path, time_col=None, signal_col=None, clock: str = "auto", *,
         kind = "stamps"
     else:
         kind = "uniform"
-    return Signal(t=t - t[0], y=y, source=source, time_name=tname, signal_name=names[yi],
-                  clock=kind, clock_report=report)
+    return Signal(t=t - t[0], y=y, source=source, time_name=tname or "sample index",
+                  signal_name=names[yi], clock=kind, clock_report=report)
 
 
 # -- turning points of a raw signal ------------------------------------------------------------
@@ -626,7 +661,6 @@ def _zigzag(y, h):
 
 
 _WINDOW = 0.4  #: half-width of the local fit around an extremum, in local half-periods
-_P = np.polynomial.polynomial
 
 
 def _refine(t, y, i, half, peak):
@@ -651,15 +685,16 @@ def _refine(t, y, i, half, peak):
         degree = 4 if tau.size >= 7 else 2
         if tau.size < degree + 1:
             return t[i], y[i]
-        c = _P.polyfit(tau, ys, degree)
-        roots = _P.polyroots(_P.polyder(c))
+        c = np.linalg.lstsq(np.vander(tau, degree + 1), ys, rcond=None)[0]  # highest first
+        slope = np.polyder(c)
+        roots = np.roots(slope)
         roots = roots[np.abs(roots.imag) < 1e-9].real
-        curv = _P.polyval(roots, _P.polyder(c, 2))
+        curv = np.polyval(np.polyder(slope), roots)
         roots = roots[(np.abs(roots) <= 1.0) & ((curv < 0) if peak else (curv > 0))]
         if roots.size == 0:
             return t[i], y[i]
         u = roots[np.argmin(np.abs(roots))]
-        centre, value = centre + u * width, float(_P.polyval(u, c))
+        centre, value = centre + u * width, float(np.polyval(c, u))
     return float(centre), value
 
 
@@ -687,8 +722,11 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
     4. the record ends where the swings fall below `min_amplitude` (default `10 h`).
 
     The first turning point is the release (`k = 0`); times are measured from it. `centre` is
-    the median local centre `(x[k-1] + 2 x[k] + x[k+1]) / 4`; `meta` holds `hysteresis` and
-    `quantum`-aware `noise`. The signal's clock report is available as `record.clock`.
+    the median local centre `(x[k-1] + 2 x[k] + x[k+1]) / 4`. A release from a hold (the first
+    half-swing more than 10 % longer or shorter than the second: the first extremum is then a
+    flat stretch, not a sharp turning point) is timed one half-swing before the end of the
+    first swing, at the hold's level; `meta` says so (`"release"`) and holds the `hysteresis`.
+    The signal's clock report is `record.clock`.
     """
     t, y = np.asarray(signal.t, dtype=float), np.asarray(signal.y, dtype=float)
     source = signal.source
@@ -709,10 +747,13 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
         idx = np.delete(idx, [j, j + 1]) if j + 1 < idx.size else np.delete(idx, j)
     if idx.size < 3:
         _fail(source, f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})")
-    te = t[idx]
-    half = np.empty(idx.size)
-    half[1:-1] = (te[2:] - te[:-2]) / 2
-    half[0], half[-1] = te[1] - te[0], te[-1] - te[-2]
+    floor = float(min_amplitude) if min_amplitude is not None else 10 * h
+    swings = np.abs(np.diff(y_clean[idx]))
+    small = np.nonzero(swings[int(np.argmax(swings)):] < 1.5 * floor)[0] + int(np.argmax(swings))
+    if small.size and small[0] + 3 < idx.size:  # the tail far below the floor: not refined
+        idx = idx[:small[0] + 3]
+    gaps = np.diff(t[idx])  # local half-period: median of the 4 nearest (robust to a hold)
+    half = np.array([np.median(gaps[max(0, i - 2):i + 2]) for i in range(idx.size)])
     peak = np.empty(idx.size, dtype=bool)
     peak[:-1] = y_clean[idx[:-1]] > y_clean[idx[1:]]
     peak[-1] = not peak[-2]
@@ -735,7 +776,16 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
         c = np.median(_local_centres(xk[1:]))
         if abs(xk[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk = tk[1:], xk[1:]
-    floor = float(min_amplitude) if min_amplitude is not None else 10 * h
+    meta = {"hysteresis": h}
+    if xk.size >= 4 and abs((tk[1] - tk[0]) - (tk[2] - tk[1])) > 0.1 * (tk[2] - tk[1]):
+        # released from a hold: the first extremum is no sharp turning point, its time is
+        # anywhere in the hold. The release is one half-swing before the first swing's end;
+        # the position is the hold level just before it
+        tk[0] = tk[1] - (tk[2] - tk[1])
+        held = (t >= tk[0] - 0.2 * (tk[2] - tk[1])) & (t <= tk[0])
+        if np.any(held):
+            xk[0] = float(np.median(y_clean[held]))
+        meta["release"] = "held: time extrapolated from the first half-swing"
     small = np.nonzero(np.abs(np.diff(xk)) < 2 * floor)[0]
     if small.size:
         tk, xk = tk[:small[0] + 1], xk[:small[0] + 1]
@@ -744,8 +794,7 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
     centre = float(np.median(_local_centres(xk)))
     origin = float(tk[0])
     return Record(k=np.arange(xk.size), positions=xk, times=tk - origin, centre=centre,
-                  noise=sigma, signal=signal, source=source, time_origin=origin,
-                  meta={"hysteresis": h})
+                  noise=sigma, signal=signal, source=source, time_origin=origin, meta=meta)
 
 
 def read_record(path, *, series: bool = False, time_col=None, signal_col=None,
