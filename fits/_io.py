@@ -601,9 +601,11 @@ def _noise(t, y) -> float:
     """Robust noise level of a sampled signal [signal units].
 
     The smallest of MAD estimates from differences that cancel the smooth signal: the
-    deviation from linear interpolation between neighbours (any sampling), and on a uniform
-    clock the 3rd and 4th differences too (an oversampled oscillation's curvature dominates
-    the 2nd differences, not its noise). Never below the quantisation noise `q / sqrt(12)` of
+    deviation from linear interpolation between neighbours in time (any sampling), and the 3rd
+    and 4th differences of successive samples (an oversampled oscillation's curvature
+    dominates the 2nd differences, not its noise; and where the stamps are wrong, the samples'
+    order still holds). Each overestimates where it does not apply, so the smallest is taken.
+    Never below the quantisation noise `q / sqrt(12)` of
     a signal read in steps of `q` (the smallest change between samples; the MAD of a signal
     that mostly repeats its value would be zero)."""
     if len(y) < 7:
@@ -614,12 +616,10 @@ def _noise(t, y) -> float:
     d = (y[1:-1] - interp)[ok]
     w = np.sqrt(1 + (h1**2 + h2**2) / (h1 + h2) ** 2)[ok]  # std of d for white noise of unit std
     estimates = [1.4826 * float(np.median(np.abs(d - np.median(d)) / w))] if d.size else []
-    dt = np.diff(t)
-    if np.ptp(dt) <= 1e-6 * np.mean(dt):
-        for order in (3, 4):
-            dk = np.diff(y, order)
-            estimates.append(1.4826 * float(np.median(np.abs(dk - np.median(dk))))
-                             / math.sqrt(math.comb(2 * order, order)))
+    for order in (3, 4):
+        dk = np.diff(y, order)
+        estimates.append(1.4826 * float(np.median(np.abs(dk - np.median(dk))))
+                         / math.sqrt(math.comb(2 * order, order)))
     steps = np.abs(np.diff(y))
     steps = steps[steps > 1e-12 * max(float(np.max(np.abs(y))), 1e-300)]
     quantum = float(np.min(steps)) if steps.size else 0.0

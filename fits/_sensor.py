@@ -108,7 +108,8 @@ def sensor_start(data: Record | Signal) -> dict:
         resid = c - offset
         scale = 1.4826 * float(np.median(np.abs(resid)))
         return {"offset": offset, "asym": 0.0,
-                "offset_stderr": scale / np.sqrt(n) if n > 1 else None, "asym_stderr": None,
+                "offset_stderr": float(scale / np.sqrt(n)) if n > 1 else None,
+                "asym_stderr": None,
                 "n": int(n),
                 "message": f"offset {offset:.6g} from the median of {n} local centres; the "
                            "asymmetry is not identifiable (too few swings or too little decay), "
@@ -119,8 +120,8 @@ def sensor_start(data: Record | Signal) -> dict:
     # neighbouring centres share turning points: about a third of them are independent
     ssd = float(np.sum((d - d.mean()) ** 2))
     inflate = np.sqrt(3.0)
-    asym_se = inflate * scale / np.sqrt(ssd) if ssd > 0 else None
-    offset_se = inflate * scale * np.sqrt(1 / n + d.mean() ** 2 / ssd) if ssd > 0 else None
+    asym_se = float(inflate * scale / np.sqrt(ssd)) if ssd > 0 else None
+    offset_se = float(inflate * scale * np.sqrt(1 / n + d.mean() ** 2 / ssd)) if ssd > 0 else None
     return {"offset": offset, "asym": asym, "offset_stderr": offset_se, "asym_stderr": asym_se,
             "n": int(n),
             "message": f"offset {offset:.6g}, asym {asym:+.4g} from a Theil-Sen line through "

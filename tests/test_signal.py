@@ -271,6 +271,7 @@ def _sensor_record(offset, asym, seed, noise=0.002, a0=20.0, r=0.97, xF=0.02):
 
 @pytest.mark.parametrize("offset, asym", [(2.0, 0.03), (-1.0, -0.05), (0.0, 0.0)])
 def test_sensor_start_recovers_offset_and_asym(offset, asym):
+    json.dumps(fits.sensor_start(_sensor_record(offset, asym, 0)))
     for seed in range(3):
         est = fits.sensor_start(_sensor_record(offset, asym, seed))
         assert abs(est["asym"] - asym) < 4 * est["asym_stderr"] < 0.006
