@@ -17,7 +17,7 @@ arrived, so sample `i` was taken at `t0 + m_i / f <= stamp_i`, where `m_i` is it
 (`i` plus the samples dropped before it). In each burst the last row (the newest sample in the
 packet) arrives soonest after it was taken, so the lowest stamp of each burst, measured from the
 line, touches the envelope. The rate `f` is a least-squares line through these touch points
-(one per burst, late bursts rejected), started from the linear program "the line below every
+(one per burst, bursts held up far above their neighbours rejected), started from the linear program "the line below every
 stamp with the least total gap" (its solution is the edge of the stamps' lower convex hull above
 the mean index). `t0` puts the line under every stamp. A dropped sample shifts all later touches
 up by one period; such integer steps are detected and the sample numbers corrected.
@@ -94,6 +94,32 @@ def _touches(stamps, m, starts, t0, period):
     return hit[first]
 
 
+def _late(b: np.ndarray, window: int = 11) -> np.ndarray:
+    """Touches [periods] of bursts held up by a busy computer: more than four robust deviations
+    (and at least half a period) above the median of all touches, or above the running median
+    of `window` touches (which follows a wandering clock). One-sided: latency only delays."""
+    late = b > np.median(b) + max(4 * _mad(b), 0.5)
+    if b.size >= window:
+        pad = np.pad(b, window // 2, mode="edge")
+        r = b - np.median(np.lib.stride_tricks.sliding_window_view(pad, window), axis=1)
+        late |= r > max(4 * _mad(r), 0.5)
+    return late
+
+
+def _jump(b: np.ndarray, j: int, width: int) -> tuple[float, float]:
+    """Least-absolute-deviation fit of a line with a jump at `j` to the `width` touches on
+    either side (iteratively reweighted least squares): `(sum of |residuals|, jump)`. Absolute
+    deviations, so a few held-up bursts that slipped through do not make a jump."""
+    idx = np.arange(max(0, j - width), min(len(b), j + width))
+    design = np.stack([np.ones(idx.size), idx - j, (idx >= j)], axis=1).astype(float)
+    weight = np.ones(idx.size)
+    for _ in range(20):
+        coef = np.linalg.lstsq(design * weight[:, None], b[idx] * weight, rcond=None)[0]
+        r = np.abs(b[idx] - design @ coef)
+        weight = 1 / np.sqrt(np.maximum(r, 1e-3))
+    return float(np.sum(r)), float(coef[2])
+
+
 def _steps(b: np.ndarray, w: int = 3, width: int = 20) -> np.ndarray:
     """Persistent upward steps of a whole number of periods in the touch residuals `b`
     [periods], as `(j, k)` pairs: `k >= 1` samples dropped between touches `j - 1` and `j`.
@@ -101,9 +127,9 @@ def _steps(b: np.ndarray, w: int = 3, width: int = 20) -> np.ndarray:
     A step is located where `e_j`, the median of the next `w` touches minus that of the
     previous `w`, peaks above both half a period and five times the typical `|e|` (the MAD of
     all `e_j`, most of which straddle no step). Its place (within `w` of the peak) and size are
-    those of the best least-squares fit of a line with a jump to the `width` touches on either
-    side (slow clock wander and a provisional rate tilt the touches; the line takes that out);
-    it is accepted if the jump is within 0.35 of a whole number `k >= 1`."""
+    those of the best least-absolute-deviation fit of a line with a jump to the `width` touches
+    on either side (slow clock wander and a provisional rate tilt the touches; the line takes
+    that out); it is accepted if the jump is within 0.35 of a whole number `k >= 1`."""
     n = len(b)
     if n < 2 * w + 2:
         return np.zeros((0, 2), dtype=int)
@@ -116,15 +142,8 @@ def _steps(b: np.ndarray, w: int = 3, width: int = 20) -> np.ndarray:
     for j in candidates[np.argsort(-e[candidates])]:
         if any(abs(j - j2) <= w for j2, _ in out):
             continue
-        best = None
-        for j2 in range(max(1, j - w), min(n, j + w + 1)):  # where exactly: least squares
-            idx = np.arange(max(0, j2 - width), min(n, j2 + width))
-            design = np.stack([np.ones(idx.size), idx - j2, (idx >= j2)], axis=1)
-            coef, ssr, *_ = np.linalg.lstsq(design, b[idx], rcond=None)
-            ssr = float(np.sum((b[idx] - design @ coef) ** 2))
-            if best is None or ssr < best[0]:
-                best = (ssr, j2, float(coef[2]))
-        _, j, k = best
+        fits = [(*_jump(b, j2, width), j2) for j2 in range(max(1, j - w), min(n, j + w + 1))]
+        _, k, j = min(fits)
         if round(k) >= 1 and abs(k - round(k)) < 0.35:
             out.append((int(j), int(round(k))))
     return np.asarray(sorted(out), dtype=int).reshape(-1, 2)
@@ -143,25 +162,23 @@ def _arrival(stamps, rate, mean_step):
 
     def envelope(t0, period):
         touch = _touches(stamps, m, starts, t0, period)
-        b = stamps[touch] - (t0 + period * m[touch])
-        # late bursts (a busy computer) are no envelope points: one-sided rejection
-        keep = b <= np.median(b) + 4 * max(_mad(b), 0.05 * period)
+        keep = ~_late((stamps[touch] - (t0 + period * m[touch])) / period)
         if rate is None and keep.sum() >= 3:
             t0, period = _line(m[touch], stamps[touch], keep)
         b = (stamps[touch] - (t0 + period * m[touch])) / period
-        return t0, period, np.where(keep, b, np.median(b))
+        return t0, period, b, np.nonzero(keep)[0]
 
     for _ in range(5):
-        t0, period, b = envelope(t0, period)
-        new = _steps(b)
+        t0, period, b, kept = envelope(t0, period)
+        new = _steps(b[kept])
         if not len(new):
             break
         for j, k in new:
-            dropped_at[starts[j]] += k  # placed at the start of the burst after the step
+            dropped_at[starts[kept[j]]] += k  # at the start of the burst after the step
         m = np.arange(n) + np.cumsum(dropped_at)
     else:
-        t0, period, b = envelope(t0, period)
-    jitter = _mad(b) * period
+        t0, period, b, kept = envelope(t0, period)
+    jitter = _mad(b[kept]) * period
     t0 = float(np.min(stamps - period * m))  # the line under every stamp
     return m, t0, period, jitter, int(dropped_at.sum()), len(starts)
 

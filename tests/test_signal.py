@@ -22,11 +22,13 @@ RATE = 259.37  #: synthetic sampling rate [Hz], near the pendulum records'
 
 # -- synthetic records ---------------------------------------------------------------------------
 def arrival_stamps(n, rate, seed, *, drop_rows=(), lost_packets=(), quantum=1e-3, t_start=1000.0,
-                   jitter=0.3e-3, wander=1e-3, read=6e-4):
+                   jitter=0.3e-3, wander=1e-3, read=6e-4, busy=()):
     """A uniform sampler at `rate` whose rows reach the computer in packets (13-21 rows, now and
     then 1-2): the last row of a packet arrives 2 ms + an exponential latency (scale `jitter`)
     + a slow wander after it was sampled, the earlier rows were read `read` apart before it;
     stamps rounded to `quantum`. `drop_rows` and `lost_packets` (whole packets) never arrive.
+    `busy`: `(start, length)` pairs [s from the first sample] when the computer stutters: each
+    packet is then held up, with probability 0.6, by 5-50 ms (rows never overtake each other).
 
     Returns `(true sample times, stamps, packet index of every kept row)`."""
     rng = np.random.default_rng(seed)
@@ -42,6 +44,11 @@ def arrival_stamps(n, rate, seed, *, drop_rows=(), lost_packets=(), quantum=1e-3
         packet[i:j] = len(bounds)
         bounds.append((i, j))
         i = j
+    for start, length in busy:
+        for i, j in bounds:
+            if t_start + start <= stamps[j - 1] < t_start + start + length and rng.random() < 0.6:
+                stamps[i:j] += rng.uniform(5e-3, 50e-3)
+        stamps = np.maximum.accumulate(stamps)
     keep = np.ones(n, dtype=bool)
     keep[list(drop_rows)] = False
     for p in lost_packets:
@@ -89,6 +96,20 @@ def test_harsh_latency_no_false_drops():
     assert abs(report["rate_hz"] / RATE - 1) < 1e-4
     err = (t - s) - np.median(t - s)
     assert np.max(np.abs(err)) < 0.25 / RATE
+
+
+@pytest.mark.parametrize("seed", [0, 6, 12])
+def test_a_busy_computer_is_no_dropped_sample(seed):
+    """The computer stutters three times for 0.6 s (most packets held up by 5-50 ms) while the
+    latency wanders by +-4 ms (a period): those bursts lie far above the envelope for a while
+    and must not look like dropped samples."""
+    s, stamps, _ = arrival_stamps(8000, RATE, seed, wander=4e-3,
+                                  busy=((5.0, 0.6), (15.0, 0.6), (25.0, 0.6)))
+    t, report = fits.recover_clock(stamps)
+    assert report["dropped"] == 0
+    assert abs(report["rate_hz"] / RATE - 1) < 1e-4
+    err = (t - s) - np.median(t - s)
+    assert np.max(np.abs(err)) < 0.5 / RATE  # the wander itself is a period wide
 
 
 @pytest.mark.parametrize("seed", [0, 3])
