@@ -428,6 +428,11 @@ def test_encodings_and_line_ends_are_read(tmp_path):
         np.testing.assert_array_equal(sig.y, plain.y)
     sig = fits.read_signal(_write(tmp_path, "t,angle\ns,deg\n0,1\n0.1,2.5\n0.2,-1\n"))
     np.testing.assert_array_equal(sig.y, plain.y)
+    # spreadsheet exports: quoted cells, a trailing separator
+    sig = fits.read_signal(_write(tmp_path, '"t","angle"\n"0","1"\n"0.1","2.5"\n"0.2","-1"\n'))
+    np.testing.assert_array_equal(sig.y, plain.y)
+    sig = fits.read_signal(_write(tmp_path, "t,angle,\n0,1,\n0.1,2.5,\n0.2,-1,\n"))
+    np.testing.assert_array_equal(sig.y, plain.y)
 
 
 def test_the_time_column_is_chosen(tmp_path):
