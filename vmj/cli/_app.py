@@ -85,8 +85,8 @@ class _Commands(argparse._SubParsersAction):
     def __call__(self, parser, namespace, values, option_string=None):
         name = values[0]
         command = next((c for c in COMMANDS if c.name == name), None)
-        if command is not None:
-            sub = self._name_parser_map[name]
+        sub = self._name_parser_map.get(name)
+        if command is not None and sub.get_default("command_run") is None:  # once per parser
             module = command.load()
             module.add_arguments(sub)
             add_global_options(sub, nested=True)

@@ -30,10 +30,10 @@ def run(args) -> int:
     return args.decay_run(args)
 
 
-def turning_point_limit(args, n: int, what: str = "turning points") -> None:
+def turning_point_limit(args, n: int, what: str) -> None:
     """Refuse more than `MAX_TURNING_POINTS` unless `--force`."""
     if not args.force:
-        refuse_above(f"{n:.6g} {what} asked for", n, MAX_TURNING_POINTS)
+        refuse_above(what, n, MAX_TURNING_POINTS, "turning points")
 
 
 # -- variable-mass -------------------------------------------------------------------------------
@@ -52,7 +52,7 @@ def variable_mass_model(args):
 def _variable_mass(args) -> int:
     import vmj
 
-    turning_point_limit(args, args.n)
+    turning_point_limit(args, args.n, f"--n {args.n} turning points")
     model, a0 = variable_mass_model(args)
     seq = vmj.turning_points(model, a0, args.n, method=args.method)
     got = seq.reached()
@@ -101,6 +101,9 @@ def rope_model(args, t1_flag: str = "--t1"):
             raise ValueError("give --brake or --t_brake/--t_stop, not both")
         values["t_brake"] = (args.brake[0], "--brake T_BRAKE")
         values["t_stop"] = (args.brake[1], "--brake T_STOP")
+    brake, stop = values.get("t_brake"), values.get("t_stop")
+    if brake is not None and stop is not None and not stop[0] > brake[0]:
+        raise ValueError(f"{stop[1]} must be > {brake[1]} [s] (got {stop[0]:g} <= {brake[0]:g})")
     values = spec.resolve(values, technical=args.units == "technical")
     rope = spec.build(values)
     if not args.t1 > 0:
@@ -111,7 +114,7 @@ def rope_model(args, t1_flag: str = "--t1"):
     except (OverflowError, ValueError):
         raise ValueError(f"the number of swings before {t1_flag} {args.t1:g} cannot be estimated "
                          "(parameters out of floating-point range)") from None
-    turning_point_limit(args, n, f"half-swings before {t1_flag} {args.t1:g} (about)")
+    turning_point_limit(args, n, f"about {n:.3g} half-swings before {t1_flag} {args.t1:g}")
     return rope, values, n
 
 

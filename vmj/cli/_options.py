@@ -116,15 +116,28 @@ def parse_axis(flag: str, text: str, limit: int | None = None, over: str = "") -
 
 
 def input_file(text: str) -> str:
-    """An existing, readable file (argparse type)."""
+    """An existing, readable text file (argparse type): its first 64 kB must be UTF-8 text."""
     if not text.strip():
         raise argparse.ArgumentTypeError("an empty file name")
     if os.path.isdir(text):
         raise argparse.ArgumentTypeError(f"{text!r} is a directory; give a file")
     if not os.path.exists(text):
         raise argparse.ArgumentTypeError(f"no such file: {text!r}")
-    if not os.access(text, os.R_OK):
-        raise argparse.ArgumentTypeError(f"cannot read {text!r} (permission denied)")
+    try:
+        with open(text, "rb") as fh:
+            head = fh.read(65536)
+    except OSError as e:
+        raise argparse.ArgumentTypeError(f"cannot read {text!r} ({e.strerror})") from None
+    try:
+        if b"\0" in head:
+            raise UnicodeError("a NUL byte")
+        head.decode("utf-8")
+    except UnicodeDecodeError as e:
+        if len(head) < 65536 or e.start < len(head) - 3:  # not a character cut at 64 kB
+            raise argparse.ArgumentTypeError(f"{text!r} is not a UTF-8 text file (byte "
+                                             f"{e.start}: {e.reason})") from None
+    except UnicodeError as e:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a text file ({e})") from None
     return text
 
 
@@ -159,11 +172,12 @@ def emit(obj, as_json: bool, text: str) -> None:
     print(json.dumps(obj) if as_json else text)
 
 
-def refuse_above(what: str, amount: float, limit: float, flag: str = "--force") -> None:
-    """Refuse work estimated above `limit` (same unit as `amount`) unless `flag` was given:
-    call it only when the flag was not given."""
+def refuse_above(what: str, amount: float, limit: float, unit: str = "") -> None:
+    """Refuse work estimated above `limit` (`amount` and `limit` in `unit`); call it only when
+    `--force` was not given."""
     if amount > limit:
-        raise ValueError(f"{what}; refused above {limit:.3g} (give {flag} to run it anyway)")
+        raise ValueError(f"{what}: refused above {limit:.3g}{' ' + unit if unit else ''} (give "
+                         "--force to run it anyway)")
 
 
 @contextlib.contextmanager

@@ -99,7 +99,7 @@ def run(args) -> int:
         if args.model == "variable-mass":
             from ._decay import turning_point_limit
 
-            turning_point_limit(args, n)
+            turning_point_limit(args, n, f"--n {n} turning points")
     wrt = _wrt(spec, args.wrt, values)
     keys = [p.field if p.field is not None else p.name for _, p in wrt]
     units = {name: _unit(p) for name, p in wrt}

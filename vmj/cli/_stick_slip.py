@@ -31,7 +31,7 @@ def reversal_bound(eps: float) -> int:
 def eps_limit(args, eps: float, flag: str = "--eps") -> None:
     if not args.force:
         refuse_above(f"{flag} {eps:g} means about {eps / 2:.3g} reversals per cycle "
-                     "(arrays of that length)", eps, MAX_EPS)
+                     "(arrays of that length)", eps, MAX_EPS, "for eps")
 
 
 def run(args) -> int:

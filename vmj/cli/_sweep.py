@@ -232,9 +232,9 @@ def run(args) -> int:
     shape = " x ".join(f"{name} {len(v)}" for name, v in axes.items())
     if not args.force:
         refuse_above(f"the sweep of {points:.4g} points ({shape}) holds about {size / 2**30:.3g} "
-                     "GiB of results", size / 2**30, MAX_BYTES / 2**30)
+                     "GiB of results", size / 2**30, MAX_BYTES / 2**30, "GiB")
         refuse_above(f"the sweep of {points:.4g} points ({shape}) takes about {seconds:.3g} s "
-                     f"with --method {args.method}", seconds, MAX_SECONDS)
+                     f"with --method {args.method}", seconds, MAX_SECONDS, "s")
     if seconds > 10:
         print(f"vmj: sweep of {points} points, estimated {seconds:.0f} s", file=sys.stderr)
 
