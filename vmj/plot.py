@@ -14,7 +14,8 @@ import numpy as np
 from ._files import replacing
 from ._solution import RESULTS
 
-__all__ = ["pyplot", "save", "plot_table", "plot_swings", "plot_energy_error", "plot_sensitivity"]
+__all__ = ["pyplot", "save", "plot_table", "plot_swings", "plot_energy_error", "plot_sensitivity",
+           "per"]
 
 
 def pyplot():
@@ -177,8 +178,8 @@ def plot_sensitivity(data: dict, path: str) -> None:
                              sharex=True, constrained_layout=True)
     for j, name in enumerate(wrt):
         unit = data["units"][name]
-        for i, (key, label) in enumerate((("d_amplitudes", f"d|x_k|/d{name} [m/{unit}]"),
-                                          ("d_times", f"dt_k/d{name} [s/{unit}]"))):
+        for i, (key, label) in enumerate((("d_amplitudes", f"d|x_k|/d{name} [{per('m', unit)}]"),
+                                          ("d_times", f"dt_k/d{name} [{per('s', unit)}]"))):
             values = data[key][name]
             ax = axes[i][j]
             ax.plot(range(1, len(values) + 1), values, "o-", ms=3, lw=1)
@@ -190,3 +191,10 @@ def plot_sensitivity(data: dict, path: str) -> None:
                  fontsize=9)
     save(fig, path)
     plt.close(fig)
+
+
+def per(unit: str, of: str) -> str:
+    """The unit `unit` per `of`: `m/N`, `m/(kg/s)`, `m` per a dimensionless `-`."""
+    if of in ("-", ""):
+        return unit
+    return f"{unit}/({of})" if ("/" in of or " " in of) else f"{unit}/{of}"

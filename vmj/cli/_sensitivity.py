@@ -168,12 +168,14 @@ def run(args) -> int:
         from vmj.plot import plot_sensitivity
 
         plot_sensitivity(out, args.plot)
+    from vmj.plot import per
+
     header = f"{'k':>3} {'t [s]':>10} {'|x| [m]':>12}" + "".join(
-        f" {'d|x|/d' + w + ' [m/' + units[w] + ']':>22}" for w, _ in wrt)
+        f" {'d|x|/d' + w + ' [' + per('m', units[w]) + ']':>24}" for w, _ in wrt)
     lines = [header]
     for k in range(keep):
         lines.append(f"{k + 1:>3} {out['times'][k]:10.5f} {out['amplitudes'][k]:12.8f}" + "".join(
-            f" {out['d_amplitudes'][w][k]:22.10g}" for w, _ in wrt))
+            f" {out['d_amplitudes'][w][k]:24.10g}" for w, _ in wrt))
     lines.append(f"status: {seq.message}; dt_k/dp in the JSON output (--json)")
     emit(out, args.json, "\n".join(lines))
     return 0
