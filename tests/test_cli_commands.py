@@ -91,11 +91,11 @@ def test_sweep_stick_slip_matches_single_cycles(tmp_path, capsys):
     path = tmp_path / "c.csv"
     assert main(["sweep", "stick-slip", "--Omega", "0.5,1.5", "--eps", "3.5:8.5:3", "--method",
                  "closed", "--out", str(path)]) == 0
-    assert "6 points (Omega 2 x eps 3), method closed" in capsys.readouterr().out
+    assert "6 points (eps 3 x Omega 2), method closed" in capsys.readouterr().out
     back = vmj.SweepResult.read_csv(str(path))
-    assert back.dims == ("Omega", "eps")  # the order given on the command line
-    for i, Omega in enumerate([0.5, 1.5]):
-        for j, eps in enumerate([3.5, 6.0, 8.5]):
+    assert back.dims == ("eps", "Omega")  # the order of the model's parameters
+    for i, eps in enumerate([3.5, 6.0, 8.5]):
+        for j, Omega in enumerate([0.5, 1.5]):
             one = vmj.limit_cycle(vmj.StickSlip(eps, Omega), vmj.ClosedForm())
             assert back.values["period"][i, j] == pytest.approx(float(one.period), rel=1e-14)
             assert back.values["reversals"][i, j] == int(one.reversals)

@@ -184,6 +184,9 @@ def main(argv=None) -> int:
     except ValueError as e:  # bad input, found by vmj's checks or the command's
         print(f"vmj: error: {_one_line(e)}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader of our output went away (`vmj ... | head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except OSError as e:  # reading or writing a file failed
         print(f"vmj: error: {_one_line(e)}", file=sys.stderr)
         return 1

@@ -12,7 +12,6 @@ imports vmj's solvers; reading this table does not.
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -76,7 +75,8 @@ _positive = (lambda x: x > 0, "> 0")
 @dataclass(frozen=True)
 class ModelSpec:
     """A model of the command line: its parameters (model fields first, then the initial
-    conditions) and `build(values)` from `{name: SI value}` to the vmj model."""
+    conditions; a sweep's axes follow this order, as `vmj.grid`'s) and `build(values)` from
+    `{name: SI value}` to the vmj model."""
 
     name: str
     params: tuple
@@ -141,11 +141,11 @@ def _variable_mass(v: dict):
 VARIABLE_MASS = ModelSpec(
     "variable-mass",
     (
-        Param("m0", "initial mass [kg]", "VariableMass", "m0"),
-        Param("c", "spring stiffness [N/m]", "VariableMass", "c"),
-        Param("delta", "rate of change of the mass [kg/s]", "VariableMass", "delta"),
         Param("eps", "reactivity coefficient [-]", "VariableMass", "eps"),
         Param("mu", "viscous friction coefficient [kg/s]", "VariableMass", "mu"),
+        Param("delta", "rate of change of the mass [kg/s]", "VariableMass", "delta"),
+        Param("m0", "initial mass [kg]", "VariableMass", "m0"),
+        Param("c", "spring stiffness [N/m]", "VariableMass", "c"),
         Param("FT", "constant dry friction force [N]", "Coulomb", "friction.F",
               group="friction", aliases=("F",)),
         Param("f", "dry friction coefficient, F = f g m(t) [-]", "MassProportional",
@@ -249,16 +249,6 @@ LINEAR = ModelSpec(
 MODELS = {spec.name: spec for spec in (VARIABLE_MASS, ROPE, STICK_SLIP, LINEAR)}
 
 
-class _Axis(argparse.Action):
-    """Stores an axis and records the order the axes were given in (`args.axis_order`): the
-    order of the sweep's dimensions."""
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        order = [n for n in getattr(namespace, "axis_order", None) or [] if n != self.dest]
-        setattr(namespace, "axis_order", order + [self.dest])
-        setattr(namespace, self.dest, values)
-
-
 def add_options(parser, spec: ModelSpec, axes: bool = False) -> None:
     """One option `--NAME` per parameter of `spec`: a number (`axes=False`; required ones are
     required, alternatives mutually exclusive) or an axis string (`axes=True`, all optional:
@@ -273,8 +263,7 @@ def add_options(parser, spec: ModelSpec, axes: bool = False) -> None:
         if axes:
             if p.field is None:  # initial conditions are not swept: --set gives them
                 continue
-            parser.add_argument(f"--{p.name}", metavar="AXIS", action=_Axis,
-                                help=text)
+            parser.add_argument(f"--{p.name}", metavar="AXIS", help=text)
             continue
         target = parser
         if p.group is not None:

@@ -15,6 +15,7 @@ before anything is computed and refused above the limits below unless `--force` 
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import sys
 import time
@@ -36,13 +37,14 @@ MAX_AXIS = 10**7  #: values of one axis without --force
 class Sweep:
     """How a model is swept: its methods (the first is the default), the cost of one point
     (`bytes`, `seconds` as functions of the method, the number of turning points `n` and the
-    largest values of the parameters), and `evaluate(args, grid, scalars)`, which runs
-    `vmj.sweep` and returns its result."""
+    largest magnitudes of the parameters), `evaluate(args, grid, scalars)`, which runs
+    `vmj.sweep` and returns its result, and an example of `--set` for the help."""
 
     methods: tuple
     bytes: Callable
     seconds: Callable
     evaluate: Callable
+    example: str
     turning_points: bool = True
 
 
@@ -65,7 +67,7 @@ def _turning_points(args, g, scalars, method=None):
                      chunk_size=args.chunk_size, progress=_progress(args), **extra)
 
 
-def _decay_summary(args, result) -> list[str]:
+def _decay_summary(args, result) -> tuple:
     import numpy as np
 
     import vmj
@@ -113,15 +115,18 @@ def _cycle_summary(args, result):
 
 
 SWEEPS = {
-    "variable-mass": Sweep(("exact", "energy", "smooth"), *_decay_cost(), _turning_points),
-    "rope": Sweep(("exact", "smooth", "energy"), *_decay_cost(3.0), _turning_points),
+    "variable-mass": Sweep(("exact", "energy", "smooth"), *_decay_cost(), _turning_points,
+                           "m0=5,c=4900,FT=14.7,a0=0.06"),
+    "rope": Sweep(("exact", "smooth", "energy"), *_decay_cost(3.0), _turning_points,
+                  "m=2,A=1.74,e=0.8e6,d=0.8e11,l0=10,u=0,a0=1"),
     "stick-slip": Sweep(("exact", "closed"),
                         lambda method, n, top: 40 * (top["eps"] / 2 + 2) + 64,
                         lambda method, n, top: 3e-6 * (top["eps"] / 2 + 1),
-                        _stick_slip_eval, turning_points=False),
+                        _stick_slip_eval, "Omega=0.7", turning_points=False),
     "linear": Sweep(("closed",), lambda method, n, top: 64, lambda method, n, top: 1e-7,
-                    _linear_eval, turning_points=False),
+                    _linear_eval, "m=1,k=14.5,v0=0.1", turning_points=False),
 }
+
 
 def add_arguments(p) -> None:
     from ._app import add_global_options
@@ -134,13 +139,10 @@ def add_arguments(p) -> None:
                            "comma list, or one value.", formatter_class=p.formatter_class)
         add_options(q, spec, axes=True)
         initial = [x.name for x in spec.params if x.field is None]
-        example = {"variable-mass": "m0=5,c=4900,FT=14.7,a0=0.06",
-                   "rope": "m=2,A=1.74,e=0.8e6,d=0.8e11,l0=10,u=0,a0=1",
-                   "stick-slip": "Omega=0.7", "linear": "m=1,k=14.5,v0=0.1"}[name]
         q.add_argument("--set", metavar="NAME=VALUE,...",
                        help="fixed parameters" + (f" and the initial conditions "
                                                   f"({', '.join(initial)})" if initial else "")
-                       + f", e.g. {example}")
+                       + f", e.g. {how.example}")
         if how.turning_points:
             q.add_argument("--n", type=count, default=12, help="number of turning points")
         if len(how.methods) > 1:
@@ -188,8 +190,10 @@ def gather(spec, args, force: bool):
         values = parse_axis(f"--set {name}", text, 1, f"--set takes one value; give --{p.name} "
                             "for an axis")
         raw[p.name] = (values[0], f"--set {name}")
-    for name in getattr(args, "axis_order", None) or []:  # in the order given
-        p, text = spec.param(name), getattr(args, name)
+    for p in spec.fields:  # the axes in the order of the table
+        text = getattr(args, p.name)
+        if text is None:
+            continue
         flag = f"--{p.name}"
         if p.name in raw:
             raise ValueError(f"{p.name} is given both as {flag} and in --set")
@@ -214,11 +218,11 @@ def run(args) -> int:
     spec, how = MODELS[args.model], SWEEPS[args.model]
     scalars, axes = gather(spec, args, args.force)
     plots = getattr(args, "plot", None) or getattr(args, "error_plot", None)
-    if plots and (list(axes)[:2] != ["eps", "mu"] or len(axes) > 3 or
-                  (len(axes) == 3 and "delta" not in axes)):
-        raise ValueError("--plot and --error-plot need the axes --eps and --mu (given in this "
-                         "order), and optionally --delta (got "
-                         f"{', '.join('--' + k for k in axes)})")
+    if plots and (list(axes)[:2] != ["eps", "mu"] or len(axes) > 3):
+        raise ValueError("--plot and --error-plot need the axes --eps and --mu, and optionally "
+                         f"--delta (got {', '.join('--' + k for k in axes)})")
+    if args.netcdf and importlib.util.find_spec("xarray") is None:
+        raise ValueError("--netcdf needs xarray and netCDF4: pip install 'vmj[xarray]'")
     if plots and min(len(axes["eps"]), len(axes["mu"])) < 2:
         raise ValueError("--plot and --error-plot need at least 2 values of --eps and of --mu")
     # the work, estimated before anything is built
