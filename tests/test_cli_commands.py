@@ -132,6 +132,20 @@ def test_sweep_rope_in_technical_units(tmp_path, capsys):
                                rtol=1e-12)
 
 
+def test_technical_units_convert_as_the_library_does():
+    from vmj.cli._params import MODELS
+
+    spec = MODELS["rope"]
+    given = {"m": 2.0, "A": 1.74, "e": 0.8e6, "b": 0.5, "d": 0.8e11, "T": 4.0, "l0": 10.0,
+             "u": -3.0, "a0": 1.0}
+    values = spec.resolve({k: (v, f"--{k}") for k, v in given.items()}, technical=True)
+    ours = spec.build(values)
+    ref = vmj.Rope.from_technical(2.0, 1.74, 0.8e6, 0.5, 0.8e11, 4.0, vmj.ConstantSpeed(10.0, -3.0))
+    for name in ("m", "A", "e", "b", "d", "T"):
+        assert float(getattr(ours, name)) == float(getattr(ref, name)), name
+    assert values["a0"] == pytest.approx(0.01, rel=1e-15)
+
+
 def test_force_runs_work_above_the_limit(capsys):
     argv = ["decay", "variable-mass", *VM, "--method", "energy", "--n", "100001"]
     assert main(argv) == 2

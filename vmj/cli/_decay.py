@@ -5,7 +5,7 @@ from __future__ import annotations
 from ._options import count, emit, number, refuse_above
 from ._params import MODELS, add_options, given
 
-__all__ = ["add_arguments", "run", "variable_mass_model", "rope_model", "MAX_TURNING_POINTS"]
+__all__ = ["add_arguments", "run", "rope_model", "turning_point_limit", "MAX_TURNING_POINTS"]
 
 MAX_TURNING_POINTS = 100_000  #: turning points computed without --force (decay, sensitivity)
 
@@ -43,18 +43,13 @@ def _variable_mass_args(q) -> None:
                    help="exact non-smooth solver, smoothed ODE, or the paper's energy balance")
 
 
-def variable_mass_model(args):
-    """`(model, a0)` from the parsed options (checked, SI)."""
-    values = MODELS["variable-mass"].resolve(given(MODELS["variable-mass"], args))
-    return MODELS["variable-mass"].build(values), values["a0"]
-
-
 def _variable_mass(args) -> int:
     import vmj
 
     turning_point_limit(args, args.n, f"--n {args.n} turning points")
-    model, a0 = variable_mass_model(args)
-    seq = vmj.turning_points(model, a0, args.n, method=args.method)
+    spec = MODELS["variable-mass"]
+    values = spec.resolve(given(spec, args))
+    seq = vmj.turning_points(spec.build(values), values["a0"], args.n, method=args.method)
     got = seq.reached()
     out = {
         "model": "variable-mass",

@@ -13,14 +13,10 @@ imports vmj's solvers; reading this table does not.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 __all__ = ["Param", "ModelSpec", "MODELS", "add_options", "given"]
-
-#: one kilogram-force [N] (the rope paper's technical units; equal to vmj.KGF)
-_KGF = 9.80665
-
 
 @dataclass(frozen=True)
 class Param:
@@ -35,7 +31,8 @@ class Param:
     - `default`: `None` if it must be given (unless its `group` is given another way).
     - `group`: a set of alternatives; `requires`: a parameter that must be given with it.
     - `aliases`: other accepted spellings (the model's field name).
-    - `technical`: factor from the rope paper's technical unit to SI, and that unit.
+    - `technical`: the rope paper's technical unit: `(factor(vmj), unit)`, the factor to SI
+      read from vmj (`vmj.KGF`) when a value is checked.
     """
 
     name: str
@@ -47,7 +44,7 @@ class Param:
     group: str | None = None
     requires: str | None = None
     aliases: tuple = ()
-    technical: tuple | None = None  # (factor to SI, unit)
+    technical: tuple | None = None
 
     def limits(self) -> tuple[Callable, str]:
         """`(predicate, allowed range)` of this parameter."""
@@ -60,7 +57,11 @@ class Param:
     def check(self, value: float, flag: str, technical: bool = False) -> float:
         """`value` in SI after checking it against the allowed range; `ValueError` naming
         `flag` (the spelling the user gave) otherwise."""
-        factor, unit = self.technical if (technical and self.technical) else (1.0, None)
+        factor, unit = (1.0, None)
+        if technical and self.technical:
+            import vmj
+
+            factor, unit = self.technical[0](vmj), self.technical[1]
         si = value * factor
         ok, allowed = self.limits()
         if not (math.isfinite(si) and bool(ok(si))):
@@ -69,7 +70,7 @@ class Param:
         return si
 
 
-_positive = (lambda x: x > 0, "> 0")
+_POSITIVE_LENGTH = (lambda x: x > 0, "> 0 [m]")
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,6 @@ class ModelSpec:
     params: tuple
     build: Callable
     summary: str
-    extra: dict = field(default_factory=dict)
 
     def param(self, name: str) -> Param:
         """The parameter spelled `name` (or one of its aliases); `ValueError` listing the known
@@ -152,7 +152,7 @@ VARIABLE_MASS = ModelSpec(
               "friction.f", group="friction"),
         Param("g", "gravity, with --f [m/s^2]", "MassProportional", "friction.g", default=9.81,
               requires="f"),
-        Param("a0", "initial deflection [m]", allowed=(_positive[0], "> 0 [m]")),
+        Param("a0", "initial deflection [m]", allowed=_POSITIVE_LENGTH),
     ),
     _variable_mass,
     "linearly varying mass with reactive force, viscous and dry friction (Olshansky)",
@@ -170,14 +170,14 @@ def _rope(v: dict):
     return vmj.Rope(v["m"], v["A"], v["e"], v["b"], v["d"], v["T"], length)
 
 
-_STRESS = (_KGF * 1e4, "kG/cm^2")
+_STRESS = (lambda vmj: vmj.KGF * 1e4, "kG/cm^2")  # as vmj.Rope.from_technical converts
 ROPE = ModelSpec(
     "rope",
     (
         Param("m", "suspended mass [kg] (technical: kG s^2/m)", "Rope", "m",
-              technical=(_KGF, "kG s^2/m")),
+              technical=(lambda vmj: vmj.KGF, "kG s^2/m")),
         Param("A", "rope cross-section [m^2] (technical: cm^2)", "Rope", "A",
-              technical=(1e-4, "cm^2")),
+              technical=(lambda vmj: 1e-4, "cm^2")),
         Param("e", "linear modulus [Pa] (technical: kG/cm^2)", "Rope", "e", technical=_STRESS),
         Param("b", "quadratic coefficient [Pa] (technical: kG/cm^2)", "Rope", "b", default=0.0,
               technical=_STRESS),
@@ -192,8 +192,8 @@ ROPE = ModelSpec(
               "length.t_brake", requires="t_stop"),
         Param("t_stop", "time the drum stops [s], with --t_brake", "Braking", "length.t_stop",
               requires="t_brake"),
-        Param("a0", "initial deflection [m] (technical: cm)", allowed=(_positive[0], "> 0 [m]"),
-              technical=(1e-2, "cm")),
+        Param("a0", "initial deflection [m] (technical: cm)", allowed=_POSITIVE_LENGTH,
+              technical=(lambda vmj: 1e-2, "cm")),
     ),
     _rope,
     "mass on a hoisting rope of varying length with friction between the wires (Osinski)",

@@ -11,7 +11,7 @@ derivatives of the period, slip and stick times. Derivatives are per SI unit of 
 
 from __future__ import annotations
 
-from ._options import count, emit, figure_path
+from ._options import count, emit, figure_path, traced_checks
 from ._params import MODELS, add_options, given
 
 __all__ = ["add_arguments", "run"]
@@ -79,12 +79,6 @@ def _unit(p) -> str:
 
 
 def run(args) -> int:
-    import numpy as np
-
-    import vmj
-
-    from ._options import traced_checks
-
     spec = MODELS[args.model]
     if args.model == "rope":
         from ._decay import rope_model
@@ -101,38 +95,53 @@ def run(args) -> int:
 
             turning_point_limit(args, n, f"--n {n} turning points")
     wrt = _wrt(spec, args.wrt, values)
+    # vmj.sensitivity names a model field by its dotted path, an argument of the solve by name
     keys = [p.field if p.field is not None else p.name for _, p in wrt]
     units = {name: _unit(p) for name, p in wrt}
-
     if args.model == "stick-slip":
-        from ._stick_slip import eps_limit, reversal_bound
+        return _cycle(args, values, model, wrt, keys, units)
+    return _decay(args, model, a0, n, wrt, keys, units)
 
-        eps_limit(args, values["eps"])
-        solver = vmj.ClosedForm() if args.method == "closed" else vmj.Exact()
-        bound = reversal_bound(values["eps"])
 
-        def cycle(m):
-            c = vmj.limit_cycle(m, solver, max_reversals=bound)
-            return {k: getattr(c, k) for k in CYCLE}
+def _cycle(args, values, model, wrt, keys, units) -> int:
+    """Derivatives of the stick-slip period, slip and stick times."""
+    import vmj
 
-        got = vmj.limit_cycle(model, solver, max_reversals=bound)
-        with traced_checks():
-            d = vmj.sensitivity(cycle, model, keys)
-        out = {"model": "stick-slip", "method": args.method, "wrt": [w for w, _ in wrt],
-               "units": units}
-        out.update({k: float(getattr(got, k)) for k in CYCLE})
-        for k in CYCLE:
-            out[f"d_{k}"] = {w: float(d[key][k]) for (w, _), key in zip(wrt, keys)}
-        if bool(got.failed):
-            out["message"] = vmj.RESULTS(int(got.result)).message
-        lines = [f"stick-slip cycle (eps={values['eps']:g}, Omega={values['Omega']:g}, "
-                 f"method={args.method}; dimensionless time)",
-                 f"{'':12}{'value':>16}" + "".join(f"{'d/d' + w:>16}" for w, _ in wrt)]
-        for k in CYCLE:
-            lines.append(f"{k:<12}{out[k]:16.8g}" +
-                         "".join(f"{out[f'd_{k}'][w]:16.8g}" for w, _ in wrt))
-        emit(out, args.json, "\n".join(lines))
-        return 0
+    from ._stick_slip import eps_limit, reversal_bound
+
+    eps_limit(args, values["eps"])
+    solver = vmj.ClosedForm() if args.method == "closed" else vmj.Exact()
+    bound = reversal_bound(values["eps"])
+
+    def cycle(m):
+        c = vmj.limit_cycle(m, solver, max_reversals=bound)
+        return {k: getattr(c, k) for k in CYCLE}
+
+    got = vmj.limit_cycle(model, solver, max_reversals=bound)
+    with traced_checks():
+        d = vmj.sensitivity(cycle, model, keys)
+    out = {"model": "stick-slip", "method": args.method, "wrt": [w for w, _ in wrt],
+           "units": units}
+    out.update({k: float(getattr(got, k)) for k in CYCLE})
+    for k in CYCLE:
+        out[f"d_{k}"] = {w: float(d[key][k]) for (w, _), key in zip(wrt, keys)}
+    if bool(got.failed):
+        out["message"] = vmj.RESULTS(int(got.result)).message
+    lines = [f"stick-slip cycle (eps={values['eps']:g}, Omega={values['Omega']:g}, "
+             f"method={args.method}; dimensionless time)",
+             f"{'':12}{'value':>16}" + "".join(f"{'d/d' + w:>16}" for w, _ in wrt)]
+    for k in CYCLE:
+        lines.append(f"{k:<12}{out[k]:16.8g}" +
+                     "".join(f"{out[f'd_{k}'][w]:16.8g}" for w, _ in wrt))
+    emit(out, args.json, "\n".join(lines))
+    return 0
+
+
+def _decay(args, model, a0, n, wrt, keys, units) -> int:
+    """Derivatives of the turning points' amplitudes and times."""
+    import numpy as np
+
+    import vmj
 
     method = args.method
     extra = {"max_substeps": 12} if args.model == "rope" and method == "exact" else {}
