@@ -287,3 +287,41 @@ def test_cli_sweep(tmp_path, capsys):
     assert "eps must be finite and in [0, 1]" in capsys.readouterr().err
     assert main(["sweep", "variable-mass", "--eps", "0:1:3", "--set", "m0=5,c=4900,FT=1"]) == 2
     assert "missing a0" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
+    # The smoothed solve needs about 27 MB of XLA working memory per point (12 swings): at the
+    # default chunk the 11 x 21 x 7 grid would ask for 22 GB per chunk. Here the machine is
+    # made to look small (600 MB available), so that the default shrinks to what fits in a
+    # quarter of it, and an explicit chunk size that cannot fit at all is refused.
+    from vmj._sweep import _sweep as sweep_module
+
+    seen = []
+
+    def spy(job, chunk):
+        need = real(job, chunk)
+        seen.append(need / chunk)
+        return need
+
+    real = sweep_module.chunk_bytes
+    monkeypatch.setattr(sweep_module, "chunk_bytes", spy)
+    memory = 600e6
+    monkeypatch.setattr(sweep_module, "available_memory", lambda device: memory)
+    g = vmj.grid(paper_model(), eps=[0.0, 0.5, 1.0, 0.25], mu=[2.0, 9.0])
+    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
+    (per_point,) = seen
+    assert 5e6 < per_point < 1e9  # megabytes per point: 16384 points would need tens of GB
+    fits = int(sweep_module.MEMORY_FRACTION * memory / CORES / per_point)
+    assert 1 <= fits < 4
+    assert r.chunks == n_chunks(8, fits) > CORES
+    exact = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS)
+    np.testing.assert_array_equal(r.values.count, exact.values.count)
+    # the turning points before the last (where the smoothed model creeps to its rest)
+    before_rest = np.arange(N_SWINGS) < exact.values.count[..., None] - 1
+    np.testing.assert_allclose(r.values.positions[before_rest],
+                               exact.values.positions[before_rest], rtol=0, atol=1e-6 * A0)
+    memory = 150e6  # not even two chunks of 4 points
+    with pytest.raises(ValueError, match=r"chunk_size=8 needs .* GB of working memory per chunk "
+                                         r".* use chunk_size <= \d+, or leave it"):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth", chunk_size=8)

@@ -1,0 +1,177 @@
+"""A sweep on a Dask cluster against the same sweep in-process, measured in this run.
+
+1. Throughput: the same 10^6-point exact sweep (`vmj.turning_points`, 12 swings, random
+   (eps, mu, delta, F) points, float64, default chunks) in-process (one thread per core) and on
+   a LocalCluster of one single-threaded worker process per core (localhost), alternating,
+   after one warm-up run of each (compilation). Medians with min/max; the ratio of medians;
+   the results compared to the last bit.
+2. The cost of a chunk: the same two paths on 4096 points in chunks of 16 (256 chunks of
+   negligible work), so that the difference per chunk is the Dask overhead (submit, schedule,
+   run, send the result back, hand it over).
+3. Writing to a Zarr store as the chunks complete: the cluster sweep of (1) with `store=`.
+4. A paper estimate of a 10^9-point sweep on 100 such workers from the figures above: the
+   arithmetic, the per-chunk overhead, the scheduler's rate and what the client receives.
+
+Run: .venv/bin/python benchmarks/bench_distributed.py [--points 1000000] [--repeat 5]
+"""
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import numpy as np  # noqa: E402
+
+import vmj  # noqa: E402
+from vmj._sweep._engine import CORES  # noqa: E402
+
+M0, C, A0, N = 5.0, 4900.0, 0.06, 12
+
+
+def points(n, seed=0):
+    rng = np.random.default_rng(seed)
+    return vmj.VariableMass(M0, C, rng.uniform(-3, 3, n), rng.uniform(0, 1, n),
+                            rng.uniform(0, 10, n), vmj.Coulomb(rng.uniform(5, 20, n)))
+
+
+def timed(fn):
+    t = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t, out
+
+
+def stats(times):
+    return f"median {np.median(times):7.3f} s (min {min(times):.3f}, max {max(times):.3f})"
+
+
+def same_bits(a, b):
+    return all(np.asarray(x).tobytes() == np.asarray(y).tobytes()
+               for x, y in zip(jax.tree.leaves(a.values), jax.tree.leaves(b.values)))
+
+
+def result_bytes(r):
+    return sum(np.asarray(x).nbytes for x in jax.tree.leaves(r.values))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--points", type=int, default=10**6)
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args()
+    import distributed
+
+    vmj.retain_host_memory()
+    n, rep = args.points, args.repeat
+    model = points(n)
+    print(f"{n} points x {N} swings, exact solver, float64; {CORES} cores; in-process: "
+          f"{CORES} threads; cluster: LocalCluster of {CORES} single-threaded worker processes")
+    cluster = distributed.LocalCluster(n_workers=CORES, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None)
+    client = distributed.Client(cluster)
+    try:
+        here = lambda **kw: vmj.sweep(vmj.turning_points, model, a0=A0, n=N, **kw)  # noqa
+        there = lambda **kw: vmj.sweep(vmj.turning_points, model, a0=A0, n=N,  # noqa
+                                       client=client, **kw)
+        t_first_here, ref = timed(here)
+        t_first_there, got = timed(there)
+        print(f"first runs (compilation included): in-process {t_first_here:.2f} s, cluster "
+              f"{t_first_there:.2f} s; {ref.chunks} chunks; equal to the last bit: "
+              f"{same_bits(ref, got)}")
+        th, tc = [], []
+        for _ in range(rep):
+            th.append(timed(here)[0])
+            tc.append(timed(there)[0])
+        ratio = np.median(tc) / np.median(th)
+        big_overhead = (np.median(tc) - np.median(th)) * CORES / ref.chunks
+        print(f"in-process: {stats(th)}  ({n / np.median(th):.3g} points/s)")
+        print(f"cluster:    {stats(tc)}  ({n / np.median(tc):.3g} points/s)")
+        print(f"cluster / in-process (medians): {ratio:.3f}  (goal <= 1.3); the difference is "
+              f"{big_overhead * 1e3:.1f} ms per chunk of {-(-n // ref.chunks)} points and "
+              f"worker")
+
+        # 2. the cost of a chunk
+        small = points(4096, seed=1)
+        tiny = 16
+        k_here = lambda: vmj.sweep(vmj.turning_points, small, a0=A0, n=N,  # noqa
+                                   chunk_size=tiny)
+        k_there = lambda: vmj.sweep(vmj.turning_points, small, a0=A0, n=N,  # noqa
+                                    chunk_size=tiny, client=client)
+        k_here(), k_there()
+        sh, sc = [], []
+        for _ in range(rep):
+            sh.append(timed(k_here)[0])
+            sc.append(timed(k_there)[0])
+        chunks = -(-4096 // tiny)
+        per_here = np.median(sh) * CORES / chunks
+        per_there = np.median(sc) * CORES / chunks
+        overhead = per_there - per_here
+        print(f"{chunks} chunks of {tiny} points: in-process {stats(sh)}, cluster {stats(sc)}")
+        print(f"per chunk and worker: in-process {per_here * 1e3:.2f} ms, cluster "
+              f"{per_there * 1e3:.2f} ms: Dask overhead {overhead * 1e3:.2f} ms per chunk "
+              f"({overhead / (np.median(th) * CORES / ref.chunks) * 100:.2f} % of a default "
+              f"chunk of {-(-n // ref.chunks)} points)")
+
+        # the scheduler's rate: tasks per second for empty tasks through the same cluster
+        client.gather(client.map(abs, range(2000), pure=False))  # warm-up
+        futures = client.map(abs, range(-2000, 0), pure=False)
+        t0 = time.perf_counter()
+        client.gather(futures)
+        per_task = (time.perf_counter() - t0) / 2000
+        del futures
+        print(f"empty tasks through the scheduler: {1 / per_task:.0f} per second")
+
+        # 3. with a store
+        tmp = tempfile.mkdtemp()
+        try:
+            ts = []
+            for i in range(max(1, rep // 2)):
+                path = os.path.join(tmp, f"s{i}.zarr")
+                ts.append(timed(lambda: there(store=path))[0])
+            nbytes = result_bytes(ref)
+            print(f"cluster with store=: {stats(ts)} ({nbytes / 1e6:.0f} MB of results, "
+                  f"{nbytes / np.median(ts) / 1e6:.0f} MB/s received and written by the client)"
+                  f"; store on disk {du(os.path.join(tmp, 's0.zarr')) / 1e6:.0f} MB")
+            ingest = nbytes / np.median(ts)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    finally:
+        client.close()
+        cluster.close()
+
+    # 4. a paper estimate: 10^9 points on 100 workers like these
+    big, workers, chunk = 10**9, 100, 16384
+    core_per_point = np.median(th) * CORES / n
+    big_chunks = -(-big // chunk)
+    compute = big * core_per_point / workers
+    per_chunk = max(overhead, big_overhead, 0.0)
+    over = big_chunks * per_chunk / workers
+    sched = big_chunks * per_task
+    per_point_bytes = result_bytes(ref) / n
+    receive = big * per_point_bytes / ingest
+    receive_count = big * 8 / ingest
+    print(f"paper estimate, 10^9 points on {workers} single-threaded workers like these "
+          f"({big_chunks} chunks of {chunk}):")
+    print(f"  arithmetic {compute:.0f} s ({core_per_point * 1e6:.2f} us per point and core) + "
+          f"Dask overhead {over:.1f} s ({per_chunk * 1e3:.1f} ms per chunk); the scheduler's own time {sched:.0f} s overlaps the "
+          f"work; compilation once per worker, in parallel")
+    print(f"  the client receives {big * per_point_bytes / 1e9:.0f} GB for the whole "
+          f"DecaySequence ({per_point_bytes:.0f} bytes per point): {receive:.0f} s at the "
+          f"{ingest / 1e6:.0f} MB/s measured; {receive_count:.0f} s for one 8-byte field per "
+          f"point (e.g. fn returning .stop_time)")
+    print(f"  wall time about {max(compute + over, sched, receive):.0f} s for the whole "
+          f"sequence, {max(compute + over, sched, receive_count):.0f} s for one field")
+    return 0
+
+
+def du(path):
+    return sum(os.path.getsize(os.path.join(d, f)) for d, _, fs in os.walk(path) for f in fs)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
