@@ -13,6 +13,7 @@ parameters are array fields works.
 
 from __future__ import annotations
 
+import collections
 import math
 import os
 import sys
@@ -41,6 +42,9 @@ DEFAULT_CHUNK = 16384
 MEMORY_FRACTION = 0.25
 #: traces of the chunk function in this process (each worker of a cluster should trace once)
 _TRACES = 0
+#: what this process knows of the compiled chunks of recent sweeps (see `_SweepJob.known`)
+_KNOWN: collections.OrderedDict = collections.OrderedDict()
+_KNOWN_LOCK = threading.Lock()
 
 
 class SweepError(RuntimeError):
@@ -138,10 +142,43 @@ class _SweepJob:
         return (self.fn, self.kwargs, self.on_device(), self.swept, self.shape,
                 jnp.asarray(start), chunk or self.chunk, self.sharding)
 
+    def key(self, chunk: int):
+        """What the compiled chunk depends on, hashable (None if it cannot be hashed)."""
+        leaves, treedef = jax.tree.flatten(self.model)
+        try:
+            key = (self.fn, tuple(sorted(self.kwargs.items())), treedef,
+                   tuple((np.shape(x), np.result_type(x).str) for x in leaves), self.swept,
+                   self.shape, chunk, self.sharding, self.x64)
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
+    def known(self, chunk: int) -> dict:
+        """What this process knows of the compiled chunk: compiled it (`"compiled"`), its
+        memory (`"bytes"`) and output structure (`"spec"`); {} if nothing."""
+        key = self.key(chunk)
+        if key is None:
+            return {}
+        with _KNOWN_LOCK:
+            entry = _KNOWN.setdefault(key, {})
+            _KNOWN.move_to_end(key)
+            while len(_KNOWN) > 64:
+                _KNOWN.popitem(last=False)
+        return entry
+
     def compile(self, chunk: int | None = None):
         """The compiled chunk (JAX keeps it: later calls with the same shapes reuse it)."""
         compiled = _evaluate.lower(*self.args(0, chunk)).compile()
+        self.known(chunk or self.chunk)["compiled"] = True
         return getattr(compiled, "compiled", compiled)
+
+    def spec(self):
+        """The output's structure (leaves with the chunk axis in front), without evaluating."""
+        known = self.known(self.chunk)
+        if "spec" not in known:
+            known["spec"] = eqx.filter_eval_shape(_evaluate, *self.args(0))
+        return known["spec"]
 
     def compute(self, c: int) -> list:
         """The result leaves of the points `c * chunk ... (c + 1) * chunk - 1` of chunk `c`."""
@@ -195,15 +232,18 @@ def available_memory(device) -> int | None:
 def chunk_bytes(job, chunk: int) -> int | None:
     """The memory one compiled chunk of `chunk` points needs (XLA's memory analysis of the
     compiled chunk: temporaries, outputs and arguments), or None if the backend does not say.
-    Compiling here also compiles the chunks that follow (JAX caches the executable)."""
-    compiled = job.compile(chunk)  # a bad argument of fn raises here
-    try:
-        m = compiled.memory_analysis()
-    except Exception:
-        return None
-    if m is None:
-        return None
-    return int(m.temp_size_in_bytes + m.output_size_in_bytes + m.argument_size_in_bytes)
+    Compiling here also compiles the chunks that follow (JAX caches the executable); the answer
+    is remembered for the next sweep of the same function and shapes."""
+    known = job.known(chunk)
+    if "bytes" not in known:
+        compiled = job.compile(chunk)  # a bad argument of fn raises here
+        try:
+            m = compiled.memory_analysis()
+            need = int(m.temp_size_in_bytes + m.output_size_in_bytes + m.argument_size_in_bytes)
+        except Exception:
+            need = None
+        known["bytes"] = need
+    return known["bytes"]
 
 
 def _sized(job, n, chunk_size, lanes, multiple, memory, concurrent) -> int:
@@ -329,20 +369,14 @@ def sweep(
     swept = tuple(eqx.is_array_like(x) and np.ndim(x) > 0 for x in leaves)
     model = jax.tree.unflatten(treedef, [np.asarray(x) if eqx.is_array_like(x) else x
                                          for x in leaves])
-    definition = {"fn": digest(fn), "model": digest(model), "solver_args": digest(solver_args),
-                  "shape": list(shape), "dims": list(dims), "coords": digest(coords),
-                  "chunk_size": chunk_size, "vmj": _version(), "jax": jax.__version__,
-                  "x64": bool(jax.config.jax_enable_x64)}
-    described = {
-        "fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",
-        "model": f"{type(model).__name__} (parameters {definition['model'][:8]})",
-        "solver arguments": f"{_describe_args(solver_args)} ({definition['solver_args'][:8]})",
-        "shape": " x ".join(f"{d} {s}" for d, s in zip(dims, shape)) or "()",
-        "chunk_size": "default" if chunk_size is None else str(chunk_size),
-        "versions": f"vmj {definition['vmj']}, jax {definition['jax']}",
-        "float64": str(definition["x64"]),
-    }
-    token = digest(definition)
+    # what the store records and a cluster's workers key their copy on (digests of the model's
+    # arrays: computed only when there is a store or a cluster)
+    definition = described = None
+    token = ""
+    if store is not None or client is not None:
+        definition, described = _definition(fn, model, solver_args, shape, dims, coords,
+                                            chunk_size)
+        token = digest(definition)
 
     with cluster(client) as cl:
         if cl is not None:
@@ -351,10 +385,11 @@ def sweep(
                                  "each use their own default device")
             devs, nd, sharding = jax.local_devices()[:1], 1, None
             lanes = threads = threads_of(cl)
-            # the smallest memory of a worker thread (or of this machine); the client compiles
-            # one chunk to size it only when no chunk_size is given
-            known = [m for m in (worker_memory(cl), available_memory(devs[0])) if m]
-            memory = min(known) if known and chunk_size is None else None
+            # the smallest memory limit of a worker thread (else this machine's); the client
+            # compiles a chunk to size it only when no chunk_size is given
+            memory = None
+            if chunk_size is None:
+                memory = worker_memory(cl) or available_memory(devs[0])
             concurrent = 1
         else:
             devs = _devices(devices)
@@ -382,9 +417,10 @@ def sweep(
         n_chunks = -(-n // chunk)
 
         # the output's structure, without evaluating anything
-        spec = eqx.filter_eval_shape(_evaluate, *job.args(0))
+        spec = job.spec()
         spec_leaves, out_def = jax.tree.flatten(spec)
-        names, kdims, kcoords = export_names(spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"})
+        names, kdims, kcoords = export_names(
+            spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"})
         out = [np.empty((n,) + s.shape[1:], dtype=s.dtype) for s in spec_leaves]
         if store is not None and st is None:
             plan = {"n": n, "chunk": chunk, "n_chunks": n_chunks, "dims": list(dims),
@@ -436,7 +472,7 @@ def sweep(
             if st is not None:
                 st.fail(c, code, message)
 
-        if cl is None and todo:
+        if cl is None and todo and not job.known(chunk).get("compiled"):
             job.compile()  # here, once, before the threads share the executable
         show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
         bar = Progress(n_chunks, n, show, already=resumed)
@@ -459,6 +495,24 @@ def sweep(
                      f"to compute only the failed ones")
         raise SweepError(text, failures, result)
     return result
+
+
+def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
+    """The definition of a sweep (digests) and the same in words, for the store's refusals."""
+    definition = {"fn": digest(fn), "model": digest(model), "solver_args": digest(solver_args),
+                  "shape": list(shape), "dims": list(dims), "coords": digest(coords),
+                  "chunk_size": chunk_size, "vmj": _version(), "jax": jax.__version__,
+                  "x64": bool(jax.config.jax_enable_x64)}
+    described = {
+        "fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",
+        "model": f"{type(model).__name__} (parameters {definition['model'][:8]})",
+        "solver arguments": f"{_describe_args(solver_args)} ({definition['solver_args'][:8]})",
+        "shape": " x ".join(f"{d} {s}" for d, s in zip(dims, shape)) or "()",
+        "chunk_size": "default" if chunk_size is None else str(chunk_size),
+        "versions": f"vmj {definition['vmj']}, jax {definition['jax']}",
+        "float64": str(definition["x64"]),
+    }
+    return definition, described
 
 
 def _version() -> str:
