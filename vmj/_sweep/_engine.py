@@ -9,7 +9,8 @@ when a client is asked for.
 On a cluster the job is scattered to every worker once (`Client.scatter(broadcast=True)`), each
 task carries only its chunk number, and each worker process keeps the first copy of a job it
 receives ([`_worker_job`][]), so that the function it holds is compiled once per process and
-reused for every chunk. A worker that dies has its tasks rescheduled by Dask.
+reused for every chunk; it follows the client's float64 setting. A worker that dies has its tasks
+rescheduled by Dask.
 """
 
 from __future__ import annotations
@@ -95,6 +96,25 @@ def _worker_job(job):
 
 def _run_on_worker(job, c):
     return _worker_job(job).compute(c)
+
+
+def _float64_plugin(x64: bool):
+    """A Dask worker plugin that sets JAX's float64 mode on every worker (those running and
+    those that join later) before any task's arguments are unpickled into arrays."""
+    import distributed
+
+    class Float64(distributed.WorkerPlugin):
+        name = "vmj-float64"
+
+        def __init__(self, x64):
+            self.x64 = x64
+
+        def setup(self, worker):
+            import jax
+
+            jax.config.update("jax_enable_x64", self.x64)
+
+    return Float64(x64)
 
 
 # -- clusters ----------------------------------------------------------------------------------
@@ -201,6 +221,9 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
 def _run_dask(job, todo, sink, fail, progress, client):
     import distributed
 
+    import jax
+
+    client.register_plugin(_float64_plugin(bool(jax.config.jax_enable_x64)))
     shared = client.scatter(job, broadcast=True, hash=False)
     futures = {client.submit(_run_on_worker, shared, c, key=f"vmj-{job.token[:16]}-{c}",
                              pure=False): c for c in todo}

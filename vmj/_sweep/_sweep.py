@@ -104,7 +104,6 @@ class _SweepJob:
         self.fn, self.kwargs, self.swept, self.shape = fn, kwargs, swept, tuple(shape)
         self.model = jax.tree.map(np.asarray, model)
         self.n, self.chunk, self.token = math.prod(shape), chunk, token
-        self.x64 = bool(jax.config.jax_enable_x64)
         self.devices, self.sharding = devices, sharding
         self._lock = threading.Lock()
         self._on_device = None
@@ -122,8 +121,6 @@ class _SweepJob:
     def on_device(self):
         with self._lock:
             if self._on_device is None:
-                if jax.config.jax_enable_x64 != self.x64:  # a worker process of a cluster
-                    jax.config.update("jax_enable_x64", self.x64)
                 devs = self.devices
                 place = None
                 if devs is not None and len(devs) == 1:
@@ -148,7 +145,7 @@ class _SweepJob:
         try:
             key = (self.fn, tuple(sorted(self.kwargs.items())), treedef,
                    tuple((np.shape(x), np.result_type(x).str) for x in leaves), self.swept,
-                   self.shape, chunk, self.sharding, self.x64)
+                   self.shape, chunk, self.sharding, bool(jax.config.jax_enable_x64))
             hash(key)
         except TypeError:
             return None
