@@ -277,3 +277,49 @@ def test_bad_arguments(points, tmp_path):
         vmj.sweep(vmj.turning_points, points, store=str(tmp_path / "plain"), resume=True, **KW)
     with pytest.raises(ValueError, match="items must not be empty"):
         vmj.map_chunks(norms, [])
+
+
+def synthetic_records(count):
+    import fits
+
+    rng = np.random.default_rng(5)
+    records = []
+    for i in range(count):
+        F, mu = rng.uniform(8, 20), rng.uniform(0.5, 4)
+        seq = vmj.energy_balance(vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(F)),
+                                 0.06, 8)
+        n = int(seq.count)
+        positions = np.concatenate([[-0.06], np.asarray(seq.positions)[:n]])
+        positions = positions + rng.normal(0, 2e-4, n + 1)
+        records.append(fits.record_from_sequence(positions=positions, source=f"record {i}"))
+    return records
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore::UserWarning")  # FT and mu correlated in short records
+def test_batched_fit_of_200_records_on_the_cluster(client, tmp_path):
+    import fits
+
+    records = synthetic_records(200)
+    given = {"m0": 5.0, "c": 4900.0, "delta": 3.0, "eps": 0.0, "a0": 0.06}
+    kw = dict(forward="energy", compare=False, chunk_size=50)
+    here = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, **kw)
+    there = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, client=client,
+                           store=str(tmp_path / "fits.zarr"), **kw)
+    assert len(here) == len(there) == 200
+    for a, b in zip(here, there):
+        assert a.params == b.params and a.stderr == b.stderr and a.iterations == b.iterations
+        assert a.record.source == b.record.source
+        for name in a.residuals:
+            assert np.asarray(a.residuals[name]).tobytes() == \
+                np.asarray(b.residuals[name]).tobytes()
+    # all 200 in one batch: the same fits to within the solver's convergence (the chunks pad
+    # and batch the records differently)
+    whole = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, forward="energy",
+                           compare=False)
+    for a, b in zip(here, whole):
+        for name in a.params:
+            np.testing.assert_allclose(a.params[name], b.params[name], rtol=1e-6)
+    again = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, client=client,
+                           store=str(tmp_path / "fits.zarr"), resume=True, **kw)
+    assert [r.params for r in again] == [r.params for r in there]
