@@ -228,12 +228,14 @@ def _run_dask(job, todo, sink, fail, progress, client):
     futures = {client.submit(_run_on_worker, shared, c, key=f"vmj-{job.token[:16]}-{c}",
                              pure=False): c for c in todo}
     try:
-        for f in distributed.as_completed(list(futures)):
+        # results are fetched in the client's event loop as tasks finish, side by side
+        for f, value in distributed.as_completed(list(futures), with_results=True,
+                                                 raise_errors=False):
             c = futures.pop(f)
             if f.status == "finished":
-                sink(c, f.result())
+                sink(c, value)
             elif f.status == "error":
-                exc = f.exception()
+                exc = value[1] if isinstance(value, tuple) else value
                 if fail is None:
                     raise exc
                 fail(c, exc)
