@@ -158,8 +158,8 @@ def main() -> int:
     print(f"paper estimate, 10^9 points on {workers} single-threaded workers like these "
           f"({big_chunks} chunks of {chunk}):")
     print(f"  arithmetic {compute:.0f} s ({core_per_point * 1e6:.2f} us per point and core) + "
-          f"Dask overhead {over:.1f} s ({per_chunk * 1e3:.1f} ms per chunk); the scheduler's own time {sched:.0f} s overlaps the "
-          f"work; compilation once per worker, in parallel")
+          f"Dask overhead {over:.1f} s ({per_chunk * 1e3:.1f} ms per chunk); the scheduler's "
+          f"own time {sched:.0f} s overlaps the work; compilation once per worker, in parallel")
     print(f"  the client receives {big * per_point_bytes / 1e9:.0f} GB for the whole "
           f"DecaySequence ({per_point_bytes:.0f} bytes per point): {receive:.0f} s at the "
           f"{ingest / 1e6:.0f} MB/s measured; {receive_count:.0f} s for one 8-byte field per "

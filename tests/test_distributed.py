@@ -171,18 +171,19 @@ def test_store_refuses_another_definition_and_recomputes_damaged_chunks(points, 
         vmj.sweep(vmj.energy_balance, points, store=str(store), resume=True, **KW)
     assert list(status(store)) == [1] * 20  # nothing was touched
 
-    # damage three chunks: garbage in a data file, a data file lost after its marker was
-    # written, a marker lost after the data (a run killed between them)
+    # damage four chunks: garbage in a data file, a data file lost after its marker was
+    # written, a marker lost after the data (a run killed between them), a marker unreadable
     (garbage,) = glob.glob(str(store / "positions" / "c" / "3" / "0"))
     with open(garbage, "r+b") as fh:
         fh.seek(8)
         fh.write(os.urandom(64))
     os.remove(store / "times" / "c" / "11" / "0")
     os.remove(store / "vmj_status" / "c" / "7")
-    with pytest.raises(ValueError, match="unfinished sweep: 3 of 20 chunks"):
+    (store / "vmj_status" / "c" / "15").write_bytes(b"\xff")
+    with pytest.raises(ValueError, match="unfinished sweep: 4 of 20 chunks"):
         vmj.SweepResult.read_zarr(str(store))
     again = vmj.sweep(vmj.turning_points, points, store=str(store), resume=True, **KW)
-    assert (again.resumed, again.computed) == (17, 3)
+    assert (again.resumed, again.computed) == (16, 4)
     assert_bitwise_equal(again.values, in_process.values)
     back = vmj.SweepResult.read_zarr(str(store))
     assert back.shape == (N,) and back.dims == ("point",)

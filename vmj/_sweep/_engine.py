@@ -1,9 +1,9 @@
 """Running chunks of work: in threads of this process, or as Dask tasks on a cluster.
 
-A *job* is a picklable object with a `token` (a digest of what it computes) and a method
-`compute(c)` that returns the result of chunk `c`. [`run_chunks`][] evaluates the chunks still to
-do and hands each finished one, in this process, to a `sink`; chunk failures are recorded and
-the run goes on, or (in-process without a store) raised at once as before. Dask is imported only
+A *job* is a picklable object with a `token` (a digest of what it computes), a `chunk` size
+and a method `compute(c)` that returns the result of chunk `c`. [`run_chunks`][] evaluates the
+chunks still to do and hands each finished one, in this process, to a `sink`; chunk failures
+are recorded and the run goes on, or (in-process without a store) raised at once as before. Dask is imported only
 when a client is asked for.
 
 On a cluster the job is scattered to every worker once (`Client.scatter(broadcast=True)`), each
@@ -23,6 +23,7 @@ import re
 import sys
 import threading
 import time
+import uuid
 from typing import Callable
 
 __all__ = ["run_chunks", "cluster", "Progress", "CORES", "failure_message"]
@@ -75,22 +76,23 @@ def failure_message(exc: BaseException) -> str:
 
 
 # -- the worker side ---------------------------------------------------------------------------
-#: the jobs this process has received, by token (the first copy is kept, so that its function's
-#: compiled code is reused for every chunk); at most a few sweeps are kept
+#: the jobs this process has received, by token and chunk size (the first copy is kept, so that
+#: its function's compiled code is reused for every chunk); at most a few are kept
 _JOBS: collections.OrderedDict = collections.OrderedDict()
 _JOBS_LOCK = threading.Lock()
 _KEEP_JOBS = 4
 
 
 def _worker_job(job):
+    key = (job.token, job.chunk)
     with _JOBS_LOCK:
-        kept = _JOBS.get(job.token)
+        kept = _JOBS.get(key)
         if kept is None:
-            kept = _JOBS[job.token] = job
+            kept = _JOBS[key] = job
             while len(_JOBS) > _KEEP_JOBS:
                 _JOBS.popitem(last=False)
         else:
-            _JOBS.move_to_end(job.token)
+            _JOBS.move_to_end(key)
     return kept
 
 
@@ -149,7 +151,8 @@ def cluster(client):
 
 def threads_of(client) -> int:
     """The number of chunks a cluster evaluates side by side (its workers' threads)."""
-    return max(1, sum(w["nthreads"] for w in client.scheduler_info(n_workers=-1)["workers"].values()))
+    workers = client.scheduler_info(n_workers=-1)["workers"].values()
+    return max(1, sum(w["nthreads"] for w in workers))
 
 
 def worker_memory(client) -> int | None:
@@ -225,7 +228,8 @@ def _run_dask(job, todo, sink, fail, progress, client):
 
     client.register_plugin(_float64_plugin(bool(jax.config.jax_enable_x64)))
     shared = client.scatter(job, broadcast=True, hash=False)
-    futures = {client.submit(_run_on_worker, shared, c, key=f"vmj-{job.token[:16]}-{c}",
+    run = uuid.uuid4().hex[:8]  # task keys of this run only
+    futures = {client.submit(_run_on_worker, shared, c, key=f"vmj-{job.token[:12]}-{run}-{c}",
                              pure=False): c for c in todo}
     try:
         # results are fetched in the client's event loop as tasks finish, side by side

@@ -97,20 +97,20 @@ def map_chunks(
                                    described=described,
                                    plan={"n": n, "chunk": chunk, "n_chunks": n_chunks})
         out: list = [None] * n
-        todo, resumed = [], 0
-        for c in range(n_chunks):
-            blob = st.read(c) if st is not None else None
-            if blob is None:
-                todo.append(c)
-            else:
-                out[c * chunk:(c + 1) * chunk] = pickle.loads(blob)
-                resumed += 1
+        todo = list(range(n_chunks))
+        if st is not None and resume:
+            todo = []
+            for c, blob in st.finished():
+                if blob is None:
+                    todo.append(c)
+                else:
+                    out[c * chunk:(c + 1) * chunk] = pickle.loads(blob)
+        resumed = n_chunks - len(todo)
 
         def sink(c, got):
             out[c * chunk:(c + 1) * chunk] = got
             if st is not None:
                 st.write(c, pickle.dumps(got, protocol=5))
-                st.clear_failure(c)
 
         failures = {}
 

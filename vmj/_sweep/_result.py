@@ -199,8 +199,7 @@ class SweepResult:
         out = {nm: np.empty((n,) + tuple(inner), dtype=np.dtype(dt))
                for nm, dt, inner in meta["fields"]}
         missing = []
-        for c in range(meta["n_chunks"]):
-            got = st.read(c, names)
+        for c, got in st.finished(names):
             if got is None:
                 missing.append(c)
                 continue

@@ -150,6 +150,8 @@ class ChunkStore:
         self.group, self.path, self.meta = group, path, meta
         self._status = group["vmj_status"]
         self._checksum = group["vmj_checksum"]
+        # this process is the store's one writer: the failures are kept here and written whole
+        self._failures = dict(group.attrs.get("vmj_failures", {}))
 
     # -- opening -------------------------------------------------------------------------------
     @classmethod
@@ -247,30 +249,38 @@ class ChunkStore:
             total = chunk_checksum(arrays)
         self._checksum[c] = np.uint64(total)
         self._status[c] = DONE
+        if self._failures.pop(str(c), None) is not None:
+            self.group.attrs["vmj_failures"] = self._failures
 
     def fail(self, c: int, code: int, message: str) -> None:
         """Record that chunk `c` raised (its status code, or -1, and message)."""
         self._status[c] = FAILED
-        failures = dict(self.group.attrs.get("vmj_failures", {}))
-        failures[str(c)] = {"code": int(code), "message": message}
-        self.group.attrs["vmj_failures"] = failures
-
-    def clear_failure(self, c: int) -> None:
-        failures = dict(self.group.attrs.get("vmj_failures", {}))
-        if failures.pop(str(c), None) is not None:
-            self.group.attrs["vmj_failures"] = failures
-
-    def failures(self) -> dict:
-        return {int(k): v for k, v in self.group.attrs.get("vmj_failures", {}).items()}
+        self._failures[str(c)] = {"code": int(code), "message": message}
+        self.group.attrs["vmj_failures"] = self._failures
 
     def status(self) -> np.ndarray:
-        return np.asarray(self._status[:])
+        """The status of every chunk (a marker that cannot be read counts as not done)."""
+        try:
+            return np.asarray(self._status[:])
+        except Exception:
+            out = np.zeros(self.meta["n_chunks"], dtype=np.int8)
+            for c in range(len(out)):
+                try:
+                    out[c] = self._status[c]
+                except Exception:
+                    pass
+            return out
+
+    def finished(self, names=None):
+        """`(c, data)` for every chunk: its data if it is complete and matches its checksum,
+        else None (to be computed)."""
+        status = self.status()
+        for c in range(self.meta["n_chunks"]):
+            yield c, (self.read(c, names) if status[c] == DONE else None)
 
     def read(self, c: int, names=None):
-        """The data of chunk `c` if it is complete and matches its checksum, else None."""
+        """The data of chunk `c` (marked done) if it matches its checksum, else None."""
         try:
-            if self._status[c] != DONE:
-                return None
             want = int(self._checksum[c])
             if names is None:
                 blob = np.asarray(self.group[f"vmj_chunk_{c}"][:])

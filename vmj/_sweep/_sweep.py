@@ -436,28 +436,22 @@ def sweep(
         def rows(c):
             return slice(c * chunk, min((c + 1) * chunk, n))
 
-        todo, resumed = list(range(n_chunks)), 0
-        if st is not None:
+        todo = list(range(n_chunks))
+        if st is not None and resume:
             todo = []
-            for c in range(n_chunks):
-                got = st.read(c, names)
+            for c, got in st.finished(names):
                 if got is None:
                     todo.append(c)
                 else:
                     for o, g in zip(out, got):
                         o[rows(c)] = g
-            resumed = n_chunks - len(todo)
-
-        written = 0
+        resumed = n_chunks - len(todo)
 
         def sink(c, got):
-            nonlocal written
             for o, g in zip(out, got):
                 o[rows(c)] = g
             if st is not None:
                 st.write(c, got, names)
-                st.clear_failure(c)
-            written += 1
 
         failures = {}
 
@@ -479,7 +473,7 @@ def sweep(
 
     values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out])
     result = SweepResult(values, tuple(dims), dict(coords), shape, nd, n_chunks,
-                         computed=written, resumed=resumed)
+                         computed=len(todo) - len(failures), resumed=resumed)
     if failures:
         for c in failures:
             for o in out:
