@@ -4,11 +4,13 @@
    (eps, mu, delta, F) points, float64, default chunks) in-process (one thread per core) and on
    a LocalCluster of one single-threaded worker process per core (localhost), alternating,
    after one warm-up run of each (compilation). Medians with min/max; the ratio of medians;
-   the results compared to the last bit.
+   the CPU time of all the processes involved (less disturbed than wall time on a shared
+   machine); the results compared to the last bit.
 2. The cost of a chunk: the same two paths on 4096 points in chunks of 16 (256 chunks of
    negligible work), so that the difference per chunk is the Dask overhead (submit, schedule,
    run, send the result back, hand it over).
-3. Writing to a Zarr store as the chunks complete: the cluster sweep of (1) with `store=`.
+3. Writing to a Zarr store as the chunks complete: the cluster sweep of (1) with `store=`; what
+   the client receives per second from a worker and writes per second to a store.
 4. A paper estimate of a 10^9-point sweep on 100 such workers from the figures above: the
    arithmetic, the per-chunk overhead, the scheduler's rate and what the client receives.
 
@@ -83,10 +85,17 @@ def main() -> int:
         print(f"first runs (compilation included): in-process {t_first_here:.2f} s, cluster "
               f"{t_first_there:.2f} s; {ref.chunks} chunks; equal to the last bit: "
               f"{same_bits(ref, got)}")
-        th, tc = [], []
+        def worker_cpu():
+            return sum(client.run(time.process_time).values())
+
+        th, tc, ch, cc = [], [], [], []
         for _ in range(rep):
+            c0 = time.process_time()
             th.append(timed(here)[0])
+            ch.append(time.process_time() - c0)
+            c0, w0 = time.process_time(), worker_cpu()
             tc.append(timed(there)[0])
+            cc.append(time.process_time() - c0 + worker_cpu() - w0)
         ratio = np.median(tc) / np.median(th)
         big_overhead = (np.median(tc) - np.median(th)) * CORES / ref.chunks
         print(f"in-process: {stats(th)}  ({n / np.median(th):.3g} points/s)")
@@ -94,6 +103,9 @@ def main() -> int:
         print(f"cluster / in-process (medians): {ratio:.3f}  (goal <= 1.3); the difference is "
               f"{big_overhead * 1e3:.1f} ms per chunk of {-(-n // ref.chunks)} points and "
               f"worker")
+        print(f"CPU time of all processes (client and scheduler, workers): in-process "
+              f"{stats(ch)}, cluster {stats(cc)}: ratio of medians "
+              f"{np.median(cc) / np.median(ch):.3f}")
 
         # 2. the cost of a chunk
         small = points(4096, seed=1)
@@ -126,18 +138,32 @@ def main() -> int:
         del futures
         print(f"empty tasks through the scheduler: {1 / per_task:.0f} per second")
 
-        # 3. with a store
+        # 3. what the client does per byte: receive results from a worker, write them
+        nbytes = result_bytes(ref)
+        block = client.submit(np.ones, 2**22, pure=False)  # 32 MB on a worker
+        client.gather(block)
+        tr = []
+        for _ in range(rep):
+            block = client.submit(np.ones, 2**22 + len(tr), pure=False)
+            distributed.wait(block)
+            tr.append(timed(lambda: client.gather(block))[0])
+        receive_rate = 2**25 / np.median(tr)
         tmp = tempfile.mkdtemp()
         try:
-            ts = []
-            for i in range(max(1, rep // 2)):
+            ts, tw = [], []
+            for i in range(max(3, rep // 2)):
                 path = os.path.join(tmp, f"s{i}.zarr")
                 ts.append(timed(lambda: there(store=path))[0])
-            nbytes = result_bytes(ref)
-            print(f"cluster with store=: {stats(ts)} ({nbytes / 1e6:.0f} MB of results, "
-                  f"{nbytes / np.median(ts) / 1e6:.0f} MB/s received and written by the client)"
-                  f"; store on disk {du(os.path.join(tmp, 's0.zarr')) / 1e6:.0f} MB")
-            ingest = nbytes / np.median(ts)
+                # the client's writing alone: the same result into a new store, chunk by chunk
+                copy = os.path.join(tmp, f"w{i}.zarr")
+                tw.append(timed(lambda: write_only(copy, ref))[0])
+            write_rate = nbytes / np.median(tw)
+            print(f"cluster with store=: {stats(ts)} ({nbytes / 1e6:.0f} MB of results; store on "
+                  f"disk {du(os.path.join(tmp, 's0.zarr')) / 1e6:.0f} MB)")
+            print(f"the client receives {receive_rate / 1e6:.0f} MB/s from a worker (32 MB "
+                  f"blocks, median) and writes a sweep's store at about "
+                  f"{write_rate / 1e6:.0f} MB/s (the same result written chunk by chunk: "
+                  f"{stats(tw)})")
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     finally:
@@ -153,20 +179,39 @@ def main() -> int:
     over = big_chunks * per_chunk / workers
     sched = big_chunks * per_task
     per_point_bytes = result_bytes(ref) / n
-    receive = big * per_point_bytes / ingest
-    receive_count = big * 8 / ingest
+    per_byte = 1 / receive_rate + 1 / write_rate  # the client receives, then writes
+    receive = big * per_point_bytes * per_byte
+    receive_count = big * 8 * per_byte
     print(f"paper estimate, 10^9 points on {workers} single-threaded workers like these "
           f"({big_chunks} chunks of {chunk}):")
     print(f"  arithmetic {compute:.0f} s ({core_per_point * 1e6:.2f} us per point and core) + "
           f"Dask overhead {over:.1f} s ({per_chunk * 1e3:.1f} ms per chunk); the scheduler's "
           f"own time {sched:.0f} s overlaps the work; compilation once per worker, in parallel")
     print(f"  the client receives {big * per_point_bytes / 1e9:.0f} GB for the whole "
-          f"DecaySequence ({per_point_bytes:.0f} bytes per point): {receive:.0f} s at the "
-          f"{ingest / 1e6:.0f} MB/s measured; {receive_count:.0f} s for one 8-byte field per "
-          f"point (e.g. fn returning .stop_time)")
+          f"DecaySequence ({per_point_bytes:.0f} bytes per point) and writes it to its store: "
+          f"{receive:.0f} s at the rates measured; {receive_count:.0f} s for one 8-byte field "
+          f"per point (e.g. fn returning .stop_time)")
     print(f"  wall time about {max(compute + over, sched, receive):.0f} s for the whole "
           f"sequence, {max(compute + over, sched, receive_count):.0f} s for one field")
     return 0
+
+
+def write_only(path, r):
+    """Write a sweep result of paired points into a new store, chunk by chunk, as the client
+    does when the chunks come in (the same store code, without evaluating anything)."""
+    from vmj._sweep._result import export_names
+    from vmj._sweep._store import ChunkStore
+
+    n = r.shape[0]
+    leaves = [np.asarray(x) for x in jax.tree.leaves(r.values)]
+    names, kdims, kcoords = export_names(r.values, 1, {"point"})
+    chunk = -(-n // r.chunks)
+    st = ChunkStore.create(path, kind="sweep", definition={"copy": path}, described={},
+                           plan={"n": n, "chunk": chunk, "n_chunks": r.chunks})
+    st.create_sweep_arrays([(nm, x.dtype, x.shape[1:], kd)
+                            for nm, x, kd in zip(names, leaves, kdims)], {}, {}, kcoords)
+    for c in range(r.chunks):
+        st.write(c, [x[c * chunk:(c + 1) * chunk] for x in leaves], names)
 
 
 def du(path):

@@ -274,7 +274,8 @@ def _sized(job, n, chunk_size, lanes, multiple, memory, concurrent) -> int:
 
 
 def _layout(model):
-    """(dims, coords, model, shape) of a sweep over `model` (a model or a `vmj.Grid`)."""
+    """(dims, coords, model, shape, is a grid) of a sweep over `model` (a model or a
+    `vmj.Grid`)."""
     grid = isinstance(model, Grid)
     if grid:
         dims, coords, model = model.dims, model.coords, model.model
