@@ -126,8 +126,8 @@ def main() -> int:
         print(f"{chunks} chunks of {tiny} points: in-process {stats(sh)}, cluster {stats(sc)}")
         print(f"per chunk and worker: in-process {per_here * 1e3:.2f} ms, cluster "
               f"{per_there * 1e3:.2f} ms: Dask overhead {overhead * 1e3:.2f} ms per chunk "
-              f"({overhead / (np.median(th) * CORES / ref.chunks) * 100:.2f} % of a default "
-              f"chunk of {-(-n // ref.chunks)} points)")
+              f"({overhead / (np.median(ch) / ref.chunks) * 100:.2f} % of the CPU time of a "
+              f"default chunk of {-(-n // ref.chunks)} points)")
 
         # the scheduler's rate: tasks per second for empty tasks through the same cluster
         client.gather(client.map(abs, range(2000), pure=False))  # warm-up

@@ -119,6 +119,19 @@ def test_chunk_plan():
                 assert k * c - n < k
 
 
+def test_one_point_and_size_one_axes():
+    one = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=[0.5]), a0=A0, n=4)
+    want = vmj.energy_balance(paper_model(eps=0.5), A0, 4)
+    assert one.shape == (1,) and one.chunks == 1
+    np.testing.assert_allclose(one.values.positions[0], want.positions, atol=1e-12 * A0)
+    g = vmj.grid(paper_model(), eps=[0.5], mu=[1.0, 2.0], delta=[3.0])
+    r = vmj.sweep(vmj.energy_balance, g, a0=A0, n=4)
+    assert r.shape == (1, 2, 1)
+    np.testing.assert_allclose(r.values.positions[0, 1, 0],
+                               vmj.energy_balance(paper_model(eps=0.5, mu=2.0), A0, 4).positions,
+                               atol=1e-12 * A0)
+
+
 def test_small_sweeps_use_every_core():
     r = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=np.linspace(0, 1, 10)),
                   a0=A0, n=4)

@@ -65,7 +65,7 @@ class SweepError(RuntimeError):
 def _take(x, shape, idx):
     """The entries of `x` (broadcastable to `shape`) at the flat C-order indices `idx`."""
     full = (1,) * (len(shape) - x.ndim) + tuple(x.shape)
-    flat, x_stride, out_stride = 0, 1, 1
+    flat, x_stride, out_stride = jnp.zeros_like(idx), 1, 1
     for k in range(len(shape) - 1, -1, -1):
         if full[k] > 1:
             flat = flat + (idx // out_stride) % shape[k] * x_stride
