@@ -4,9 +4,10 @@ eps in {0, 1}), from the exact solver with forward-mode derivatives, checked aga
 finite differences.
 
 Run: .venv/bin/python examples/sensitivity_table1.py [PNG]
-(default docs/figures/sensitivity_table1.png)
+(default out/sensitivity_table1.png; docs/figures/sensitivity_table1.png for the site)
 """
 
+import os
 import sys
 
 import jax
@@ -61,6 +62,7 @@ for ax, name in zip(axes, WRT):
 axes[0].legend(fontsize=8)
 fig.suptitle("Table 1 (delta = +3 kg/s, F_T = 14.7 N): sensitivities of the exact amplitudes "
              "(dotted: after the mass sticks)", fontsize=10)
-path = sys.argv[1] if len(sys.argv) > 1 else "docs/figures/sensitivity_table1.png"
+path = sys.argv[1] if len(sys.argv) > 1 else os.path.join("out", "sensitivity_table1.png")
+os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
 save(fig, path)
 print(f"figure written to {path}")

@@ -6,9 +6,10 @@ cannot truly stick: at rest it creeps with u ~ w, and the static friction needs 
 w**0.25 to build up and to fade. This script measures the cycle (reversals, slip/stick times,
 period) for w = 1e-2 ... 1e-6 against the exact event-driven solver and plots both.
 
-    .venv/bin/python examples/stick_slip_smoothing.py [OUTDIR]     (default docs/figures)
+    .venv/bin/python examples/stick_slip_smoothing.py [OUTDIR]     (default out/; docs/figures for the site)
 """
 
+import os
 import sys
 
 import jax
@@ -20,7 +21,8 @@ import numpy as np  # noqa: E402
 import vmj  # noqa: E402
 from vmj.plot import pyplot as _pyplot, save  # noqa: E402
 
-OUT = sys.argv[1] if len(sys.argv) > 1 else "docs/figures"
+OUT = sys.argv[1] if len(sys.argv) > 1 else "out"
+os.makedirs(OUT, exist_ok=True)
 CASES = [(2.5, 0.5), (4.0, 1.0), (6.3, 0.7)]
 WS = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6]
 

@@ -45,7 +45,7 @@ class Record:
     - `times`: time of each turning point measured from the release [s], or `None`.
     - `centre`: preliminary estimate of the signal's zero (the offset) [signal units].
     - `noise`: noise estimate of the raw signal (extracted records), else `None`.
-    - `signal`: the raw [`Signal`][] for extracted records (for figures), else `None`.
+    - `signal`: the raw [`fits.Signal`][] for extracted records (for figures), else `None`.
     - `time_origin`: absolute time of the release point [s] (times are relative to it).
     """
 
@@ -170,7 +170,7 @@ def read_peaks(path) -> Record:
 
 def record_from_sequence(*, amplitudes=None, positions=None, crossed=None, k=None, times=None,
                          source: str = "") -> Record:
-    """A [`Record`][] from arrays: `amplitudes` (`|x|`, with optional `crossed` flags) or signed
+    """A [`fits.Record`][] from arrays: `amplitudes` (`|x|`, with optional `crossed` flags) or signed
     `positions`; swing indices `k` (default `0, 1, ...`) and optional `times` [s]. Times are
     measured from the release: from the `k = 0` row if there is one, else taken as given."""
     if (amplitudes is None) == (positions is None):
@@ -470,8 +470,8 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
 
 
 def read_record(path, *, series: bool = False, time_col=None, signal_col=None) -> Record:
-    """A [`Record`][] from a file: a peak sequence (default) or, with `series=True`, the
-    turning points extracted from a raw signal (see [`extract_turning_points`][])."""
+    """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
+    turning points extracted from a raw signal (see [`fits.extract_turning_points`][])."""
     if series:
         return extract_turning_points(read_signal(path, time_col, signal_col))
     if time_col is not None or signal_col is not None:

@@ -16,7 +16,7 @@ def _fmt(v) -> str:
 
 
 def text_report(result) -> str:
-    """A readable summary of a [`FitResult`][]."""
+    """A readable summary of a [`fits.FitResult`][]."""
     lines = [f"model {result.model} (forward {result.forward}, loss {result.loss}, "
              f"optimizer {result.optimizer}), {len(result.record)} turning points"]
     for name, value in result.params.items():

@@ -20,7 +20,7 @@ from fits._models import SPACES
 from vmj._cli import main
 
 HERE = os.path.dirname(__file__)
-P80 = os.path.join(HERE, "..", "examples", "data", "80P.txt")
+P80 = os.path.join(HERE, "..", "fits", "data", "80P.txt")
 FREE = ("omega", "zeta", "xF", "a0", "offset")
 
 

@@ -7,7 +7,6 @@ task. The older per-model functions are thin wrappers kept for compatibility."""
 from __future__ import annotations
 
 import equinox as eqx
-import jax.numpy as jnp
 
 from ._checks import (_float, _is_traced, anything, check, check_int, positive, validated,
                       warn_if_float32)

@@ -123,7 +123,7 @@ class DecaySequence(eqx.Module):
     result: Array
 
     @classmethod
-    def from_scan(cls, times, positions, crossed, advanced, code) -> "DecaySequence":
+    def from_scan(cls, times, positions, crossed, advanced, code) -> DecaySequence:
         """Assemble a sequence from a solver's per-swing outputs (`advanced`: the swing was
         reached) and its final status code."""
         return cls(

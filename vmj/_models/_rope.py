@@ -79,7 +79,7 @@ class Rope(AbstractEnergyMap):
                              "vmj.Braking(l0, u, t_brake, t_stop)")
 
     @classmethod
-    def from_technical(cls, m, A, e, b, d, T, length) -> "Rope":
+    def from_technical(cls, m, A, e, b, d, T, length) -> Rope:
         """Build from technical units as printed in the paper: `m` [kG s^2/m], `A` [cm^2],
         `e`, `b`, `d`, `T` [kG/cm^2]; the profile stays in metres and seconds."""
         kg_cm2 = KGF * 1e4
@@ -87,7 +87,7 @@ class Rope(AbstractEnergyMap):
                    np.multiply(b, kg_cm2), np.multiply(d, kg_cm2), np.multiply(T, kg_cm2), length)
 
     @classmethod
-    def paper(cls, u=0.0, T=0.0, cubic: bool = True, l0=10.0) -> "Rope":
+    def paper(cls, u=0.0, T=0.0, cubic: bool = True, l0=10.0) -> Rope:
         """The paper's example (rope 6x37, 22 mm): `A = 1.74 cm^2`, `l0 = 10 m`,
         `m = 2 kG s^2/m`, `e = 0.8e6`, `d = 0.8e11` (or 0 with `cubic=False`), `b = 0`, with the
         friction `T` in kG/cm^2 (technical, as printed) and the speed `u` [m/s]."""

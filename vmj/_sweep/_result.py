@@ -100,7 +100,7 @@ class SweepResult:
             np.savetxt(fh, table, fmt=fmts, delimiter=",")
 
     @staticmethod
-    def read_csv(path: str) -> "SweepResult":
+    def read_csv(path: str) -> SweepResult:
         """Read a file written by `to_csv`; `values` becomes a dict of field name to array."""
         with open(path, newline="") as fh:
             first = fh.readline()

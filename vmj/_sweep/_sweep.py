@@ -15,7 +15,7 @@ import math
 import os
 import sys
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import equinox as eqx
 import jax
