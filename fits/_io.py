@@ -14,6 +14,7 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["Record", "Signal", "read_peaks", "read_signal", "extract_turning_points",
            "record_from_sequence", "read_record"]
@@ -110,7 +111,7 @@ def _check_strictly_increasing(values, source, name):
 
 
 # -- peak sequences ----------------------------------------------------------------------------
-def read_peaks(path) -> Record:
+def read_peaks(path: str | os.PathLike) -> Record:
     """Read a peak sequence from a CSV file with a header line.
 
     Columns (names case-insensitive): `k` (swing index, `0` is the initial deflection) and/or
@@ -168,7 +169,9 @@ def read_peaks(path) -> Record:
                                 source=source)
 
 
-def record_from_sequence(*, amplitudes=None, positions=None, crossed=None, k=None, times=None,
+def record_from_sequence(*, amplitudes: ArrayLike | None = None,
+                         positions: ArrayLike | None = None, crossed: ArrayLike | None = None,
+                         k: ArrayLike | None = None, times: ArrayLike | None = None,
                          source: str = "") -> Record:
     """A [`fits.Record`][] from arrays: `amplitudes` (`|x|`, with optional `crossed` flags) or signed
     `positions`; swing indices `k` (default `0, 1, ...`) and optional `times` [s]. Times are
@@ -249,7 +252,8 @@ def _pick(spec, header, ncols, default, what, source):
     _fail(source, f"missing column: no {what} column named {spec!r} (columns: {header})")
 
 
-def read_signal(path, time_col=None, signal_col=None, clock: str = "auto") -> Signal:
+def read_signal(path: str | os.PathLike, time_col: str | int | None = None,
+                signal_col: str | int | None = None, clock: str = "auto") -> Signal:
     """Read a raw signal from a CSV or whitespace-separated text file.
 
     An optional header line names the columns; lines of dashes and `#` comments are skipped.
@@ -398,7 +402,8 @@ def _refine(t, y, i, swing, sigma):
     return t[i] + vertex * scale, a0 - a1 * a1 / (4 * a2)
 
 
-def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=None) -> Record:
+def extract_turning_points(signal: Signal, *, hysteresis: float | None = None,
+                           min_amplitude: float | None = None) -> Record:
     """Turning points of a raw decaying signal, robust to irregular sampling, noise, a constant
     offset and a few spurious extrema.
 
@@ -469,7 +474,9 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
                   meta={"hysteresis": h})
 
 
-def read_record(path, *, series: bool = False, time_col=None, signal_col=None) -> Record:
+def read_record(path: str | os.PathLike, *, series: bool = False,
+                time_col: str | int | None = None,
+                signal_col: str | int | None = None) -> Record:
     """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
     turning points extracted from a raw signal (see [`fits.extract_turning_points`][])."""
     if series:

@@ -18,6 +18,7 @@ from collections.abc import Callable
 
 import jax.numpy as jnp
 from jax import lax
+from jaxtyping import Array, ArrayLike
 
 import vmj
 
@@ -81,7 +82,8 @@ VARIABLE_MASS = Space(
 
 
 # -- normalised constant-mass oscillator -------------------------------------------------------
-def oscillator_half_swings(omega, zeta, xF, a0, n: int):
+def oscillator_half_swings(omega: ArrayLike, zeta: ArrayLike, xF: ArrayLike, a0: ArrayLike,
+                           n: int) -> tuple[Array, Array, Array]:
     """Exact turning points of `x'' + 2 zeta omega x' + omega^2 x = -omega^2 xF sign(x')`
     released from rest at `-a0` (`0 <= zeta < 1`).
 

@@ -43,7 +43,7 @@ def paper_cells(table: int | None = None) -> list[dict]:
     return rows
 
 
-def paper_model(friction: str, delta, eps, mu) -> VariableMass:
+def paper_model(friction: str, delta: float, eps: float, mu: float) -> VariableMass:
     law = Coulomb(PAPER["FT"]) if friction == "constant" else MassProportional(PAPER["f"], PAPER["g"])
     return VariableMass(PAPER["m0"], PAPER["c"], delta, eps, mu, law)
 

@@ -15,7 +15,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
-from jaxtyping import Array
+from jaxtyping import Array, ArrayLike
 
 from .._checks import (_float, _is_traced, anything, check, nonnegative, positive, validated,
                        warn_if_float32)
@@ -278,7 +278,7 @@ def _action_entry(rope, a0, t):
     return amp.reshape(jnp.shape(t)), freq.reshape(jnp.shape(t))
 
 
-def kbm_amplitude(rope: Rope, a0, t):
+def kbm_amplitude(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """First-order (Krylov-Bogolyubov) amplitude of the paper, corrected (`SYSTEMS.md` s. 2):
 
         a(t) = a0 (l/l0)^(1/4) - (4 D / (5 u)) (l0^(5/4) l^(1/4) - l^(3/2)),
@@ -294,14 +294,14 @@ def kbm_amplitude(rope: Rope, a0, t):
     return _kbm(*_averaged_inputs(rope, a0, t))[0]
 
 
-def kbm_frequency(rope: Rope, a0, t):
+def kbm_frequency(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """First-order frequency (the paper's (2.9)) [rad/s]:
     `Omega = omega + 3 A d a^2 / (8 m omega l^3)`, `omega = sqrt(A e/(m l))`, with `a` from
     [`vmj.kbm_amplitude`][]. Arguments as for [`vmj.kbm_amplitude`][]."""
     return _kbm(*_averaged_inputs(rope, a0, t))[1]
 
 
-def action_amplitude(rope: Rope, a0, t):
+def action_amplitude(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """Averaged amplitude from the action of the nonlinear rope, valid when the cubic term is
     not small (beyond the paper's first order).
 
@@ -318,7 +318,7 @@ def action_amplitude(rope: Rope, a0, t):
     return _action_entry(rope, a0, t)[0]
 
 
-def action_frequency(rope: Rope, a0, t):
+def action_frequency(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """Angular frequency `2 pi / period` [rad/s] of the swing of the action-averaged law (the
     amplitude-dependent frequency of the nonlinear rope), at times `t` [s]. Arguments as for
     [`vmj.action_amplitude`][]."""

@@ -17,7 +17,7 @@ __all__ = ["sensitivity"]
 
 def sensitivity(
     fn: Callable,
-    model,
+    model: eqx.Module,
     wrt: Sequence[str],
     *,
     mode: str = "forward",

@@ -15,7 +15,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import equinox as eqx
 import jax
@@ -82,11 +82,11 @@ def _devices(devices):
 
 def sweep(
     fn: Callable,
-    model,
+    model: eqx.Module | Grid,
     *,
     chunk_size: int = 16384,
     progress: bool | None = None,
-    devices=None,
+    devices: Sequence[jax.Device] | None = None,
     **solver_args,
 ) -> SweepResult:
     """Evaluate `fn(point, **solver_args)` at every point of a sweep over model parameters.
