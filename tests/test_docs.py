@@ -1,7 +1,7 @@
 """The documentation runs as written: every ```python block of README.md and docs/*.md (one fresh
-process per file, float64), the `vmj` commands of their ```sh blocks, every example script (with
-`VMJ_EXAMPLES_QUICK=1`), and the site builds with `mkdocs build --strict` (no broken link or
-cross-reference), with every public name in the API reference.
+process per file, float64) and the `vmj` commands of their ```sh blocks; the site builds with
+`mkdocs build --strict` (no broken link or cross-reference), with every public name in the API
+reference. (The examples: tests/test_examples.py.)
 
 Snippets and commands run in a scratch directory that looks like the repository root to them
 (`fits/` links to the package, so `fits/data/80P.txt` resolves; `out/` exists, as after
@@ -23,7 +23,6 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 PAGES = [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]
-EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
 SHELLS = ("sh", "shell", "bash", "console")
 
 _FENCE = re.compile(
@@ -97,6 +96,7 @@ def _id(path: Path) -> str:
     return str(path.relative_to(ROOT))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", [p for p in PAGES if python_source(p)], ids=_id)
 def test_python_snippets_run(page, tmp_path):
     program = scratch(tmp_path) / "snippets.py"
@@ -122,6 +122,7 @@ for args in json.load(sys.stdin):
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", [p for p in PAGES if vmj_commands(p)], ids=_id)
 def test_vmj_commands_run(page, tmp_path):
     import json
@@ -130,15 +131,6 @@ def test_vmj_commands_run(page, tmp_path):
                          input=json.dumps(vmj_commands(page)), env=environment(),
                          capture_output=True, text=True, timeout=600)
     assert got.returncode == 0, f"{got.stdout[-3000:]}\n{got.stderr[-6000:]}"
-
-
-# -- examples ------------------------------------------------------------------------------------
-@pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.name)
-def test_example_runs(example, tmp_path):
-    """Each example runs (reduced sizes where it has them) and writes its figures to `out/`."""
-    run([sys.executable, str(example)], scratch(tmp_path), timeout=600, VMJ_EXAMPLES_QUICK="1")
-    written = sorted(p.name for p in (tmp_path / "out").iterdir())
-    assert written and all(name.endswith(".png") for name in written), written
 
 
 # -- the site ------------------------------------------------------------------------------------
