@@ -42,17 +42,20 @@ class Exact(AbstractSolver):
 
     **Arguments:**
 
-    - `max_substeps`: step limit per half-swing (substeps are about 0.64 of a half-period
-      for the variable-mass model). A half-swing that needs more reports
-      `RESULTS.step_limit` (overdamped or creeping motion).
+    - `max_substeps`: step limit per half-swing; default: the model's (8 for most models,
+      where a substep is about 0.64 of a half-period for the variable-mass model; 12 for
+      [`vmj.Oscillator`][], whose nonlinear laws need shorter substeps). A half-swing that
+      needs more reports `RESULTS.step_limit` (overdamped or creeping motion).
 
     For [`vmj.limit_cycle`][], `Exact()` is the event-driven solution of the stick-slip rules.
     """
 
-    max_substeps: int = eqx.field(static=True, default=8)
+    max_substeps: int | None = eqx.field(static=True, default=None)
     name: ClassVar[str] = "exact"
 
     def __check_init__(self):
+        if self.max_substeps is None:
+            return
         if isinstance(self.max_substeps, bool) or not isinstance(self.max_substeps, int) or \
                 self.max_substeps < 1:
             raise ValueError(f"max_substeps must be an integer >= 1 (got {self.max_substeps!r})")
@@ -66,8 +69,10 @@ class Exact(AbstractSolver):
                           "use vmj.Smoothed() or the model's closed forms")
 
     def turning_points(self, model, a0, n: int):
+        steps = model.exact_substeps if self.max_substeps is None else self.max_substeps
+
         def swing(t0, x0, s):
-            found, limited, t1, x1 = march_to_velocity_zero(model, t0, x0, s, self.max_substeps)
+            found, limited, t1, x1 = march_to_velocity_zero(model, t0, x0, s, steps)
             return found, jnp.where(limited, model.exhausted, RESULTS.step_limit), t1, x1
 
         return decay_scan(model, a0, n, swing)
