@@ -20,9 +20,9 @@ from ._clock import CLOCKS, recover_clock
 __all__ = ["Record", "Signal", "read_peaks", "read_signal", "extract_turning_points",
            "record_from_sequence", "read_record", "MAX_ROWS"]
 
-#: Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
-#: beyond it a file is refused before it is read, unless `max_rows` is raised or `None`.
 MAX_ROWS = 2_000_000
+"""Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
+beyond it a file is refused before it is read, unless `max_rows` is raised or `None`."""
 
 _CLOCK = re.compile(r"^(?:(\d+):)?(\d+):(\d+(?:\.\d*)?)$")
 _TIME_NAME = re.compile(r"time|stamp|elapsed|^t$|^t[\s(\[_]|^sec|\(s\)|\[s\]", re.IGNORECASE)

@@ -28,7 +28,8 @@ from ._base import AbstractEnergyMap, check_horizon, require_scalar_fields
 __all__ = ["Rope", "KGF", "kbm_amplitude", "kbm_frequency", "action_amplitude",
            "action_frequency"]
 
-KGF = 9.80665  #: one kilogram-force (kG) [N]
+KGF = 9.80665
+"""One kilogram-force (kG) [N]: the unit of the rope paper's technical units."""
 RHO = 1.0  #: substep length in units of 1/omega_tangent(amplitude)
 RHO_LENGTH = 0.25  #: substep length as a fraction of l/|dl/dt|
 PIECES = 3  #: polynomial pieces of a length profile searched for a release (Braking has 3)
