@@ -107,18 +107,23 @@ def test_python_snippets_run(page, tmp_path):
 # The `vmj` commands of one page run in one process (one start-up, shared compilations) through
 # the installed `vmj` entry point, each as `vmj ARGS` would run it.
 _RUN_COMMANDS = """
-import json, sys
+import contextlib, io, json, sys
 from importlib.metadata import entry_points
 (vmj,) = entry_points(group="console_scripts", name="vmj")
 main = vmj.load()
 for args in json.load(sys.stdin):
     print("$ vmj " + " ".join(args), flush=True)
+    out = io.StringIO()
     try:
-        code = main(args)
+        with contextlib.redirect_stdout(out):
+            code = main(args)
     except SystemExit as e:
         code = e.code
+    print(out.getvalue(), flush=True)
     if code not in (0, None):
         sys.exit(f"vmj {' '.join(args)} exited with status {code}")
+    if "--json" in args:
+        json.loads(out.getvalue())  # one JSON document, nothing else on stdout
 """
 
 
