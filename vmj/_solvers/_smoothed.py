@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
-import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -17,6 +16,8 @@ from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractMode
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
 
+if TYPE_CHECKING:  # diffrax is imported where a solve is built, so that `import vmj` stays light
+    import diffrax as dfx
 
 __all__ = ["Smoothed"]
 
@@ -81,6 +82,8 @@ class Smoothed(AbstractSolver):
     def _settings(self, model):
         rtol = model.smoothed_rtol if self.rtol is None else self.rtol
         steps = model.smoothed_max_steps if self.max_steps is None else self.max_steps
+        import diffrax as dfx
+
         ode = self.ode_solver
         if ode is None:
             ode = dfx.Kvaerno5() if model.smoothed_stiff else dfx.Tsit5()
@@ -90,6 +93,8 @@ class Smoothed(AbstractSolver):
     def solve(self, model, x0, v0, t1, saveat):
         """diffrax solution of the smoothed model from `(x0, v0)` at `t = 0` to `t1`, and its
         status code."""
+        import diffrax as dfx
+
         rtol, steps, ode = self._settings(model)
         w = self.smoothing
         y0 = model.initial_state(x0, v0)
@@ -100,6 +105,8 @@ class Smoothed(AbstractSolver):
         return sol, jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
 
     def simulate(self, model, x0, v0, t1, n_save: int) -> Trajectory:
+        import diffrax as dfx
+
         ts = jnp.linspace(0.0, t1, n_save)
         sol, code = self.solve(model, x0, v0, t1, dfx.SaveAt(ts=ts))
         ys = jnp.where(code == RESULTS.successful, sol.ys, jnp.nan)
@@ -112,6 +119,8 @@ class Smoothed(AbstractSolver):
         per half-swing, refined by safeguarded Newton on the interpolant. The arrival at
         `|v| = CREEP w` after the last reversal is the smoothed model's arrest, and `stopped` is
         set when the motion is still creeping at the end of the horizon."""
+        import diffrax as dfx
+
         w = self.smoothing
         x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
         t1 = model.horizon(a0, n)
