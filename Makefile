@@ -1,17 +1,18 @@
-# `make demo` and `make test` each create .venv if it is missing and install the project into it.
+# `make demo`, `make test` and `make docs` each create .venv if it is missing and install the
+# project into it (editable, with the extras they need).
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test lint docs bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e '.[test,xarray,distributed]'
+	$(BIN)/python -m pip install --quiet -e '.[test,xarray,distributed,docs]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -19,11 +20,20 @@ demo: $(STAMP)
 	$(BIN)/vmj table 1 --plot out/table1.png
 	@echo "figure written to out/table1.png"
 
-test: $(STAMP)
+# lint, then the suite: it includes the documentation (every snippet and example runs, and
+# `mkdocs build --strict`, tests/test_docs.py) and the wheel (tests/test_wheel.py)
+test: lint
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+# the documentation site at http://127.0.0.1:8000, rebuilt on every change
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs serve
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) out build

@@ -8,10 +8,11 @@
    phi'(0) = 0.1: D = 0.019 rad, tan(beta) = -0.071, settling time 11.1 s -- and the erratum in
    its final law (23), with the corrected law.
 
-    .venv/bin/python examples/linear_examples.py [OUTDIR]     (default docs/figures)
+    .venv/bin/python examples/linear_examples.py [OUTDIR]     (default out/; docs/figures for the site)
 """
 
 import math
+import os
 import sys
 
 import jax
@@ -23,7 +24,8 @@ import numpy as np  # noqa: E402
 import vmj  # noqa: E402
 from vmj.plot import pyplot as _pyplot, save  # noqa: E402
 
-OUT = sys.argv[1] if len(sys.argv) > 1 else "docs/figures"
+OUT = sys.argv[1] if len(sys.argv) > 1 else "out"
+os.makedirs(OUT, exist_ok=True)
 
 
 def book_example(plt):

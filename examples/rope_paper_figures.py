@@ -13,11 +13,13 @@ Each figure shows the exact turning-point amplitudes (dots), the paper's first-o
 - figs. 6, 7: frequency against time for a0 = 1 cm and 4 cm.
 
 It also prints the errors of the first-order and action-averaged amplitude laws against the
-exact solver (docs/rope.md quotes them).
+exact solver (docs/rope.md quotes them). `VMJ_EXAMPLES_QUICK=1` makes a smoke run over 0.5 s
+instead of 2 s (the test suite runs it so).
 
-    .venv/bin/python examples/rope_paper_figures.py [OUTDIR]     (default docs/figures)
+    .venv/bin/python examples/rope_paper_figures.py [OUTDIR]     (default out/; docs/figures for the site)
 """
 
+import os
 import sys
 
 import jax
@@ -30,9 +32,12 @@ import numpy as np  # noqa: E402
 import vmj  # noqa: E402
 from vmj.plot import pyplot as _pyplot, save  # noqa: E402
 
-OUT = sys.argv[1] if len(sys.argv) > 1 else "docs/figures"
-T_END = 2.0
-N = 460  # half-swings: covers 2 s in every case below
+OUT = sys.argv[1] if len(sys.argv) > 1 else "out"
+os.makedirs(OUT, exist_ok=True)
+QUICK = os.environ.get("VMJ_EXAMPLES_QUICK") == "1"  # a smoke run (the test suite): 0.5 s
+T_END = 0.5 if QUICK else 2.0
+N = 150 if QUICK else 460  # half-swings: covers T_END in every case below
+PAD = 460  # the averaged laws are evaluated on this many times (one compilation)
 KG_CM2 = vmj.KGF * 1e4
 
 
@@ -50,10 +55,11 @@ def _exact(u, T, a0):
 
 def exact(cases):
     """Exact turning points (t, |x|) within T_END for each (u, T [kG/cm^2], a0 [m])."""
-    u, T, a0 = (jnp.array([c[i] for c in cases], dtype=float) for i in range(3))
+    padded = list(cases) + [cases[-1]] * (-len(cases) % 8)  # batches of 8: few compilations
+    u, T, a0 = (jnp.array([c[i] for c in padded], dtype=float) for i in range(3))
     ts, xs, counts, results = _exact(u, T, a0)
     out = []
-    for t, x, n, r in zip(ts, xs, counts, results):
+    for t, x, n, r in list(zip(ts, xs, counts, results))[: len(cases)]:
         assert int(r) in (vmj.RESULTS.successful, vmj.RESULTS.stopped), vmj.RESULTS.messages[int(r)]
         t, a = np.asarray(t)[: int(n)], np.abs(np.asarray(x))[: int(n)]
         assert int(r) == vmj.RESULTS.stopped or t[-1] > T_END, "raise N"
@@ -67,7 +73,7 @@ def laws(u, T, a0, ts):
     length so that every call shares one compilation)."""
     rope = vmj.Rope.paper(u=u, T=T)
     n = len(ts)
-    padded = jnp.asarray(np.concatenate([ts, np.zeros(N - n)]))
+    padded = jnp.asarray(np.concatenate([ts, np.zeros(PAD - n)]))
     a0 = jnp.asarray(a0)
     out = (vmj.kbm_amplitude(rope, a0, padded), vmj.action_amplitude(rope, a0, padded),
            vmj.kbm_frequency(rope, a0, padded), vmj.action_frequency(rope, a0, padded))
@@ -119,7 +125,7 @@ def fig4(plt):
 
 def balance_T(u, a0):
     """T [kG/cm^2] at which the exact amplitude after T_END is back at a0 (bracket + secant)."""
-    grid = np.linspace(0.0, 4.0, 17)
+    grid = np.linspace(0.0, 4.0, 5 if QUICK else 17)
 
     def final(Ts):
         res = exact([(u, T, a0) for T in Ts])
@@ -128,7 +134,7 @@ def balance_T(u, a0):
     f = final(grid)
     i = int(np.nonzero((f[:-1] > 0) & (f[1:] <= 0))[0][0])
     lo, hi, flo, fhi = grid[i], grid[i + 1], f[i], f[i + 1]
-    for _ in range(3):
+    for _ in range(1 if QUICK else 3):
         mids = lo + (hi - lo) * np.array([flo / (flo - fhi), 0.25, 0.5, 0.75])
         mids = np.clip(mids, lo, hi)
         fm = final(mids)
@@ -171,7 +177,7 @@ def fig67(plt):
         cases = [(u, T, a0) for u in (3.0, 0.0, -3.0) for T in (0.0, 4.0)]
         results = exact(cases)
         fig, ax = plt.subplots(figsize=(7.5, 4.5))
-        for (u, T, _), (t, a), color in zip(cases, results, _colors(len(cases))):
+        for (u, T, _), (t, _), color in zip(cases, results, _colors(len(cases))):
             # exact: 2 pi / (time between peaks on the same side), at the middle turning point
             om = 2 * np.pi / (t[2:] - t[:-2])
             _, _, kf, af = laws(u, T, a0, GRID)

@@ -5,9 +5,10 @@ velocity against dimensionless time (figures 6, 8, 10, 12, 14) and the phase pla
 13, 15). The parameter values of the figures are not legible in the source text, so each pair
 uses a representative (eps, Omega) with the figure's number of reversals (k* = floor((eps-1)/2)).
 
-    .venv/bin/python examples/stick_slip_figures.py [OUTDIR]     (default docs/figures)
+    .venv/bin/python examples/stick_slip_figures.py [OUTDIR]     (default out/; docs/figures for the site)
 """
 
+import os
 import sys
 
 import jax
@@ -20,7 +21,8 @@ import numpy as np  # noqa: E402
 import vmj  # noqa: E402
 from vmj.plot import pyplot as _pyplot, save  # noqa: E402
 
-OUT = sys.argv[1] if len(sys.argv) > 1 else "docs/figures"
+OUT = sys.argv[1] if len(sys.argv) > 1 else "out"
+os.makedirs(OUT, exist_ok=True)
 
 # (figure pair, reversals, eps, Omega)
 CASES = [((6, 7), 1, 4.0, 1.0), ((8, 9), 2, 6.0, 1.0), ((10, 11), 3, 8.0, 1.0),

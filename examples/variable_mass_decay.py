@@ -3,17 +3,16 @@
 Run: .venv/bin/python examples/variable_mass_decay.py  (writes out/variable_mass_decay.png)
 """
 
+import os
+
 import jax
 
 jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
-import matplotlib  # noqa: E402
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 
 import vmj  # noqa: E402
+from vmj.plot import pyplot, save  # noqa: E402
 
 # Table 4 of the paper: shrinking mass, friction proportional to the weight
 model = vmj.VariableMass(m0=5.0, c=4900.0, delta=-3.0, eps=1.0, mu=5.0,
@@ -33,6 +32,7 @@ def last_amplitude(f):
 
 print("d a_12 / d f =", float(jax.grad(last_amplitude)(0.3)), "m")
 
+plt = pyplot()
 fig, ax = plt.subplots(figsize=(8, 3.5))
 ax.plot(traj.ts, traj.xs * 100, lw=0.8, label="smoothed ODE (diffrax)")
 ax.plot(exact.times, exact.positions * 100, "o", label="exact turning points")
@@ -40,5 +40,6 @@ ax.plot(energy.times, energy.positions * 100, "x", label="energy balance")
 ax.set_xlabel("t [s]")
 ax.set_ylabel("x [cm]")
 ax.legend()
-fig.savefig("out/variable_mass_decay.png", dpi=120, bbox_inches="tight")
+os.makedirs("out", exist_ok=True)
+save(fig, "out/variable_mass_decay.png")
 print("figure: out/variable_mass_decay.png")

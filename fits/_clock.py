@@ -11,7 +11,7 @@ A logger's time column is one of three things:
   15-20 rows, then 50-60 ms). The stamps then scatter by tens of milliseconds about the true
   sample times, and a turning point timed by them scatters as much.
 
-[`recover_clock`][] tells them apart from the intervals alone and, for arrival stamps, recovers the
+[`fits.recover_clock`][] tells them apart from the intervals alone and, for arrival stamps, recovers the
 uniform clock from the stamps' **lower envelope**. A row cannot have been sampled after it
 arrived, so sample `i` was taken at `t0 + m_i / f <= stamp_i`, where `m_i` is its sample number
 (`i` plus the samples dropped before it). In each burst the last row (the newest sample in the

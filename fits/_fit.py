@@ -356,7 +356,7 @@ def _arrays(space, jobs, q, sigma_x, sigma_t):
     N = _bucket(max(len(j.record) for j in jobs))
     cols = {k: [] for k in ("k", "x", "t", "wx", "wt", "orient", "fixed", "free", "code", "scale",
                             "p0")}
-    for j, (job, sx, st) in enumerate(zip(jobs, sigma_x, sigma_t)):
+    for job, sx, st in zip(jobs, sigma_x, sigma_t):
         rec = job.record
         m = len(rec)
         pad = N - m
@@ -416,9 +416,9 @@ def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=No
               store=None, resume: bool = False, progress=None) -> list:
     """Fit the same model to many records at once (`jax.vmap` over records; one compilation).
 
-    Arguments as in [`fit`][]; `given` is one dict for every record or a list of one dict per
+    Arguments as in [`fits.fit`][]; `given` is one dict for every record or a list of one dict per
     record (the free parameters are the same for all). Returns a list of
-    [`FitResult`][], one per record.
+    [`fits.FitResult`][], one per record.
 
     With `chunk_size`, `client` or `store` the records are fitted in chunks of at most
     `chunk_size` records through [`vmj.map_chunks`][]: in threads of this process, or as tasks
@@ -616,7 +616,7 @@ def fit(record: Record, model: str = "variable-mass", free=("FT", "mu"), given=N
 
     **Arguments:**
 
-    - `record`: a [`Record`][] (see [`read_record`][], [`record_from_sequence`][]).
+    - `record`: a [`fits.Record`][] (see [`fits.read_record`][], [`fits.record_from_sequence`][]).
     - `model`: `"variable-mass"` (parameters `FT` [N], `f` [-], `mu` [kg/s], `eps` [-],
       `delta` [kg/s], `a0` [m], `offset` [m], `m0` [kg], `c` [N/m], `g` [m/s^2]; `m0` and `c`
       must be given), `"oscillator"` (`omega` [rad/s], `zeta` [-], `xF`, `a0`, `offset` in the
@@ -636,7 +636,7 @@ def fit(record: Record, model: str = "variable-mass", free=("FT", "mu"), given=N
     - `max_steps`: Levenberg-Marquardt step limit per pass.
     - `outlier_sigma`: residuals beyond this many robust standard deviations are flagged.
 
-    **Returns:** a [`FitResult`][].
+    **Returns:** a [`fits.FitResult`][].
 
     Raises `ValueError` for unknown parameters, values out of range, too few points for the
     free parameters, or a record that does not decay.

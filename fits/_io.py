@@ -13,15 +13,16 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._clock import CLOCKS, recover_clock
 
 __all__ = ["Record", "Signal", "read_peaks", "read_signal", "extract_turning_points",
            "record_from_sequence", "read_record", "MAX_ROWS"]
 
-#: Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
-#: beyond it a file is refused before it is read, unless `max_rows` is raised or `None`.
 MAX_ROWS = 2_000_000
+"""Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
+beyond it a file is refused before it is read, unless `max_rows` is raised or `None`."""
 
 _CLOCK = re.compile(r"^(?:(\d+):)?(\d+):(\d+(?:\.\d*)?)$")
 _TIME_NAME = re.compile(r"time|stamp|elapsed|^t$|^t[\s(\[_]|^sec|\(s\)|\[s\]", re.IGNORECASE)
@@ -41,7 +42,7 @@ class Signal:
       holds the file's stamps.
     - `clock_report`: what was done with the time stamps, a JSON-ready dict (`method`,
       `stamps`, `rate_hz`, `t0`, `jitter_s`, `dropped`, `rows`, `column`, `message`; see
-      [`recover_clock`][]).
+      [`fits.recover_clock`][]).
     """
 
     t: np.ndarray
@@ -66,9 +67,9 @@ class Record:
       positions then alternate provisionally and only `amplitudes` may be trusted.
     - `times`: time of each turning point measured from the release [s], or `None`.
     - `centre`: preliminary estimate of the signal's zero [signal units]: the median of the
-      local centres of successive extrema (see [`sensor_start`][] for offset and asymmetry).
+      local centres of successive extrema (see [`fits.sensor_start`][] for offset and asymmetry).
     - `noise`: noise estimate of the raw signal (extracted records) [signal units], else `None`.
-    - `signal`: the raw [`Signal`][] for extracted records (for figures), else `None`.
+    - `signal`: the raw [`fits.Signal`][] for extracted records (for figures), else `None`.
     - `time_origin`: absolute time of the release point [s] (times are relative to it).
     - `sides_known`: `False` for amplitude-only records (`k, amplitude` without sign or
       `crossed`): whether each swing passed the centre is for the model to decide.
@@ -353,7 +354,7 @@ def _strictly_increasing(values, tab: _Table, name: str):
 
 
 # -- peak sequences ----------------------------------------------------------------------------
-def read_peaks(path, *, max_rows: int | None = MAX_ROWS) -> Record:
+def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> Record:
     """Read a peak sequence from a CSV file with a header line.
 
     Columns (names case-insensitive): `k` (swing index, `0` is the initial deflection) and/or
@@ -411,9 +412,11 @@ def read_peaks(path, *, max_rows: int | None = MAX_ROWS) -> Record:
                                 source=source)
 
 
-def record_from_sequence(*, amplitudes=None, positions=None, crossed=None, k=None, times=None,
+def record_from_sequence(*, amplitudes: ArrayLike | None = None,
+                         positions: ArrayLike | None = None, crossed: ArrayLike | None = None,
+                         k: ArrayLike | None = None, times: ArrayLike | None = None,
                          source: str = "") -> Record:
-    """A [`Record`][] from arrays: signed `positions`, or `amplitudes` (`|x|`) with optional
+    """A [`fits.Record`][] from arrays: signed `positions`, or `amplitudes` (`|x|`) with optional
     `crossed` flags (`1` where the swing ending at that point passed `x = 0`); swing indices `k`
     (default `0, 1, ...`) and optional `times` [s]. Times are measured from the release: from
     the `k = 0` row if there is one, else taken as given.
@@ -538,7 +541,8 @@ def _stamps(tab: _Table, candidates: list, names: list) -> tuple[np.ndarray, str
     return stamps, names[ti], note
 
 
-def read_signal(path, time_col=None, signal_col=None, clock: str = "auto", *,
+def read_signal(path: str | os.PathLike, time_col: str | int | None = None,
+                signal_col: str | int | None = None, clock: str = "auto", *,
                 rate: float | None = None, max_rows: int | None = MAX_ROWS) -> Signal:
     """Read a raw signal from a CSV (`,` or `;`), tab- or whitespace-separated text file.
 
@@ -555,12 +559,12 @@ def read_signal(path, time_col=None, signal_col=None, clock: str = "auto", *,
       `Time_Elapsed` column beside the stamps is ignored; else the first column. A file of one
       column has no time: give `rate`.
     - `clock`: `"auto"` (default), `"uniform"` or `"stamps"`: what to do with the stamps, see
-      [`recover_clock`][]. With `"auto"`, arrival-time stamps (bursts) are replaced by the
+      [`fits.recover_clock`][]. With `"auto"`, arrival-time stamps (bursts) are replaced by the
       uniform sampling clock recovered from their lower envelope, and genuine stamps kept.
     - `rate`: the sampling rate [Hz], when known: the samples are put on a uniform clock at
       that rate.
     - `max_rows`: refuse files with more data rows than this (estimated from the file size
-      before reading; default [`MAX_ROWS`][]); `None` for no limit.
+      before reading; default [`fits.MAX_ROWS`][]); `None` for no limit.
 
     Rows sharing a stamp are averaged where the stamps are kept. The result's `clock_report`
     says what was done.
@@ -712,7 +716,8 @@ def _local_centres(x):
     return (x[:-2] + 2 * x[1:-1] + x[2:]) / 4
 
 
-def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=None) -> Record:
+def extract_turning_points(signal: Signal, *, hysteresis: float | None = None,
+                           min_amplitude: float | None = None) -> Record:
     """Turning points of a raw decaying signal, robust to irregular sampling, noise,
     quantisation, a constant offset and a few spurious extrema.
 
@@ -804,12 +809,13 @@ def extract_turning_points(signal: Signal, *, hysteresis=None, min_amplitude=Non
                   noise=sigma, signal=signal, source=source, time_origin=origin, meta=meta)
 
 
-def read_record(path, *, series: bool = False, time_col=None, signal_col=None,
+def read_record(path: str | os.PathLike, *, series: bool = False,
+                time_col: str | int | None = None, signal_col: str | int | None = None,
                 clock: str = "auto", rate: float | None = None,
                 max_rows: int | None = MAX_ROWS) -> Record:
-    """A [`Record`][] from a file: a peak sequence (default) or, with `series=True`, the
-    turning points extracted from a raw signal (see [`read_signal`][] for `time_col`,
-    `signal_col`, `clock`, `rate` and [`extract_turning_points`][])."""
+    """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
+    turning points extracted from a raw signal (see [`fits.read_signal`][] for `time_col`,
+    `signal_col`, `clock`, `rate` and [`fits.extract_turning_points`][])."""
     if series:
         return extract_turning_points(read_signal(path, time_col, signal_col, clock, rate=rate,
                                                   max_rows=max_rows))

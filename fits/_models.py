@@ -14,7 +14,7 @@ closed-form half-swing map (what the decrement method linearises).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import jax.numpy as jnp
 

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import os
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 import vmj
 
 from ._io import record_from_sequence
+
+if TYPE_CHECKING:  # names used in annotations only
+    from ._fit import FitResult
 
 __all__ = ["text_report", "plot_fit", "paper_records"]
 
@@ -15,8 +21,8 @@ def _fmt(v) -> str:
     return "nan" if v is None or not np.isfinite(v) else f"{v:.6g}"
 
 
-def text_report(result) -> str:
-    """A readable summary of a [`FitResult`][]."""
+def text_report(result: FitResult) -> str:
+    """A readable summary of a [`fits.FitResult`][]."""
     lines = [f"model {result.model} (forward {result.forward}, loss {result.loss}, "
              f"optimizer {result.optimizer}), {len(result.record)} turning points"]
     for name, value in result.params.items():
@@ -46,7 +52,7 @@ def text_report(result) -> str:
     return "\n".join(lines)
 
 
-def plot_fit(result, path: str, *, title: str | None = None) -> None:
+def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = None) -> None:
     """Figure of a fit: the data (and raw signal) with the fitted turning points, the residuals
     (outliers circled), and the decrement diagram `A_{k+1}` against `A_k` with the
     decrement-method line and the fitted model's map."""

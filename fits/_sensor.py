@@ -17,7 +17,7 @@ index from its neighbours,
 (cubic interpolation; `(x_{k-1} + x_{k+1}) / 2` next to the ends), which is exact for an
 amplitude that is a cubic in `k` and within `delta^4` for a geometric decay of logarithmic
 decrement `delta`. With the local centre `c_k = (x_k + x̄_k) / 2` and amplitude
-`d_k = |x_k - x̄_k| / 2`, [`sensor_start`][] fits the line `c = offset + asym d` robustly
+`d_k = |x_k - x̄_k| / 2`, [`fits.sensor_start`][] fits the line `c = offset + asym d` robustly
 (Theil-Sen: the median of the pairwise slopes, then the median intercept).
 
 Caveat: an even restoring term (`x^2` in the restoring force) also moves the centre with the
@@ -64,8 +64,8 @@ def sensor_start(data: Record | Signal) -> dict:
 
     **Arguments:**
 
-    - `data`: a [`Record`][] with signed turning points (extracted from a signal, or read
-      with signs), or a raw [`Signal`][] (its turning points are extracted first).
+    - `data`: a [`fits.Record`][] with signed turning points (extracted from a signal, or read
+      with signs), or a raw [`fits.Signal`][] (its turning points are extracted first).
 
     **Returns** a dict: `offset` [signal units], `asym` [-] (a positive swing is read
     `1 + asym` times, a negative one `1 - asym` times), `offset_stderr`, `asym_stderr`

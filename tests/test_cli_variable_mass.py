@@ -105,7 +105,7 @@ def test_console_script_runs_in_float64():
 
 @pytest.mark.parametrize("argv,message", [
     (["stick-slip", "--eps", "1e9", "--Omega", "1"], "--eps 1e+09 means"),
-    (["fit", "examples/data/table1_mu9_eps0.csv", "--fit", "FT,mu", "--set",
+    (["fit", "fits/data/table1_mu9_eps0.csv", "--fit", "FT,mu", "--set",
       "m0=5,m0=4,c=4900,delta=3,eps=0"], "--set gives m0 twice"),
     (["sweep", "variable-mass", "--eps", "0:1:1", "--mu", "0", "--delta", "0", "--set",
       "m0=5,c=4900,FT=14.7,a0=0.06", "--out", "unused.csv"], "count must be"),

@@ -5,7 +5,6 @@ definition refused, corrupted and half-written chunks recomputed, failed chunks 
 
 import glob
 import os
-import shutil
 import signal
 import sys
 

@@ -115,7 +115,7 @@ def test_bad_cells_need_the_robust_loss(coulomb_l2, coulomb_cauchy):
         # without the robust loss the printed 2.212 spoils the estimate
     assert abs(plain[bad[0]].params["FT"] / PAPER["FT"] - 1) > 0.05
     # the robust loss does not disturb the clean columns
-    for src, (it, r) in robust.items():
+    for src, (_, r) in robust.items():
         assert abs(r.params["FT"] / PAPER["FT"] - 1) < 0.02, src
 
 

@@ -12,13 +12,12 @@ import numpy as np
 import pytest
 
 import fits
-import vmj
 from fits._fit import _arrays, _dtheta_dp, _Job, _residual_and_jacobian, _theta
 from fits._models import SPACES
 from vmj.cli import main
 
 HERE = os.path.dirname(__file__)
-P80 = os.path.join(HERE, "..", "examples", "data", "80P.txt")
+P80 = os.path.join(HERE, "..", "fits", "data", "80P.txt")
 FREE = ("omega", "zeta", "xF", "a0", "offset")
 
 

@@ -16,7 +16,7 @@ import fits
 from fits._io import _noise
 
 HERE = os.path.dirname(__file__)
-P80 = os.path.join(HERE, "..", "examples", "data", "80P.txt")
+P80 = os.path.join(HERE, "..", "fits", "data", "80P.txt")
 RATE = 259.37  #: synthetic sampling rate [Hz], near the pendulum records'
 
 

@@ -115,7 +115,8 @@ def test_chunk_plan():
                 k = -(-n // c)
                 # the fewest rounds of `lanes` chunks side by side that the limit allows, and
                 # at most one point of padding per chunk
-                assert 1 <= c <= limit and -(-k // lanes) == -(-(-(-n // limit)) // lanes)
+                rounds = -(-n // limit)  # chunks the limit alone needs
+                assert 1 <= c <= limit and -(-k // lanes) == -(-rounds // lanes)
                 assert k * c - n < k
 
 

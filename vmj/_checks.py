@@ -9,7 +9,8 @@ message.
 from __future__ import annotations
 
 import warnings
-from typing import Callable, ClassVar
+from typing import ClassVar
+from collections.abc import Callable
 
 import equinox as eqx
 import jax
@@ -95,7 +96,7 @@ class AbstractParams(eqx.Module):
     """Base of every model and law: `_limits` maps a field name to `(predicate, allowed range)`.
 
     Concrete values are checked once, at construction (`ValueError` naming the field and its
-    range); the entry points call [`validated`][] on the whole model tree, which guards traced
+    range); the entry points call `validated` on the whole model tree, which guards traced
     values (inside `jit`, `vmap`, `grad`) with one `equinox.error_if` and re-checks concrete
     values that bypassed construction (`eqx.tree_at`).
     """

@@ -6,8 +6,9 @@ task. The older per-model functions are thin wrappers kept for compatibility."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import equinox as eqx
-import jax.numpy as jnp
 
 from ._checks import (_float, _is_traced, anything, check, check_int, positive, validated,
                       warn_if_float32)
@@ -18,6 +19,15 @@ from ._solution import DecaySequence, Trajectory, throw_if_failed
 from ._solvers._closed import ClosedForm, EnergyBalance
 from ._solvers._exact import Exact
 from ._solvers._smoothed import Smoothed
+
+if TYPE_CHECKING:  # names used in annotations only
+    from jaxtyping import Array, ArrayLike
+
+    from ._models._base import (AbstractDecayModel, AbstractEnergyMap, AbstractLimitCycle,
+                                AbstractModel)
+    from ._models._linear import LinearOscillator
+    from ._models._stick_slip import StickSlipCycle
+    from ._solvers._base import AbstractSolver
 
 __all__ = ["turning_points", "simulate", "limit_cycle", "energy_balance", "rope_energy_map",
            "stick_slip_cycle", "stick_slip_closed_form", "stick_slip_simulate",
@@ -59,8 +69,9 @@ def _turning_points(model, a0, n, solver):
     return solver.turning_points(model, a0, n)
 
 
-def turning_points(model, a0, n: int, solver=None, *, method: str | None = None,
-                   smoothing=None, max_substeps: int | None = None,
+def turning_points(model: AbstractDecayModel, a0: ArrayLike, n: int,
+                   solver: AbstractSolver | str | None = None, *, method: str | None = None,
+                   smoothing: ArrayLike | None = None, max_substeps: int | None = None,
                    throw: bool = False) -> DecaySequence:
     """Turning points (velocity zeros) of the free decay released from rest at `x(0) = -a0`.
 
@@ -95,7 +106,8 @@ def turning_points(model, a0, n: int, solver=None, *, method: str | None = None,
     return throw_if_failed(seq, seq.result, throw)
 
 
-def energy_balance(model, a0, n: int, *, throw: bool = False) -> DecaySequence:
+def energy_balance(model: AbstractEnergyMap, a0: ArrayLike, n: int, *,
+                   throw: bool = False) -> DecaySequence:
     """The paper's energy-balance recurrences (11)-(12) and the corrected (13); the same as
     `vmj.turning_points(model, a0, n, vmj.EnergyBalance())`.
 
@@ -116,7 +128,7 @@ def energy_balance(model, a0, n: int, *, throw: bool = False) -> DecaySequence:
     return turning_points(model, a0, n, EnergyBalance(), throw=throw)
 
 
-def rope_energy_map(rope: Rope, a0, n: int, *, throw: bool = False) -> DecaySequence:
+def rope_energy_map(rope: Rope, a0: ArrayLike, n: int, *, throw: bool = False) -> DecaySequence:
     """Exact turning points of a rope of fixed length (`u = 0`) from the energy balance over
     each half-swing, `V(x_k) - V(x_{k+1}) = A T |x_k - x_{k+1}|` (for `b = 0`:
     `V(a_k) - V(-a_{k+1}) = A T (a_k + a_{k+1})`), solved per swing; the times are the exact
@@ -137,8 +149,9 @@ def _simulate(model, x0, v0, t1, n_save, solver):
     return solver.simulate(model, x0, v0, t1, n_save)
 
 
-def simulate(model, x0, v0, t1, solver=None, *, smoothing=None, n_save: int = 2001,
-             throw: bool = False) -> Trajectory:
+def simulate(model: AbstractModel, x0: ArrayLike, v0: ArrayLike, t1: ArrayLike,
+             solver: AbstractSolver | None = None, *, smoothing: ArrayLike | None = None,
+             n_save: int = 2001, throw: bool = False) -> Trajectory:
     """The trajectory of `model` from `x(0) = x0`, `x'(0) = v0` to `t1`.
 
     **Arguments:**
@@ -176,8 +189,8 @@ def simulate(model, x0, v0, t1, solver=None, *, smoothing=None, n_save: int = 20
     return throw_if_failed(traj, traj.result, throw)
 
 
-def linear_simulate(osc, x0, v0, t1, *, n_save: int = 2001, rtol: float = 1e-12,
-                    throw: bool = False) -> Trajectory:
+def linear_simulate(osc: LinearOscillator, x0: ArrayLike, v0: ArrayLike, t1: ArrayLike, *,
+                    n_save: int = 2001, rtol: float = 1e-12, throw: bool = False) -> Trajectory:
     """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Tsit5) from `x(0) = x0` [m],
     `x'(0) = v0` [m/s] to `t1` [s] `> 0`: `vmj.simulate(osc, x0, v0, t1,
     vmj.Smoothed(rtol=rtol))`. `rtol` is the relative tolerance (the absolute one is `rtol`
@@ -192,8 +205,8 @@ def _limit_cycle(model, max_reversals, solver):
     return solver.limit_cycle(model, max_reversals)
 
 
-def limit_cycle(model, solver=None, *, max_reversals: int = MAX_REVERSALS,
-                throw: bool = False):
+def limit_cycle(model: AbstractLimitCycle, solver: AbstractSolver | None = None, *,
+                max_reversals: int = MAX_REVERSALS, throw: bool = False) -> StickSlipCycle:
     """The limit cycle of a self-excited model ([`vmj.StickSlip`][]), from breakaway to the
     next breakaway.
 
@@ -226,7 +239,8 @@ def limit_cycle(model, solver=None, *, max_reversals: int = MAX_REVERSALS,
 
 
 def stick_slip_cycle(model: StickSlip, *, method: str = "exact",
-                     max_reversals: int = MAX_REVERSALS, smoothing=None, throw: bool = False):
+                     max_reversals: int = MAX_REVERSALS, smoothing: ArrayLike | None = None,
+                     throw: bool = False) -> StickSlipCycle:
     """`vmj.limit_cycle` with `method="exact" | "smooth"` (the older spelling)."""
     if method not in ("exact", "smooth"):
         raise ValueError(f"method must be 'exact' or 'smooth' (got {method!r})")
@@ -235,14 +249,15 @@ def stick_slip_cycle(model: StickSlip, *, method: str = "exact",
 
 
 def stick_slip_closed_form(model: StickSlip, *, max_reversals: int = MAX_REVERSALS,
-                           throw: bool = False):
+                           throw: bool = False) -> StickSlipCycle:
     """The paper's closed forms (11)-(20) for the limit cycle of `model`:
     `vmj.limit_cycle(model, vmj.ClosedForm())` (see `_closed_forms/_belokobylsky.py`)."""
     return limit_cycle(model, ClosedForm(), max_reversals=max_reversals, throw=throw)
 
 
-def stick_slip_simulate(model: StickSlip, t1, *, smoothing=None, n_save: int = 4001,
-                        throw: bool = False, memory: bool = False):
+def stick_slip_simulate(model: StickSlip, t1: ArrayLike, *, smoothing: ArrayLike | None = None,
+                        n_save: int = 4001, throw: bool = False,
+                        memory: bool = False) -> Trajectory | tuple[Trajectory, Array]:
     """The smoothed stick-slip model (diffrax Kvaerno5, rtol 1e-8) from breakaway:
     `vmj.simulate(model, -eps, -Omega, t1, vmj.Smoothed(smoothing=w))` (default `w = 1e-4`;
     see `vmj.StickSlip.vector_field` for the smoothed equations).

@@ -7,7 +7,7 @@ import enum
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array
+from jaxtyping import Array, ArrayLike
 
 from ._checks import _is_traced
 
@@ -40,17 +40,17 @@ class RESULTS(enum.IntEnum):
         return _MESSAGES[self]
 
     @classmethod
-    def okay(cls, code):
+    def okay(cls, code: ArrayLike) -> Array | bool:
         """`successful` or `stopped` (elementwise for arrays)."""
         return code <= cls.stopped
 
     @classmethod
-    def failed(cls, code):
+    def failed(cls, code: ArrayLike) -> Array | bool:
         """Not okay (elementwise for arrays)."""
         return code > cls.stopped
 
     @classmethod
-    def describe(cls, code) -> str:
+    def describe(cls, code: ArrayLike) -> str:
         """The message of a (concrete, scalar) status code."""
         return cls(int(np.asarray(code))).message
 
@@ -123,7 +123,7 @@ class DecaySequence(eqx.Module):
     result: Array
 
     @classmethod
-    def from_scan(cls, times, positions, crossed, advanced, code) -> "DecaySequence":
+    def from_scan(cls, times, positions, crossed, advanced, code) -> DecaySequence:
         """Assemble a sequence from a solver's per-swing outputs (`advanced`: the swing was
         reached) and its final status code."""
         return cls(

@@ -18,6 +18,8 @@ __all__ = ["PAPER", "paper_cells", "paper_model", "paper_table"]
 
 #: parameters common to the four tables (SI units)
 PAPER = {"m0": 5.0, "c": 4900.0, "a0": 0.06, "FT": 14.7, "f": 0.3, "g": 9.81}
+"""The data common to the variable-mass paper's tables: `m0` [kg], `c` [N/m], `a0` [m], `F_T`
+[N] (tables 1-2), `f` [-] and `g` [m/s^2] (tables 3-4)."""
 
 
 def paper_cells(table: int | None = None) -> list[dict]:
@@ -43,7 +45,7 @@ def paper_cells(table: int | None = None) -> list[dict]:
     return rows
 
 
-def paper_model(friction: str, delta, eps, mu) -> VariableMass:
+def paper_model(friction: str, delta: float, eps: float, mu: float) -> VariableMass:
     law = Coulomb(PAPER["FT"]) if friction == "constant" else MassProportional(PAPER["f"], PAPER["g"])
     return VariableMass(PAPER["m0"], PAPER["c"], delta, eps, mu, law)
 

@@ -8,17 +8,24 @@ a full disk or a killed process never leaves a truncated PNG.
 from __future__ import annotations
 
 import os
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._files import replacing
 from ._solution import RESULTS
 
+if TYPE_CHECKING:  # names used in annotations only
+    from matplotlib.figure import Figure
+
+    from ._sweep import SweepResult
+
 __all__ = ["pyplot", "save", "plot_table", "plot_swings", "plot_energy_error", "plot_sensitivity",
            "per"]
 
 
-def pyplot():
+def pyplot() -> ModuleType:
     """matplotlib's pyplot on the Agg backend (no display needed)."""
     import matplotlib
 
@@ -28,7 +35,7 @@ def pyplot():
     return plt
 
 
-def save(fig, path: str) -> None:
+def save(fig: Figure, path: str | os.PathLike) -> None:
     """Write `fig` to `path` (format from the extension, PNG without one) atomically. The
     directory must exist: nothing is created or renamed silently."""
     with replacing(path) as tmp:
@@ -107,7 +114,7 @@ def _grid_of_panels(n_panels):
     return plt, fig, list(axes.flat)
 
 
-def plot_swings(result, path: str, title: str = "") -> None:
+def plot_swings(result: SweepResult, path: str, title: str = "") -> None:
     """Number of swings until the mass sticks over (eps, mu), one panel per delta, with the
     paper's boundary `delta (1 - 2 eps) = 2 mu` (below it, `mu` large, the motion decays even
     without dry friction). `result.values` is a [`vmj.DecaySequence`][] over a grid."""
@@ -139,7 +146,7 @@ def plot_swings(result, path: str, title: str = "") -> None:
     plt.close(fig)
 
 
-def plot_energy_error(exact, energy, a0: float, path: str) -> None:
+def plot_energy_error(exact: SweepResult, energy: SweepResult, a0: float, path: str) -> None:
     """Largest difference over the swings between the energy-balance amplitudes and the exact
     ones, relative to `a0`, over (eps, mu) for each delta (log scale)."""
     deltas, at = _panels(exact)

@@ -81,7 +81,7 @@ class Oscillator(AbstractEnergyMap):
                              "vmj.QuadraticDamping(cq)")
 
     @classmethod
-    def pendulum(cls, omega, zeta=0.0, xF=0.0, xS=None, cq=0.0, b2=0.0, b3=0.0) -> "Oscillator":
+    def pendulum(cls, omega, zeta=0.0, xF=0.0, xS=None, cq=0.0, b2=0.0, b3=0.0) -> Oscillator:
         """A pendulum, angles in rad: `r = sin(x) + b2 x^2 + b3 x^3` with viscous damping
         `zeta` [-], dry friction `xF` (kinetic) and `xS` (static, default `xF`) [rad] and
         quadratic drag `cq` [1/rad]. Every law is present whatever its value, so that every
@@ -90,7 +90,7 @@ class Oscillator(AbstractEnergyMap):
                                                   QuadraticDamping(cq)))
 
     @classmethod
-    def linear(cls, omega, zeta=0.0, xF=0.0, xS=None) -> "Oscillator":
+    def linear(cls, omega, zeta=0.0, xF=0.0, xS=None) -> Oscillator:
         """The linear oscillator with viscous damping `zeta` [-] and dry friction `xF`, `xS`
         [position unit]: `x'' + 2 zeta omega x' + omega^2 (x + xF sign(x')) = 0`, whose energy
         balance is the exact closed-form half-swing map."""

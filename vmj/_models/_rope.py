@@ -15,7 +15,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
-from jaxtyping import Array
+from jaxtyping import Array, ArrayLike
 
 from .._checks import (_float, _is_traced, anything, check, nonnegative, positive, validated,
                        warn_if_float32)
@@ -28,7 +28,8 @@ from ._base import AbstractEnergyMap, check_horizon, require_scalar_fields
 __all__ = ["Rope", "KGF", "kbm_amplitude", "kbm_frequency", "action_amplitude",
            "action_frequency"]
 
-KGF = 9.80665  #: one kilogram-force (kG) [N]
+KGF = 9.80665
+"""One kilogram-force (kG) [N]: the unit of the rope paper's technical units."""
 RHO = 1.0  #: substep length in units of 1/omega_tangent(amplitude)
 RHO_LENGTH = 0.25  #: substep length as a fraction of l/|dl/dt|
 PIECES = 3  #: polynomial pieces of a length profile searched for a release (Braking has 3)
@@ -79,7 +80,7 @@ class Rope(AbstractEnergyMap):
                              "vmj.Braking(l0, u, t_brake, t_stop)")
 
     @classmethod
-    def from_technical(cls, m, A, e, b, d, T, length) -> "Rope":
+    def from_technical(cls, m, A, e, b, d, T, length) -> Rope:
         """Build from technical units as printed in the paper: `m` [kG s^2/m], `A` [cm^2],
         `e`, `b`, `d`, `T` [kG/cm^2]; the profile stays in metres and seconds."""
         kg_cm2 = KGF * 1e4
@@ -87,7 +88,7 @@ class Rope(AbstractEnergyMap):
                    np.multiply(b, kg_cm2), np.multiply(d, kg_cm2), np.multiply(T, kg_cm2), length)
 
     @classmethod
-    def paper(cls, u=0.0, T=0.0, cubic: bool = True, l0=10.0) -> "Rope":
+    def paper(cls, u=0.0, T=0.0, cubic: bool = True, l0=10.0) -> Rope:
         """The paper's example (rope 6x37, 22 mm): `A = 1.74 cm^2`, `l0 = 10 m`,
         `m = 2 kG s^2/m`, `e = 0.8e6`, `d = 0.8e11` (or 0 with `cubic=False`), `b = 0`, with the
         friction `T` in kG/cm^2 (technical, as printed) and the speed `u` [m/s]."""
@@ -274,7 +275,7 @@ def _action_entry(rope, a0, t):
     return amp.reshape(jnp.shape(t)), freq.reshape(jnp.shape(t))
 
 
-def kbm_amplitude(rope: Rope, a0, t):
+def kbm_amplitude(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """First-order (Krylov-Bogolyubov) amplitude of the paper, corrected (`SYSTEMS.md` s. 2):
 
         a(t) = a0 (l/l0)^(1/4) - (4 D / (5 u)) (l0^(5/4) l^(1/4) - l^(3/2)),
@@ -290,14 +291,14 @@ def kbm_amplitude(rope: Rope, a0, t):
     return _kbm(*_averaged_inputs(rope, a0, t))[0]
 
 
-def kbm_frequency(rope: Rope, a0, t):
+def kbm_frequency(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """First-order frequency (the paper's (2.9)) [rad/s]:
     `Omega = omega + 3 A d a^2 / (8 m omega l^3)`, `omega = sqrt(A e/(m l))`, with `a` from
     [`vmj.kbm_amplitude`][]. Arguments as for [`vmj.kbm_amplitude`][]."""
     return _kbm(*_averaged_inputs(rope, a0, t))[1]
 
 
-def action_amplitude(rope: Rope, a0, t):
+def action_amplitude(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """Averaged amplitude from the action of the nonlinear rope, valid when the cubic term is
     not small (beyond the paper's first order).
 
@@ -314,7 +315,7 @@ def action_amplitude(rope: Rope, a0, t):
     return _action_entry(rope, a0, t)[0]
 
 
-def action_frequency(rope: Rope, a0, t):
+def action_frequency(rope: Rope, a0: ArrayLike, t: ArrayLike) -> Array:
     """Angular frequency `2 pi / period` [rad/s] of the swing of the action-averaged law (the
     amplitude-dependent frequency of the nonlinear rope), at times `t` [s]. Arguments as for
     [`vmj.action_amplitude`][]."""

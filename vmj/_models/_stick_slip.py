@@ -79,7 +79,7 @@ class StickSlip(AbstractLimitCycle):
     }
 
     @classmethod
-    def from_physical(cls, I, c, omega, M0, M1) -> "StickSlip":
+    def from_physical(cls, I, c, omega, M0, M1) -> StickSlip:
         """Build the model from physical parameters.
 
         **Arguments:** `I` disk moment of inertia [kg m^2] `> 0`; `c` torsional stiffness
@@ -156,18 +156,18 @@ class StickSlip(AbstractLimitCycle):
         """`(xi, xi') = (-eps, -Omega)`: the disk at rest at breakaway."""
         return -self.eps, -self.Omega
 
-    def exact_cycle(self, max_reversals: int) -> "StickSlipCycle":
+    def exact_cycle(self, max_reversals: int) -> StickSlipCycle:
         """Event-driven limit cycle (see the module docstring); traceable."""
         return _exact_cycle(self, max_reversals)
 
-    def closed_form_cycle(self, max_reversals: int) -> "StickSlipCycle":
+    def closed_form_cycle(self, max_reversals: int) -> StickSlipCycle:
         """The paper's closed forms (11)-(20)."""
         fields = closed_form_cycle(self.eps, self.Omega, max_reversals)
         return StickSlipCycle(**fields, result=jnp.where(
             fields["count"] == fields["reversals"] + 1, RESULTS.successful,
             RESULTS.too_many_reversals), model=self, method="closed")
 
-    def smoothed_cycle(self, max_reversals: int, solver) -> "StickSlipCycle":
+    def smoothed_cycle(self, max_reversals: int, solver) -> StickSlipCycle:
         """The cycle measured on the smoothed model (NumPy post-processing; concrete scalar
         models only)."""
         return _smooth_cycle(self, max_reversals, solver)

@@ -67,7 +67,7 @@ class Smoothed(AbstractSolver):
         return model
 
     # -- settings ----------------------------------------------------------------------------
-    def with_defaults(self, model, x0, v0) -> "Smoothed":
+    def with_defaults(self, model, x0, v0) -> Smoothed:
         """This solver with its smoothing resolved to an array (the default from the motion's
         velocity scale): one compilation for every value of `w`."""
         if self.smoothing is not None:

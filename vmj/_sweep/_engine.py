@@ -24,7 +24,7 @@ import sys
 import threading
 import time
 import uuid
-from typing import Callable
+from collections.abc import Callable
 
 __all__ = ["run_chunks", "cluster", "Progress", "CORES", "failure_message"]
 

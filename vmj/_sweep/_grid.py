@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import numpy as np
 
 from ._tree import _set_fields, resolve_field
+
+if TYPE_CHECKING:  # names used in annotations only
+    import equinox as eqx
+    from jaxtyping import ArrayLike
 
 __all__ = ["Grid", "grid"]
 
@@ -27,7 +31,7 @@ class Grid:
     coords: dict
 
 
-def grid(model, **axes) -> Grid:
+def grid(model: eqx.Module, **axes: ArrayLike) -> Grid:
     """Outer product of parameter axes, e.g. `vmj.grid(model, eps=np.linspace(0, 1, 11), mu=...)`.
 
     **Arguments:**

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import pickle
 import sys
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from .._checks import check_int
 from ._engine import CORES, Progress, cluster, failure_message, run_chunks, threads_of

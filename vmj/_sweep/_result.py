@@ -128,7 +128,7 @@ class SweepResult:
             np.savetxt(fh, table, fmt=fmts, delimiter=",")
 
     @staticmethod
-    def read_csv(path: str) -> "SweepResult":
+    def read_csv(path: str) -> SweepResult:
         """Read a file written by `to_csv`; `values` becomes a dict of field name to array."""
         with open(path, newline="") as fh:
             first = fh.readline()
@@ -188,7 +188,7 @@ class SweepResult:
             data.to_netcdf(tmp)
 
     @staticmethod
-    def read_zarr(path: str) -> "SweepResult":
+    def read_zarr(path: str) -> SweepResult:
         """Read the sweep in a Zarr store written by [`vmj.sweep`][] with `store=` (needs the
         optional extra `vmj[distributed]`); `values` becomes a dict of field name to array, as
         for [`vmj.SweepResult.read_csv`][]. Every chunk must be complete and match its

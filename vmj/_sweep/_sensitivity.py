@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import equinox as eqx
 import jax
@@ -18,7 +18,7 @@ __all__ = ["sensitivity"]
 
 def sensitivity(
     fn: Callable,
-    model,
+    model: eqx.Module,
     wrt: Sequence[str],
     *,
     mode: str = "forward",

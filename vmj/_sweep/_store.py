@@ -156,7 +156,7 @@ class ChunkStore:
     # -- opening -------------------------------------------------------------------------------
     @classmethod
     def existing(cls, path, *, kind: str, definition: dict, described: dict,
-                 resume: bool) -> "ChunkStore | None":
+                 resume: bool) -> ChunkStore | None:
         """The store at `path` if there is one (None otherwise). It must hold work of `kind`
         (`"sweep"` or `"map"`) with the same `definition` (a dict of digests; `described` says
         the same in words), and `resume=True` is needed to continue it; its stored plan (chunk
@@ -183,7 +183,7 @@ class ChunkStore:
         return cls(group, path, meta)
 
     @classmethod
-    def read_only(cls, path, *, kind: str) -> "ChunkStore":
+    def read_only(cls, path, *, kind: str) -> ChunkStore:
         """An existing store opened for reading."""
         zarr = _zarr()
         path = os.fspath(path)
@@ -198,7 +198,7 @@ class ChunkStore:
 
     @classmethod
     def create(cls, path, *, kind: str, definition: dict, described: dict,
-               plan: dict) -> "ChunkStore":
+               plan: dict) -> ChunkStore:
         """A new store at `path` for work of `kind` with `plan` (`n`, `chunk`, `n_chunks`, and
         for a sweep its `dims`, `shape`, `grid`, `fields`)."""
         zarr = _zarr()

@@ -18,7 +18,7 @@ import math
 import os
 import sys
 import threading
-from typing import Callable
+from collections.abc import Callable, Sequence
 
 import equinox as eqx
 import jax
@@ -298,11 +298,11 @@ def _layout(model):
 
 def sweep(
     fn: Callable,
-    model,
+    model: eqx.Module | Grid,
     *,
     chunk_size: int | None = None,
     progress: bool | Callable | None = None,
-    devices=None,
+    devices: Sequence[jax.Device] | None = None,
     client=None,
     store=None,
     resume: bool = False,

@@ -25,7 +25,7 @@ def _field_paths(model, prefix=()):
     return out
 
 
-def resolve_field(model, name: str) -> tuple[str, ...]:
+def resolve_field(model: eqx.Module, name: str) -> tuple[str, ...]:
     """The path of the array field `name` of `model`: a field name (`"eps"`), unique among the
     nested modules (`"F"` is `friction.F`), or a dotted path (`"friction.F"`,
     `"dissipation.0.zeta"`)."""

@@ -20,7 +20,7 @@ import math
 import sys
 import time
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 from ._options import (count, figure_path, output_path, parse_axis, parse_set, refuse_above,
                        store_path, traced_checks)

@@ -1,0 +1,181 @@
+"""The documentation runs as written: every ```python block of README.md and docs/*.md (one fresh
+process per file, float64) and the `vmj` commands of their ```sh blocks; the site builds with
+`mkdocs build --strict` (no broken link or cross-reference), with every public name in the API
+reference. (The examples: tests/test_examples.py.)
+
+Snippets and commands run in a scratch directory that looks like the repository root to them
+(`fits/` links to the package, so `fits/data/80P.txt` resolves; `out/` exists, as after
+`make demo`): whatever they write stays there, never in the repository.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+PAGES = [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]
+SHELLS = ("sh", "shell", "bash", "console")
+
+_FENCE = re.compile(
+    r"^(?P<indent>[ \t]*)```(?P<lang>[\w+-]*)[^\n]*\n(?P<body>.*?)^(?P=indent)```[ \t]*$",
+    re.MULTILINE | re.DOTALL,
+)
+
+
+# -- reading the pages --------------------------------------------------------------------------
+def code_blocks(path: Path, langs: tuple[str, ...]) -> list[str]:
+    """The fenced code blocks of `path` in one of `langs`, dedented, in order."""
+    text = path.read_text(encoding="utf-8")
+    return [textwrap.dedent(m["body"]) for m in _FENCE.finditer(text) if m["lang"] in langs]
+
+
+def python_source(path: Path) -> str:
+    """Every ```python block of `path`, in order, as one program."""
+    return "\n\n".join(code_blocks(path, ("python",)))
+
+
+# Commands the pages show that are not cheap enough to run here, with where they are tested.
+EXPENSIVE = {
+    # compiles the exact variable-mass model's fit (~30 s); tests/test_cli_variable_mass.py
+    # runs the same fit and checks its numbers
+    ("fit", "fits/data/table1_mu9_eps0.csv"),
+}
+
+
+def vmj_commands(path: Path) -> list[list[str]]:
+    """The arguments of each `vmj ...` command in the shell blocks of `path` (continuation lines
+    joined, `$ ` prompts and `# comments` dropped; other commands, output lines and the commands
+    in `EXPENSIVE` skipped)."""
+    commands = []
+    for block in code_blocks(path, SHELLS):
+        for line in block.replace("\\\n", " ").splitlines():
+            line = line.strip().removeprefix("$ ")
+            if line.startswith("vmj "):
+                args = shlex.split(line, comments=True)[1:]
+                if tuple(args[:2]) not in EXPENSIVE:
+                    commands.append(args)
+    return commands
+
+
+def scratch(tmp_path: Path) -> Path:
+    """A directory that looks like the repository root to the snippets: `fits` (the package,
+    with its shipped records) and an empty `out/`."""
+    (tmp_path / "out").mkdir()
+    (tmp_path / "fits").symlink_to(ROOT / "fits", target_is_directory=True)
+    return tmp_path
+
+
+def environment(**extra) -> dict:
+    env = dict(os.environ, JAX_ENABLE_X64="1", MPLBACKEND="Agg", **extra)
+    # compiled programs shared with the test suite's own cache (tests/conftest.py)
+    env.setdefault("JAX_COMPILATION_CACHE_DIR", str(ROOT / ".pytest_cache" / "jax"))
+    env.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "1")
+    return env
+
+
+def run(args: list[str], cwd: Path, timeout: float, **env) -> subprocess.CompletedProcess:
+    got = subprocess.run(args, cwd=cwd, env=environment(**env), capture_output=True, text=True,
+                         timeout=timeout)
+    assert got.returncode == 0, (
+        f"{' '.join(map(str, args))} failed ({got.returncode}):\n{got.stdout[-3000:]}\n"
+        f"{got.stderr[-6000:]}")
+    return got
+
+
+# -- the pages' snippets ------------------------------------------------------------------------
+def _id(path: Path) -> str:
+    return str(path.relative_to(ROOT))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", [p for p in PAGES if python_source(p)], ids=_id)
+def test_python_snippets_run(page, tmp_path):
+    program = scratch(tmp_path) / "snippets.py"
+    program.write_text(python_source(page), encoding="utf-8")
+    run([sys.executable, program.name], tmp_path, timeout=600)
+
+
+# The `vmj` commands of one page run in one process (one start-up, shared compilations) through
+# the installed `vmj` entry point, each as `vmj ARGS` would run it.
+_RUN_COMMANDS = """
+import contextlib, io, json, sys
+from importlib.metadata import entry_points
+(vmj,) = entry_points(group="console_scripts", name="vmj")
+main = vmj.load()
+for args in json.load(sys.stdin):
+    print("$ vmj " + " ".join(args), flush=True)
+    out = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(out):
+            code = main(args)
+    except SystemExit as e:
+        code = e.code
+    print(out.getvalue(), flush=True)
+    if code not in (0, None):
+        sys.exit(f"vmj {' '.join(args)} exited with status {code}")
+    if "--json" in args:
+        json.loads(out.getvalue())  # one JSON document, nothing else on stdout
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", [p for p in PAGES if vmj_commands(p)], ids=_id)
+def test_vmj_commands_run(page, tmp_path):
+    import json
+
+    got = subprocess.run([sys.executable, "-c", _RUN_COMMANDS], cwd=scratch(tmp_path),
+                         input=json.dumps(vmj_commands(page)), env=environment(),
+                         capture_output=True, text=True, timeout=600)
+    assert got.returncode == 0, f"{got.stdout[-3000:]}\n{got.stderr[-6000:]}"
+
+
+# -- the site ------------------------------------------------------------------------------------
+def test_site_builds_strict(tmp_path):
+    """`mkdocs build --strict`: no broken link, anchor or cross-reference (docstrings included)."""
+    run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        ROOT, timeout=300, NO_MKDOCS_2_WARNING="1")
+    assert (tmp_path / "site" / "api" / "models" / "index.html").is_file()
+
+
+def _documented(prefix: str) -> set[str]:
+    text = "\n".join(p.read_text(encoding="utf-8") for p in (DOCS / "api").glob("*.md"))
+    return set(re.findall(rf"^::: {prefix}\.(\w+)\s*$", text, re.MULTILINE))
+
+
+def test_api_reference_is_complete():
+    """Every name of `vmj.__all__` and `fits.__all__` has its `::: name` block (a name that fits
+    re-exports from vmj is documented once, under vmj)."""
+    import fits
+    import vmj
+
+    missing = set(vmj.__all__) - _documented("vmj")
+    missing |= {f"fits.{n}" for n in fits.__all__ if n not in _documented("fits")
+                and not (n in vmj.__all__ and getattr(fits, n) is getattr(vmj, n))}
+    assert not missing, f"not in docs/api/*.md: {sorted(missing)}"
+    unknown = (_documented("vmj") - set(vmj.__all__) - {"plot"}) | (_documented("fits") - set(fits.__all__))
+    assert not unknown, f"docs/api/*.md documents names that are not public: {sorted(unknown)}"
+
+
+def test_site_lists_every_page():
+    """Every page of docs/ is in the site's navigation (mkdocs only warns about the others)."""
+    nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    pages = {str(p.relative_to(DOCS)) for p in DOCS.rglob("*.md")}
+    assert not {p for p in pages if f": {p}" not in nav}, "pages missing from mkdocs.yml's nav"
+
+
+def test_readme_links_resolve():
+    """The README's relative links and images point at files of the repository."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
+    local = [t for t in targets if not re.match(r"[a-z]+://", t)]
+    assert local, "the README links to docs/"
+    assert not [t for t in local if not (ROOT / t).exists()], "broken README links"
