@@ -144,8 +144,9 @@ class Smoothed(AbstractSolver):
             def fprime(t):
                 return model.observe(sol.derivative(t))[1] * sgn
 
-            t = bracketed_newton(f, fprime, lo, hi, 0.5 * (lo + hi), ROOT_ITERATIONS)
-            t = implicit_step(f, fprime, t)
+            both = lambda t: (f(t), fprime(t))  # noqa: E731
+            t = bracketed_newton(both, lo, hi, 0.5 * (lo + hi), ROOT_ITERATIONS)
+            t = implicit_step(both, t)
             return t, model.observe(sol.evaluate(t))[0]
 
         times, positions = jax.vmap(refine)(lo, hi, level)
