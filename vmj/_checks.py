@@ -8,6 +8,7 @@ message.
 
 from __future__ import annotations
 
+import math
 import warnings
 from typing import Callable, ClassVar
 
@@ -16,7 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["AbstractParams", "validated", "check", "check_all", "check_int", "warn_if_float32"]
+__all__ = ["AbstractParams", "validated", "check", "check_all", "check_int", "scalar",
+           "warn_if_float32"]
 
 
 def _is_traced(x) -> bool:
@@ -31,10 +33,22 @@ def _float(x) -> jax.Array:
 def check(name: str, value, ok: Callable, allowed: str):
     """Return `value` after checking it is finite and satisfies `ok` elementwise.
 
-    `ok` must work on NumPy and JAX arrays alike. `allowed` is the human description of the
-    range, e.g. `"> 0"` or `"in [0, 1]"`.
+    `ok` must work on Python numbers, NumPy and JAX arrays alike. `allowed` is the human
+    description of the range, e.g. `"> 0"` or `"in [0, 1]"`.
     """
+    if isinstance(value, (float, int)) and not isinstance(value, bool) and \
+            math.isfinite(value) and ok(value):
+        return value  # the common case, without building arrays
     return check_all([(name, value, ok, allowed)])[0]
+
+
+def scalar(value):
+    """A checked scalar argument as an array of JAX's default float type: a NumPy array for
+    concrete values (a compiled entry point takes it without a device round trip or a
+    recompilation for Python floats), traced values unchanged but cast."""
+    if _is_traced(value):
+        return jnp.asarray(value, dtype=jnp.result_type(float))
+    return np.asarray(value, dtype=jnp.result_type(float))
 
 
 def check_all(items) -> list:
@@ -97,27 +111,40 @@ class AbstractParams(eqx.Module):
     Concrete values are checked once, at construction (`ValueError` naming the field and its
     range); the entry points call [`validated`][] on the whole model tree, which guards traced
     values (inside `jit`, `vmap`, `grad`) with one `equinox.error_if` and re-checks concrete
-    values that bypassed construction (`eqx.tree_at`).
+    values that bypassed construction (`eqx.tree_at`, `jax.tree.unflatten`).
     """
 
     _limits: ClassVar[dict] = {}
 
     def __check_init__(self):
-        check_all([(n, getattr(self, n), ok, allowed) for n, (ok, allowed) in
-                   type(self)._limits.items() if not _is_traced(getattr(self, n))])
+        items = [(n, getattr(self, n), ok, allowed) for n, (ok, allowed) in
+                 type(self)._limits.items()]
+        concrete = [item for item in items if not _is_traced(item[1])]
+        check_all(concrete)
+        if len(concrete) == len(items):
+            # Checked here, once. The mark lives on this instance only: every other way to make
+            # a module (tree_at, unflatten inside jit/vmap) builds a new instance without it.
+            object.__setattr__(self, _CHECKED, True)
+
+
+#: attribute marking a module whose limited fields were concrete and checked at construction
+_CHECKED = "_vmj_checked"
 
 
 def validated(model):
     """Check every limited field of `model` and of the modules inside it; return the model with
-    one runtime guard over all its traced fields (concrete ones raise `ValueError` now)."""
+    one runtime guard over all its traced fields (concrete ones raise `ValueError` now). Modules
+    checked at their construction (and not rebuilt since) are not checked again."""
     paths, items = [], []
 
     def collect(m, path):
         if isinstance(m, AbstractParams):
-            for n, (ok, allowed) in type(m)._limits.items():
-                paths.append(path + (n,))
-                items.append((n, getattr(m, n), ok, allowed))
-            for n, v in vars(m).items():
+            fields = vars(m)
+            if not fields.get(_CHECKED, False):
+                for n, (ok, allowed) in type(m)._limits.items():
+                    paths.append(path + (n,))
+                    items.append((n, getattr(m, n), ok, allowed))
+            for n, v in fields.items():
                 collect(v, path + (n,))
 
     collect(model, ())

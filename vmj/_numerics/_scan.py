@@ -41,11 +41,11 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
     every lane of a `vmap`ped batch has stopped or failed (`kind`: of `early_exit_loop`)."""
 
     def cond(carry):
-        k, _, _, code, _ = carry
+        k, _, _, code, _, _ = carry
         return (k < n) & eqxi.unvmap_any(code == RESULTS.successful)
 
     def body(carry):
-        k, t, x, code, (times, positions, crossed, advanced) = carry
+        k, t, x, code, count, (times, positions, crossed) = carry
         active = code == RESULTS.successful
         s, t_go, stuck = model.rest(t, x)
         found, failure, t1, x1 = swing(t_go, x, s, active & jnp.logical_not(stuck))
@@ -55,22 +55,24 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
         cross = advance & (x1 * x < 0)
         t = jnp.where(advance, t1, t)
         x = jnp.where(advance, x1, x)
-        out = (times.at[k].set(t), positions.at[k].set(x), crossed.at[k].set(cross),
-               advanced.at[k].set(advance))
-        return k + 1, t, x, code, out
+        out = (times.at[k].set(t), positions.at[k].set(x), crossed.at[k].set(cross))
+        return k + 1, t, x, code, count + advance.astype(jnp.int32), out
 
     x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
     t0 = jnp.zeros_like(x0)
     buffers = (jnp.zeros((n,) + x0.shape, x0.dtype), jnp.zeros((n,) + x0.shape, x0.dtype),
-               jnp.zeros((n,) + x0.shape, bool), jnp.zeros((n,) + x0.shape, bool))
-    init = (jnp.array(0), t0, x0, jnp.array(RESULTS.successful, dtype=jnp.int32), buffers)
-    k, t, x, code, (times, positions, crossed, advanced) = early_exit_loop(
-        cond, body, init, n, buffers=lambda carry: carry[4], kind=kind)
+               jnp.zeros((n,) + x0.shape, bool))
+    zero = jnp.zeros(x0.shape, jnp.int32)
+    init = (jnp.array(0), t0, x0, zero + RESULTS.successful, zero, buffers)
+    # (the count is carried: a sum over the swings afterwards costs more than the loop)
+    k, t, x, code, count, (times, positions, crossed) = early_exit_loop(
+        cond, body, init, n, buffers=lambda carry: carry[5], kind=kind)
     # swings not run (every lane had stopped or failed) repeat the last turning point
     run = (jnp.arange(n) < k).reshape((n,) + (1,) * x0.ndim)
     times = jnp.where(run, times, t)
     positions = jnp.where(run, positions, x)
-    crossed, advanced = crossed & run, advanced & run
+    crossed = crossed & run
     _, _, stuck = model.rest(t, x)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return DecaySequence.from_scan(times, positions, crossed, advanced, code)
+    return DecaySequence(times=times, positions=positions, crossed=crossed, count=count,
+                         stopped=code == RESULTS.stopped, result=code)
