@@ -15,10 +15,12 @@ from vmj import AffineFriction  # re-exported: it lived here before vmj 0.2
 
 from ._decrement import decrement
 from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
-from ._io import (Record, Signal, extract_turning_points, read_peaks, read_record, read_signal,
-                  record_from_sequence)
-from ._models import FORWARDS, oscillator_half_swings
+from ._clock import recover_clock
+from ._io import (MAX_ROWS, Record, Signal, extract_turning_points, read_peaks, read_record,
+                  read_signal, record_from_sequence)
+from ._models import FORWARDS
 from ._report import paper_records, plot_fit, text_report
+from ._sensor import sensor_start
 
 __all__ = [
     "Record",
@@ -28,6 +30,9 @@ __all__ = [
     "read_record",
     "record_from_sequence",
     "extract_turning_points",
+    "recover_clock",
+    "sensor_start",
+    "MAX_ROWS",
     "decrement",
     "fit",
     "fit_batch",
@@ -36,7 +41,6 @@ __all__ = [
     "AffineFriction",
     "LOSSES",
     "OPTIMIZERS",
-    "oscillator_half_swings",
     "paper_records",
     "plot_fit",
     "text_report",

@@ -6,9 +6,9 @@ Each model family is a `Space`: its parameter names, how each is kept in range d
 `(times [s], signed positions)` of the model released from rest at `-a0`. The constant offset
 and the orientation of the record are applied by the fit, not here.
 
-Every `predict` wraps `vmj.turning_points` (one solver per method), except the constant-mass
-oscillator's `"exact"` method, which is its closed-form half-swing map (exact for constant mass,
-and what the decrement method linearises).
+Every `predict` wraps `vmj.turning_points` (one solver per method); the constant-mass
+oscillator's `"exact"` method is `vmj.EnergyBalance()` of `vmj.Oscillator.linear`, its exact
+closed-form half-swing map (what the decrement method linearises).
 """
 
 from __future__ import annotations
@@ -17,11 +17,10 @@ from dataclasses import dataclass
 from typing import Callable
 
 import jax.numpy as jnp
-from jax import lax
 
 import vmj
 
-__all__ = ["Space", "SPACES", "FORWARDS", "oscillator_half_swings"]
+__all__ = ["Space", "SPACES", "FORWARDS"]
 
 FORWARDS = ("exact", "smooth", "energy")
 
@@ -81,44 +80,15 @@ VARIABLE_MASS = Space(
 
 
 # -- normalised constant-mass oscillator -------------------------------------------------------
-def oscillator_half_swings(omega, zeta, xF, a0, n: int):
-    """Exact turning points of `x'' + 2 zeta omega x' + omega^2 x = -omega^2 xF sign(x')`
-    released from rest at `-a0` (`0 <= zeta < 1`).
-
-    Each half-swing oscillates about `-s xF` (`s` the sign of the velocity), so it lasts
-    `pi/omega_d` (`omega_d = omega sqrt(1 - zeta^2)`) and maps `x -> -s xF - r (x + s xF)` with
-    `r = exp(-zeta omega pi/omega_d)`; the mass sticks where `|x| <= xF`. Returns
-    `(times, positions, moved)` of the `n` turning points after the release."""
-    wd = omega * jnp.sqrt(jnp.maximum(1.0 - zeta * zeta, 1e-12))
-    half = jnp.pi / wd
-    r = jnp.exp(-zeta * omega * half)
-
-    def body(carry, _):
-        t, x = carry
-        moves = jnp.abs(x) > xF
-        s = -jnp.sign(x)
-        x1 = -s * xF - r * (x + s * xF)
-        t, x = jnp.where(moves, t + half, t), jnp.where(moves, x1, x)
-        return (t, x), (t, x, moves)
-
-    x0 = -a0 * jnp.ones_like(omega)
-    _, (times, positions, moved) = lax.scan(body, (jnp.zeros_like(x0), x0), None, length=n)
-    return times, positions, moved
-
-
-def _oscillator_model(theta):
-    omega = theta["omega"]
-    law = vmj.Coulomb(omega * omega * theta["xF"])
-    return vmj.VariableMass(1.0, omega * omega, 0.0, 0.0, 2 * theta["zeta"] * omega, law)
+_OSCILLATOR_SOLVERS = {"exact": vmj.EnergyBalance, "smooth": vmj.Smoothed,
+                       "energy": vmj.EnergyBalance}
 
 
 def _oscillator(theta: dict, n: int, forward: str):
-    if forward == "exact":
-        times, positions, _ = oscillator_half_swings(theta["omega"], theta["zeta"], theta["xF"],
-                                                     theta["a0"], n)
-        return (jnp.concatenate([jnp.zeros((1,)), times]),
-                jnp.concatenate([-jnp.reshape(theta["a0"], (1,)), positions]))
-    seq = vmj.turning_points(_oscillator_model(theta), theta["a0"], n, method=forward)
+    """`vmj.Oscillator.linear`: its energy balance is the exact closed-form half-swing map, so
+    the "exact" forward model uses it (the same numbers as `vmj.Exact()`, cheaper)."""
+    model = vmj.Oscillator.linear(theta["omega"], theta["zeta"], theta["xF"])
+    seq = vmj.turning_points(model, theta["a0"], n, _OSCILLATOR_SOLVERS[forward]())
     return _sequence(seq, theta["a0"])
 
 

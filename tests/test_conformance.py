@@ -17,6 +17,8 @@ MODELS = {
     "linear": lambda: vmj.LinearOscillator(1.0, 0.2, 100.0),
     "linear-forced": lambda: vmj.LinearOscillator(1.0, 0.2, 100.0, vmj.HarmonicForce(1.0, 7.0)),
     "stick-slip": lambda: vmj.StickSlip(5.5, 1.0),
+    "oscillator": lambda: vmj.Oscillator.linear(20.0, zeta=0.01, xF=1e-3),
+    "pendulum": lambda: vmj.Oscillator.pendulum(6.3, zeta=0.002, xF=1e-3, xS=2e-3, cq=0.05),
 }
 SOLVERS = {
     "exact": vmj.Exact,
@@ -29,13 +31,14 @@ TURNING_POINTS = {("variable-mass", "exact"), ("variable-mass", "smoothed"),
                   ("variable-mass", "energy"), ("variable-mass-f", "exact"),
                   ("variable-mass-f", "smoothed"), ("variable-mass-f", "energy"),
                   ("rope", "exact"), ("rope", "smoothed"), ("rope", "energy"),
-                  ("rope-hoisting", "exact"), ("rope-hoisting", "smoothed")}
+                  ("rope-hoisting", "exact"), ("rope-hoisting", "smoothed")} | {
+    (m, s) for m in ("oscillator", "pendulum") for s in ("exact", "smoothed", "energy")}
 SIMULATE = {(m, "smoothed") for m in MODELS} | {("linear", "closed"), ("linear-forced", "closed")}
 LIMIT_CYCLE = {("stick-slip", s) for s in ("exact", "smoothed", "closed")}
 
 
 def _a0(name):
-    return 0.01 if name.startswith("rope") else 0.06
+    return {"rope": 0.01, "rope-hoisting": 0.01, "pendulum": 0.8}.get(name, 0.06)
 
 
 @pytest.mark.parametrize("solver", SOLVERS)

@@ -10,8 +10,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import fits
 import vmj
@@ -248,19 +246,6 @@ def test_energy_forward_model_agrees_with_the_exact_one(pendulum):
     assert abs(r.params["omega"] / exact.params["omega"] - 1) < 1e-4
     assert abs(r.params["xF"] - exact.params["xF"]) < 3 * exact.stderr["xF"]
 
-
-
-@settings(max_examples=10)
-@given(omega=st.floats(5.0, 40.0), zeta=st.floats(0.0, 0.2), xF=st.floats(0.0, 0.05))
-def test_closed_form_oscillator_matches_the_exact_solver(omega, zeta, xF):
-    """The oscillator's "exact" forward model (closed-form half-swing map) is the constant-mass
-    special case of vmj.VariableMass solved by the Taylor solver."""
-    a0 = 1.0
-    times, positions, _ = fits.oscillator_half_swings(omega, zeta, xF, a0, 12)
-    model = vmj.VariableMass(1.0, omega**2, 0.0, 0.0, 2 * zeta * omega, vmj.Coulomb(omega**2 * xF))
-    seq = vmj.turning_points(model, a0, 12)
-    np.testing.assert_allclose(np.asarray(positions), np.asarray(seq.positions), atol=1e-9)
-    np.testing.assert_allclose(np.asarray(times), np.asarray(seq.times), rtol=1e-9)
 
 
 def _held(d, idx, value):

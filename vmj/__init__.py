@@ -25,12 +25,15 @@ from ._host import retain_host_memory
 from ._integrate import (energy_balance, limit_cycle, linear_simulate, rope_energy_map, simulate,
                          stick_slip_closed_form, stick_slip_cycle, stick_slip_simulate,
                          turning_points)
+from ._laws._dissipation import CoulombDamping, DissipationLaw, QuadraticDamping, ViscousDamping
 from ._laws._forcing import BaseMotion, Forcing, HarmonicForce, NoForcing
 from ._laws._friction import AffineFriction, Coulomb, FrictionLaw, MassProportional
 from ._laws._length import Braking, ConstantSpeed, LengthProfile
+from ._laws._restoring import LinearRestoring, PolynomialRestoring, RestoringLaw, SineRestoring
 from ._models._base import (AbstractAnalytic, AbstractDecayModel, AbstractEnergyMap,
                             AbstractLimitCycle, AbstractModel)
 from ._models._linear import LinearOscillator
+from ._models._oscillator import Oscillator
 from ._models._rope import KGF, Rope, action_amplitude, action_frequency, kbm_amplitude, \
     kbm_frequency
 from ._models._stick_slip import StickSlip, StickSlipCycle
@@ -49,8 +52,10 @@ __all__ = [
     # models and laws
     "AbstractParams", "AbstractModel", "AbstractDecayModel", "AbstractEnergyMap",
     "AbstractAnalytic", "AbstractLimitCycle",
-    "VariableMass", "Rope", "LinearOscillator", "StickSlip",
+    "VariableMass", "Rope", "Oscillator", "LinearOscillator", "StickSlip",
     "FrictionLaw", "Coulomb", "MassProportional", "AffineFriction",
+    "RestoringLaw", "LinearRestoring", "PolynomialRestoring", "SineRestoring",
+    "DissipationLaw", "ViscousDamping", "CoulombDamping", "QuadraticDamping",
     "LengthProfile", "ConstantSpeed", "Braking", "KGF",
     "Forcing", "NoForcing", "HarmonicForce", "BaseMotion",
     # solvers and entry points

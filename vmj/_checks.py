@@ -146,6 +146,9 @@ def validated(model):
                     items.append((n, getattr(m, n), ok, allowed))
             for n, v in fields.items():
                 collect(v, path + (n,))
+        elif isinstance(m, (tuple, list)):  # a tuple of laws
+            for i, v in enumerate(m):
+                collect(v, path + (i,))
 
     collect(model, ())
     if not paths:
@@ -153,7 +156,7 @@ def validated(model):
 
     def get(m, path):
         for n in path:
-            m = getattr(m, n)
+            m = m[n] if isinstance(n, int) else getattr(m, n)
         return m
 
     checked = check_all(items)

@@ -88,7 +88,7 @@ def turning_points(model, a0, n: int, solver=None, *, method: str | None = None,
     require_scalar_fields(model)
     model = solver.check(validated(model), "turning_points")
     # an array, not a Python float: filter_jit would treat floats as static and recompile
-    a0 = _float(check("a0", a0, positive, f"> 0 [{model.position_unit}]"))
+    a0 = _float(check("a0", a0, *model.release_range()))
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, a0, 0.0)
     seq = _turning_points(model, a0, n, solver)

@@ -30,7 +30,7 @@ from .._numerics._scan import decay_scan
 from .._numerics._roots import expanding_root
 from .._numerics._ode import ode_solve
 
-__all__ = ["kbm", "action_law", "energy_map_sequence", "half_swings_until"]
+__all__ = ["kbm", "action_law", "energy_map_sequence", "half_swings_until", "swing_nodes"]
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(40)
 _THETA = 0.5 * np.pi * _NODES  # Gauss-Legendre nodes on [-pi/2, pi/2]
@@ -94,10 +94,19 @@ def _quotient(c, p1, r1, r2):
     return q2, q1, q0
 
 
+def swing_nodes(r1, r2):
+    """Quadrature of a swing between turning points `r1 < r2`: the nodes `x` of
+    `x = (r1 + r2)/2 + (r2 - r1)/2 sin(theta)`, Gauss-Legendre in `theta` on `[-pi/2, pi/2]`,
+    with their weights in `theta` and `cos(theta)`. Where the kinetic energy is
+    `(x - r1)(r2 - x) q(x)` with `q` smooth, the time, action and loss integrands are analytic
+    in `theta` and converge to machine precision."""
+    centre, half = (r1 + r2) / 2, (r2 - r1) / 2
+    return centre + half * jnp.sin(_THETA), _W, np.cos(_THETA)
+
+
 def _swing_nodes(q, r1, r2):
     """`-q(x)` (> 0 between the roots) at the quadrature nodes."""
-    centre, half = (r1 + r2) / 2, (r2 - r1) / 2
-    x = centre + half * jnp.sin(_THETA)
+    x = swing_nodes(r1, r2)[0]
     return -((q[0] * x + q[1]) * x + q[2])
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import AbstractParams, _is_traced
+from .._checks import AbstractParams, _is_traced, positive
 from .._solution import RESULTS
 
 __all__ = ["check_horizon", "require_scalar_fields", "AbstractModel", "AbstractDecayModel", "AbstractEnergyMap", "AbstractAnalytic",
@@ -101,6 +101,14 @@ class AbstractDecayModel(AbstractModel):
     substeps (`substep`) to the velocity zero, where the stick rule (`rest`) decides whether the
     mass moves on.
     """
+
+    #: the exact solver's default step limit per half-swing (`vmj.Exact().max_substeps`)
+    exact_substeps: ClassVar[int] = 8
+
+    def release_range(self):
+        """`(predicate, allowed range)` of the release amplitude `a0`, checked by
+        [`vmj.turning_points`][]."""
+        return positive, f"> 0 [{self.position_unit}]"
 
     @abc.abstractmethod
     def rest(self, t, x):

@@ -21,7 +21,7 @@ from .._checks import (_float, _is_traced, anything, check, nonnegative, positiv
                        warn_if_float32)
 from .._closed_forms._osinski import action_law, energy_map_sequence, kbm
 from .._laws._length import ConstantSpeed, LengthProfile
-from .._numerics._series import cauchy
+from .._numerics._series import cauchy, cauchy_term
 from .._solution import RESULTS
 from ._base import AbstractEnergyMap, check_horizon, require_scalar_fields
 
@@ -177,7 +177,6 @@ class Rope(AbstractEnergyMap):
         with Cauchy products `( )_n`: O(order^2) multiply-adds."""
         l, l1, l2 = self.length.local(t)
         k = order + 1
-        i = jnp.arange(k)
 
         def reciprocal(n, g):  # g = 1/l(t + tau): l0 g_n + l1 g_{n-1} + l2 g_{n-2} = 0
             return g.at[n].set(-(l1 * g[n - 1] + l2 * jnp.where(n >= 2, g[n - 2], 0.0)) / l)
@@ -188,15 +187,12 @@ class Rope(AbstractEnergyMap):
         A, m = self.A, self.m
         force0 = 2 * m * l2 - A * self.T * s
 
-        def term(a, b, n):  # (a b)_n
-            return jnp.sum(jnp.where(i <= n, a * b[jnp.clip(n - i, 0, k - 1)], 0.0))
-
         def body(n, carry):
             xs, x2, x3 = carry
-            x2 = x2.at[n].set(term(xs, xs, n))
-            x3 = x3.at[n].set(term(x2, xs, n))
-            rhs = -A * (self.e * term(g1, xs, n) + self.b * term(g2, x2, n)
-                        + self.d * term(g3, x3, n))
+            x2 = x2.at[n].set(cauchy_term(xs, xs, n))
+            x3 = x3.at[n].set(cauchy_term(x2, xs, n))
+            rhs = -A * (self.e * cauchy_term(g1, xs, n) + self.b * cauchy_term(g2, x2, n)
+                        + self.d * cauchy_term(g3, x3, n))
             rhs = rhs + jnp.where(n == 0, force0, 0.0)
             return xs.at[n + 2].set(rhs / (m * (n + 1) * (n + 2))), x2, x3
 

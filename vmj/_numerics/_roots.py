@@ -66,6 +66,7 @@ def expanding_root(f, hi, iterations: int = 60):
         hi = jnp.where(fs(hi) > 0, 2 * hi, hi)
     # (a root at hi itself may evaluate to a rounding-level positive value)
     bracketed = fs(hi) <= 1e-12 * jnp.abs(fs(0.5 * hi))
-    y = bracketed_newton(lambda y: (fs(y), jax.grad(fs)(y)), jnp.zeros_like(hi), hi, hi,
-                         iterations)
+    # (the slope of f itself: jax.grad of the stopped fs would be zero, i.e. pure bisection)
+    fp = lambda y: lax.stop_gradient(jax.grad(f)(y))  # noqa: E731
+    y = bracketed_newton(lambda y: (fs(y), fp(y)), jnp.zeros_like(hi), hi, hi, iterations)
     return implicit_step(lambda y: (f(y), jax.grad(f)(y)), y), bracketed

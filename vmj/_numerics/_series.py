@@ -6,7 +6,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["horner", "horner_and_derivative", "derivative", "cauchy"]
+__all__ = ["horner", "horner_and_derivative", "derivative", "cauchy", "cauchy_term"]
 
 
 def horner(cs, tau):
@@ -38,3 +38,10 @@ def cauchy(a, b):
     idx = i[:, None] - i[None, :]  # row n, column j -> b[n - j]
     mat = jnp.where(idx >= 0, b[np.clip(idx, 0, k - 1)], 0.0)
     return mat @ a
+
+
+def cauchy_term(a, b, n):
+    """Coefficient `n` (a traced integer) of the product of two series (1-D arrays):
+    `sum_{i <= n} a[i] b[n - i]`, for recurrences that build the series one term at a time."""
+    i = jnp.arange(a.shape[0])
+    return jnp.sum(jnp.where(i <= n, a * b[jnp.clip(n - i, 0, a.shape[0] - 1)], 0.0))

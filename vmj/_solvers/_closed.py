@@ -19,8 +19,11 @@ class EnergyBalance(AbstractSolver):
     """Turning points from the model's energy balance over each half-swing, a closed-form map
     from one turning point to the next: the variable-mass paper's recurrences (11)-(13) (an
     approximation for a varying mass, as the paper's), the exact energy map of a rope of fixed
-    length, the exact map of the identification oscillator with Coulomb friction (and its
-    first-order averaged map with viscous or quadratic damping)."""
+    length, and for [`vmj.Oscillator`][] the exact map with dry friction (any restoring law) and
+    the exact closed form of the linear law with viscous damping; with viscous or quadratic
+    damping and a nonlinear law (or quadratic drag) an averaged map, the loss evaluated on the
+    chord swing (amplitude error `O(zeta^3)` per half-swing, time error `O(zeta^2)`; measured
+    2e-4 in amplitude and 5e-4 in time after 24 half-swings losing 5 % each)."""
 
     name: ClassVar[str] = "energy"
 

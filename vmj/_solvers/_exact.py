@@ -48,17 +48,20 @@ class Exact(AbstractSolver):
 
     **Arguments:**
 
-    - `max_substeps`: step limit per half-swing (substeps are about 0.64 of a half-period
-      for the variable-mass model). A half-swing that needs more reports
-      `RESULTS.step_limit` (overdamped or creeping motion).
+    - `max_substeps`: step limit per half-swing; default: the model's (8 for most models,
+      where a substep is about 0.64 of a half-period for the variable-mass model; 12 for
+      [`vmj.Oscillator`][], whose nonlinear laws need shorter substeps). A half-swing that
+      needs more reports `RESULTS.step_limit` (overdamped or creeping motion).
 
     For [`vmj.limit_cycle`][], `Exact()` is the event-driven solution of the stick-slip rules.
     """
 
-    max_substeps: int = eqx.field(static=True, default=8)
+    max_substeps: int | None = eqx.field(static=True, default=None)
     name: ClassVar[str] = "exact"
 
     def __check_init__(self):
+        if self.max_substeps is None:
+            return
         if isinstance(self.max_substeps, bool) or not isinstance(self.max_substeps, int) or \
                 self.max_substeps < 1:
             raise ValueError(f"max_substeps must be an integer >= 1 (got {self.max_substeps!r})")
@@ -72,7 +75,8 @@ class Exact(AbstractSolver):
                           "use vmj.Smoothed() or the model's closed forms")
 
     def turning_points(self, model, a0, n: int):
-        return _decay(model, a0, n=n, max_substeps=self.max_substeps)
+        steps = model.exact_substeps if self.max_substeps is None else self.max_substeps
+        return _decay(model, a0, n=n, max_substeps=steps)
 
     def limit_cycle(self, model, max_reversals: int):
         return model.exact_cycle(max_reversals)

@@ -11,11 +11,15 @@ from .._checks import _float, validated
 __all__ = ["resolve_field"]
 
 def _field_paths(model, prefix=()):
-    """Paths (tuples of attribute names) to every array field of a module tree."""
+    """Paths (tuples of attribute names, and positions in a tuple of laws as digit strings) to
+    every array field of a module tree."""
     out = []
     if isinstance(model, eqx.Module):
         for name in (f.name for f in dataclasses.fields(model)):
             out += _field_paths(getattr(model, name), prefix + (name,))
+    elif isinstance(model, (tuple, list)):
+        for i, item in enumerate(model):
+            out += _field_paths(item, prefix + (str(i),))
     elif eqx.is_array_like(model) and not isinstance(model, (str, bytes)):
         out.append(prefix)
     return out
@@ -23,7 +27,8 @@ def _field_paths(model, prefix=()):
 
 def resolve_field(model, name: str) -> tuple[str, ...]:
     """The path of the array field `name` of `model`: a field name (`"eps"`), unique among the
-    nested modules (`"F"` is `friction.F`), or a dotted path (`"friction.F"`)."""
+    nested modules (`"F"` is `friction.F`), or a dotted path (`"friction.F"`,
+    `"dissipation.0.zeta"`)."""
     paths = _field_paths(model)
     want = tuple(name.split("."))
     hits = [p for p in paths if p[-len(want):] == want]
@@ -44,7 +49,7 @@ def _short_name(paths, path) -> str:
 
 def _get(model, path):
     for p in path:
-        model = getattr(model, p)
+        model = model[int(p)] if isinstance(model, (tuple, list)) else getattr(model, p)
     return model
 
 
