@@ -6,11 +6,13 @@ task. The older per-model functions are thin wrappers kept for compatibility."""
 
 from __future__ import annotations
 
-import equinox as eqx
-import jax.numpy as jnp
+from functools import partial
 
-from ._checks import (_float, _is_traced, anything, check, check_int, positive, validated,
-                      warn_if_float32)
+import equinox as eqx
+import jax
+
+from ._checks import (_float, _is_traced, anything, check, check_int, positive, scalar,
+                      validated, warn_if_float32)
 from ._models._base import check_horizon, require_scalar_fields
 from ._models._rope import Rope
 from ._models._stick_slip import MAX_REVERSALS, StickSlip, smoothed_states
@@ -53,8 +55,13 @@ def _solver(solver, method, smoothing, max_substeps, default):
     return kind()
 
 
+# The compiled entry points: plain `jax.jit` (its dispatch runs in C++; every leaf of a model
+# and a solver is an array, their settings are static fields) with the integer settings
+# static. They hold no host callbacks for concrete inputs, so JAX's persistent compilation
+# cache can store them.
+
 # -- turning points of a free decay ------------------------------------------------------------
-@eqx.filter_jit
+@partial(jax.jit, static_argnums=2)
 def _turning_points(model, a0, n, solver):
     return solver.turning_points(model, a0, n)
 
@@ -87,8 +94,7 @@ def turning_points(model, a0, n: int, solver=None, *, method: str | None = None,
     n = check_int("n", n, 1)
     require_scalar_fields(model)
     model = solver.check(validated(model), "turning_points")
-    # an array, not a Python float: filter_jit would treat floats as static and recompile
-    a0 = _float(check("a0", a0, *model.release_range()))
+    a0 = scalar(check("a0", a0, *model.release_range()))
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, a0, 0.0)
     seq = _turning_points(model, a0, n, solver)
@@ -132,7 +138,7 @@ def rope_energy_map(rope: Rope, a0, n: int, *, throw: bool = False) -> DecaySequ
 
 
 # -- trajectories ------------------------------------------------------------------------------
-@eqx.filter_jit
+@partial(jax.jit, static_argnums=4)
 def _simulate(model, x0, v0, t1, n_save, solver):
     return solver.simulate(model, x0, v0, t1, n_save)
 
@@ -163,9 +169,9 @@ def simulate(model, x0, v0, t1, solver=None, *, smoothing=None, n_save: int = 20
     require_scalar_fields(model)
     model = solver.check(validated(model), "simulate")
     unit = model.position_unit
-    x0 = _float(check("x0", x0, anything, f"a real number [{unit}]"))
-    v0 = _float(check("v0", v0, anything, f"a real number [{unit}/s]"))
-    t1 = _float(check("t1", t1, positive, "> 0 [s]"))
+    x0 = scalar(check("x0", x0, anything, f"a real number [{unit}]"))
+    v0 = scalar(check("v0", v0, anything, f"a real number [{unit}/s]"))
+    t1 = scalar(check("t1", t1, positive, "> 0 [s]"))
     check_horizon(model, t1)
     if _is_traced(t1) or _is_traced(model.lifetime()):
         t1 = eqx.error_if(t1, t1 >= model.lifetime(),
@@ -187,7 +193,7 @@ def linear_simulate(osc, x0, v0, t1, *, n_save: int = 2001, rtol: float = 1e-12,
 
 
 # -- limit cycles ------------------------------------------------------------------------------
-@eqx.filter_jit
+@partial(jax.jit, static_argnums=1)
 def _limit_cycle(model, max_reversals, solver):
     return solver.limit_cycle(model, max_reversals)
 
