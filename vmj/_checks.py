@@ -106,7 +106,9 @@ def warn_if_float32() -> None:
 
 # -- parameterised modules ----------------------------------------------------------------------
 class AbstractParams(eqx.Module):
-    """Base of every model and law: `_limits` maps a field name to `(predicate, allowed range)`.
+    """Base of every model and law: `_limits` maps a field name to `(predicate, allowed range)`;
+    `_relations` maps a field name to `(predicate of the module, allowed range)` for a range
+    that depends on other fields (e.g. a static friction level at least the kinetic one).
 
     Concrete values are checked once, at construction (`ValueError` naming the field and its
     range); the entry points call [`validated`][] on the whole model tree, which guards traced
@@ -115,13 +117,12 @@ class AbstractParams(eqx.Module):
     """
 
     _limits: ClassVar[dict] = {}
+    _relations: ClassVar[dict] = {}
 
     def __check_init__(self):
-        items = [(n, getattr(self, n), ok, allowed) for n, (ok, allowed) in
-                 type(self)._limits.items()]
-        concrete = [item for item in items if not _is_traced(item[1])]
-        check_all(concrete)
-        if len(concrete) == len(items):
+        problems = _problems(self)
+        _raise_concrete(problems)
+        if not any(traced for *_, traced in problems):
             # Checked here, once. The mark lives on this instance only: every other way to make
             # a module (tree_at, unflatten inside jit/vmap) builds a new instance without it.
             object.__setattr__(self, _CHECKED, True)
@@ -131,37 +132,55 @@ class AbstractParams(eqx.Module):
 _CHECKED = "_vmj_checked"
 
 
-def validated(model):
-    """Check every limited field of `model` and of the modules inside it; return the model with
-    one runtime guard over all its traced fields (concrete ones raise `ValueError` now). Modules
-    checked at their construction (and not rebuilt since) are not checked again."""
-    paths, items = [], []
+def _problems(m) -> list:
+    """`(message, field value, ok, traced)` of each check of the module `m` itself: `ok` is a
+    boolean array (all True when the check passes)."""
+    out = []
+    for n, (ok, allowed) in type(m)._limits.items():
+        value = getattr(m, n)
+        if _is_traced(value):
+            out.append((f"{n} must be finite and {allowed}", value,
+                        jnp.isfinite(value) & ok(value), True))
+        else:
+            arr = np.asarray(value, dtype=float)
+            out.append((f"{n} must be finite and {allowed}", arr,
+                        np.isfinite(arr) & ok(arr), False))
+    for n, (ok, allowed) in type(m)._relations.items():
+        flags = ok(m)
+        out.append((f"{n} must be {allowed}", getattr(m, n), flags, _is_traced(flags)))
+    return out
 
-    def collect(m, path):
+
+def _raise_concrete(problems) -> None:
+    for message, value, ok, traced in problems:
+        if not traced and not np.all(ok):
+            arr = np.asarray(value)
+            raise ValueError(f"{message} (got {arr.item() if arr.ndim == 0 else arr})")
+
+
+def validated(model):
+    """Check every limited field (and relation) of `model` and of the modules inside it; return
+    the model guarded by one `equinox.error_if` over all its traced checks (concrete ones raise
+    `ValueError` now). Modules checked at their construction (and not rebuilt since) are not
+    checked again."""
+    problems = []
+
+    def collect(m):
         if isinstance(m, AbstractParams):
             fields = vars(m)
             if not fields.get(_CHECKED, False):
-                for n, (ok, allowed) in type(m)._limits.items():
-                    paths.append(path + (n,))
-                    items.append((n, getattr(m, n), ok, allowed))
-            for n, v in fields.items():
-                collect(v, path + (n,))
+                problems.extend(_problems(m))
+            for v in fields.values():
+                collect(v)
         elif isinstance(m, (tuple, list)):  # a tuple of laws
-            for i, v in enumerate(m):
-                collect(v, path + (i,))
+            for v in m:
+                collect(v)
 
-    collect(model, ())
-    if not paths:
-        return model
-
-    def get(m, path):
-        for n in path:
-            m = m[n] if isinstance(n, int) else getattr(m, n)
-        return m
-
-    checked = check_all(items)
-    traced = [i for i, (_, v, _, _) in enumerate(items) if _is_traced(v)]
+    collect(model)
+    _raise_concrete(problems)
+    traced = [(message, ok) for message, _, ok, is_traced in problems if is_traced]
     if not traced:
         return model
-    return eqx.tree_at(lambda m: [get(m, paths[i]) for i in traced], model,
-                       [checked[i] for i in traced])
+    bad = jnp.stack([jnp.logical_not(jnp.all(ok)) for _, ok in traced])
+    return eqx.branched_error_if(model, jnp.any(bad), jnp.argmax(bad),
+                                 [message for message, _ in traced])

@@ -7,11 +7,13 @@ import diffrax as dfx
 __all__ = ["ode_solve"]
 
 
-def ode_solve(field, y0, t1, saveat, *, rtol, atol, max_steps: int, solver=None):
-    """`field(t, y, args)` integrated from `t = 0` to `t1` with diffrax (`solver`, default
-    Tsit5) under a PID step-size controller; never raises (check `sol.result`)."""
+def ode_solve(field, y0, t1, saveat, *, rtol, atol, max_steps: int, solver=None, t0=0.0,
+              event=None):
+    """`field(t, y, args)` integrated from `t0` (default 0) to `t1` with diffrax (`solver`,
+    default Tsit5) under a PID step-size controller, stopping early at a `diffrax.Event`;
+    never raises (check `sol.result`)."""
     return dfx.diffeqsolve(
-        dfx.ODETerm(field), dfx.Tsit5() if solver is None else solver, t0=0.0, t1=t1, dt0=None,
+        dfx.ODETerm(field), dfx.Tsit5() if solver is None else solver, t0=t0, t1=t1, dt0=None,
         y0=y0, saveat=saveat, stepsize_controller=dfx.PIDController(rtol=rtol, atol=atol),
-        max_steps=max_steps, throw=False,
+        max_steps=max_steps, throw=False, event=event,
     )
