@@ -99,10 +99,34 @@ class Smoothed(AbstractSolver):
         return sol, jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
 
     def simulate(self, model, x0, v0, t1, n_save: int) -> Trajectory:
+        """The solution at `n_save` equally spaced times: one solve continued from each saved
+        time to the next (the solver's and the step-size controller's states carried over).
+        (Saving at `SaveAt(ts=...)` compiles a check on the host, which would keep the program
+        out of JAX's persistent compilation cache.)"""
+        rtol, steps, ode = self._settings(model)
+        w = self.smoothing
         ts = jnp.linspace(0.0, t1, n_save)
-        sol, code = self.solve(model, x0, v0, t1, dfx.SaveAt(ts=ts))
-        ys = jnp.where(code == RESULTS.successful, sol.ys, jnp.nan)
-        xs, vs = model.observe(ys)
+        y0 = model.initial_state(x0, v0)
+        atol = rtol * model.length_scale(x0, v0)
+        go_on = dfx.SaveAt(t1=True, solver_state=True, controller_state=True, made_jump=True)
+
+        def piece(t_a, t_b, y, resume):
+            sol = ode_solve(lambda t, y, args: model.vector_field(t, y, w), y, t_b, go_on,
+                            rtol=rtol, atol=atol, max_steps=steps, solver=ode, t0=t_a,
+                            resume=resume)
+            resume = (sol.solver_state, sol.controller_state, sol.made_jump)
+            return sol.ys[-1], resume, sol.result == dfx.RESULTS.successful
+
+        def body(carry, interval):
+            y, resume, ok = carry
+            y, resume, okay = piece(*interval, y, resume)
+            return (y, resume, ok & okay), y
+
+        y1, resume, ok = piece(ts[0], ts[1], y0, None)
+        (_, _, ok), ys = lax.scan(body, (y1, resume, ok), (ts[1:-1], ts[2:]))
+        ys = jnp.concatenate([y0[None], y1[None], ys])
+        code = jnp.where(ok, RESULTS.successful, RESULTS.solver_failed).astype(jnp.int32)
+        xs, vs = model.observe(jnp.where(ok, ys, jnp.nan))
         return Trajectory(ts=ts, xs=xs, vs=vs, result=code)
 
     def turning_points(self, model, a0, n: int) -> DecaySequence:
