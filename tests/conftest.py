@@ -6,10 +6,11 @@ import sys
 import jax
 
 jax.config.update("jax_enable_x64", True)
-# share compiled programs between the pytest workers and test files of one run
-jax.config.update(
-    "jax_compilation_cache_dir", os.path.join(os.path.dirname(__file__), "..", ".pytest_cache", "jax")
-)
+# share compiled programs between the pytest workers and test files of one run; the `vmj`
+# command run in-process or as a subprocess uses the same directory (not the user's cache)
+CACHE = os.path.join(os.path.dirname(__file__), "..", ".pytest_cache", "jax")
+os.environ.setdefault("VMJ_CACHE_DIR", CACHE)
+jax.config.update("jax_compilation_cache_dir", CACHE)
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 from hypothesis import HealthCheck, settings  # noqa: E402

@@ -8,7 +8,7 @@ import pytest
 
 import fits
 import vmj
-from vmj._cli import main
+from vmj.cli import main
 
 A0, U, T_KG = 0.01, -2.0, 4.0  # 1 cm, lowering at 2 m/s, T = 4 kG/cm^2 (the paper's example)
 

@@ -15,7 +15,7 @@ import fits
 import vmj
 from fits._fit import _arrays, _dtheta_dp, _Job, _residual_and_jacobian, _theta
 from fits._models import SPACES
-from vmj._cli import main
+from vmj.cli import main
 
 HERE = os.path.dirname(__file__)
 P80 = os.path.join(HERE, "..", "examples", "data", "80P.txt")

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import vmj
-from vmj._cli import main as cli_main
+from vmj.cli import main as cli_main
 
 REL = 1e-8
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy_rope import rope_turning_points
 
 import vmj
-from vmj._cli import main
+from vmj.cli import main
 from vmj._closed_forms._osinski import _kbm_printed
 
 KG_CM2 = vmj.KGF * 1e4

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import vmj
-from vmj._cli import main as cli_main
+from vmj.cli import main as cli_main
 from scipy_stickslip import stick_slip_cycle as scipy_cycle
 
 REL = 1e-8

@@ -234,7 +234,7 @@ def test_bad_input_raises_value_error():
 
 
 def test_cli_sweep(tmp_path, capsys):
-    from vmj._cli import main
+    from vmj.cli import main
 
     out, fig = tmp_path / "s.csv", tmp_path / "s.png"
     argv = ["sweep", "variable-mass", "--eps", "0:1:3", "--mu", "0:10:3", "--delta", "-3:3:2",
@@ -252,4 +252,4 @@ def test_cli_sweep(tmp_path, capsys):
     assert main(bad) == 2
     assert "eps must be finite and in [0, 1]" in capsys.readouterr().err
     assert main(["sweep", "variable-mass", "--eps", "0:1:3", "--set", "m0=5,c=4900,FT=1"]) == 2
-    assert "missing a0" in capsys.readouterr().err
+    assert "--set a0= (initial deflection [m])" in capsys.readouterr().err

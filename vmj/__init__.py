@@ -18,35 +18,45 @@ The public API, by concern:
   [`StickSlipCycle`][vmj.StickSlipCycle]) with their status ([`RESULTS`][vmj.RESULTS]);
 - closed forms and averaged laws of the source papers;
 - sweeps, grids, sensitivities; the paper's tables; figures in `vmj.plot`.
+
+Nothing heavy is imported by `import vmj`: each name below is loaded on first use (JAX, equinox
+and diffrax only when a model, solver or entry point is touched), so that the `vmj` command
+answers `--help` and argument errors at once.
 """
 
-from ._checks import AbstractParams
-from ._host import retain_host_memory
-from ._integrate import (energy_balance, limit_cycle, linear_simulate, rope_energy_map, simulate,
-                         stick_slip_closed_form, stick_slip_cycle, stick_slip_simulate,
-                         turning_points)
-from ._laws._dissipation import CoulombDamping, DissipationLaw, QuadraticDamping, ViscousDamping
-from ._laws._forcing import BaseMotion, Forcing, HarmonicForce, NoForcing
-from ._laws._friction import AffineFriction, Coulomb, FrictionLaw, MassProportional
-from ._laws._length import Braking, ConstantSpeed, LengthProfile
-from ._laws._restoring import LinearRestoring, PolynomialRestoring, RestoringLaw, SineRestoring
-from ._models._base import (AbstractAnalytic, AbstractDecayModel, AbstractEnergyMap,
-                            AbstractLimitCycle, AbstractModel)
-from ._models._linear import LinearOscillator
-from ._models._oscillator import Oscillator
-from ._models._rope import KGF, Rope, action_amplitude, action_frequency, kbm_amplitude, \
-    kbm_frequency
-from ._models._stick_slip import StickSlip, StickSlipCycle
-from ._models._variable_mass import VariableMass
-from ._solution import RESULTS, DecaySequence, SolverError, Trajectory
-from ._solvers._base import AbstractSolver
-from ._solvers._closed import ClosedForm, EnergyBalance
-from ._solvers._exact import Exact
-from ._solvers._smoothed import Smoothed
-from ._sweep import Grid, SweepResult, grid, resolve_field, sensitivity, sweep
-from ._tables import PAPER, paper_cells, paper_model, paper_table
+from typing import TYPE_CHECKING
 
 __version__ = "0.2.0"
+
+if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs as written
+    from ._checks import AbstractParams
+    from ._host import retain_host_memory
+    from ._integrate import (energy_balance, limit_cycle, linear_simulate, rope_energy_map,
+                             simulate, stick_slip_closed_form, stick_slip_cycle,
+                             stick_slip_simulate, turning_points)
+    from ._laws._dissipation import (CoulombDamping, DissipationLaw, QuadraticDamping,
+                                     ViscousDamping)
+    from ._laws._forcing import BaseMotion, Forcing, HarmonicForce, NoForcing
+    from ._laws._friction import AffineFriction, Coulomb, FrictionLaw, MassProportional
+    from ._laws._length import Braking, ConstantSpeed, LengthProfile
+    from ._laws._restoring import (LinearRestoring, PolynomialRestoring, RestoringLaw,
+                                   SineRestoring)
+    from ._models._base import (AbstractAnalytic, AbstractDecayModel, AbstractEnergyMap,
+                                AbstractLimitCycle, AbstractModel)
+    from ._models._linear import LinearOscillator
+    from ._models._oscillator import Oscillator
+    from ._models._rope import KGF, Rope, action_amplitude, action_frequency, kbm_amplitude, \
+        kbm_frequency
+    from ._models._stick_slip import StickSlip, StickSlipCycle
+    from ._models._variable_mass import VariableMass
+    from ._solution import RESULTS, DecaySequence, SolverError, Trajectory
+    from ._solvers._base import AbstractSolver
+    from ._solvers._closed import ClosedForm, EnergyBalance
+    from ._solvers._exact import Exact
+    from ._solvers._smoothed import Smoothed
+    from ._sweep import Grid, SweepResult, grid, resolve_field, sensitivity, sweep
+    from ._tables import PAPER, paper_cells, paper_model, paper_table
+
 
 __all__ = [
     # models and laws
@@ -74,3 +84,42 @@ __all__ = [
     # the variable-mass paper's tables
     "PAPER", "paper_cells", "paper_model", "paper_table",
 ]
+
+
+def _table() -> dict:
+    """Public name -> module, read once from the `if TYPE_CHECKING:` block above (the one list)."""
+    import ast
+    import pathlib
+
+    tree = ast.parse(pathlib.Path(__file__).read_text(encoding="utf-8"))
+    block = next(n for n in tree.body if isinstance(n, ast.If) and
+                 ast.unparse(n.test) == "TYPE_CHECKING")
+    return {alias.name: "." * node.level + node.module for node in block.body
+            if isinstance(node, ast.ImportFrom) for alias in node.names}
+
+
+_LAZY: dict | None = None
+
+
+def __getattr__(name: str):
+    """Load a public name (or a submodule such as `vmj.plot`) on first use."""
+    import importlib
+
+    global _LAZY
+    if _LAZY is None:
+        _LAZY = _table()
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value  # later lookups skip this function
+        return value
+    if not name.startswith("__"):
+        try:
+            return importlib.import_module(f"{__name__}.{name}")
+        except ModuleNotFoundError as e:
+            if e.name != f"{__name__}.{name}":
+                raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list:
+    return sorted(set(globals()) | set(__all__))

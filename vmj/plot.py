@@ -8,13 +8,14 @@ a full disk or a killed process never leaves a truncated PNG.
 from __future__ import annotations
 
 import os
-import tempfile
 
 import numpy as np
 
+from ._files import replacing
 from ._solution import RESULTS
 
-__all__ = ["pyplot", "save", "plot_table", "plot_swings", "plot_energy_error"]
+__all__ = ["pyplot", "save", "plot_table", "plot_swings", "plot_energy_error", "plot_sensitivity",
+           "per"]
 
 
 def pyplot():
@@ -28,20 +29,14 @@ def pyplot():
 
 
 def save(fig, path: str) -> None:
-    """Write `fig` to `path` (format from the extension) atomically. The directory must exist:
-    nothing is created or renamed silently."""
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise ValueError(f"{path}: the directory {folder} does not exist")
-    ext = os.path.splitext(path)[1] or ".png"
-    fd, tmp = tempfile.mkstemp(suffix=ext, prefix=".vmj-", dir=folder)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight")
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    """Write `fig` to `path` (format from the extension, PNG without one) atomically. The
+    directory must exist: nothing is created or renamed silently."""
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight", format=_format(path))
+
+
+def _format(path: str) -> str:
+    return os.path.splitext(path)[1].lstrip(".").lower() or "png"
 
 
 def plot_table(table: int, rows: list[dict], path: str) -> None:
@@ -171,3 +166,35 @@ def plot_energy_error(exact, energy, a0: float, path: str) -> None:
     bar.set_label("max_k | a_k(energy balance) - a_k(exact) | / a0")
     save(fig, path)
     plt.close(fig)
+
+
+def plot_sensitivity(data: dict, path: str) -> None:
+    """Derivatives of the turning points against `k`, one column per parameter: `d|x_k|/dp`
+    (top) and `dt_k/dp` (bottom). `data` is the JSON object of `vmj sensitivity` (keys `wrt`,
+    `units`, `d_amplitudes`, `d_times`)."""
+    plt = pyplot()
+    wrt = data["wrt"]
+    fig, axes = plt.subplots(2, len(wrt), figsize=(3.4 * len(wrt), 5.2), squeeze=False,
+                             sharex=True, constrained_layout=True)
+    for j, name in enumerate(wrt):
+        unit = data["units"][name]
+        for i, (key, label) in enumerate((("d_amplitudes", f"d|x_k|/d{name} [{per('m', unit)}]"),
+                                          ("d_times", f"dt_k/d{name} [{per('s', unit)}]"))):
+            values = data[key][name]
+            ax = axes[i][j]
+            ax.plot(range(1, len(values) + 1), values, "o-", ms=3, lw=1)
+            ax.axhline(0.0, color="grey", lw=0.5)
+            ax.set_ylabel(label, fontsize=8)
+            ax.grid(alpha=0.3)
+        axes[1][j].set_xlabel("turning point k")
+    fig.suptitle(f"{data['model']} ({data['method']}): sensitivities of the turning points",
+                 fontsize=9)
+    save(fig, path)
+    plt.close(fig)
+
+
+def per(unit: str, of: str) -> str:
+    """The unit `unit` per `of`: `m/N`, `m/(kg/s)`, `m` per a dimensionless `-`."""
+    if of in ("-", ""):
+        return unit
+    return f"{unit}/({of})" if ("/" in of or " " in of) else f"{unit}/{of}"

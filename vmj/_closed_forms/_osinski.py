@@ -18,7 +18,6 @@ the integrands are analytic and Gauss-Legendre quadrature converges to machine p
 
 from __future__ import annotations
 
-import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -212,6 +211,8 @@ def action_law(rope, a0, ts):
     order = jnp.argsort(ts)  # any order of the requested times: solve sorted, then put back
     ts = ts[order]
     t1 = ts[-1]
+    import diffrax as dfx  # only where an ODE is solved (light imports)
+
     sol = ode_solve(field, J0, t1, dfx.SaveAt(ts=ts), rtol=1e-10, atol=1e-10 * J0,
                     max_steps=100_000)
     Js = sol.ys

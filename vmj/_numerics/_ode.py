@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import diffrax as dfx
-
 __all__ = ["ode_solve"]
 
 
@@ -14,6 +12,8 @@ def ode_solve(field, y0, t1, saveat, *, rtol, atol, max_steps: int, solver=None,
     never raises (check `sol.result`). `resume`: `(solver_state, controller_state, made_jump)`
     of a solve that ended at `t0` (saved with `SaveAt(solver_state=True,
     controller_state=True, made_jump=True)`), which this one continues with the same steps."""
+    import diffrax as dfx  # here, not at the top: `import vmj` and the vmj command stay light
+
     solver_state, controller_state, made_jump = (None, None, None) if resume is None else resume
     return dfx.diffeqsolve(
         dfx.ODETerm(field), dfx.Tsit5() if solver is None else solver, t0=t0, t1=t1, dt0=None,

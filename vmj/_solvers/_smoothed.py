@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
-import diffrax as dfx
 import equinox as eqx
 import jax.numpy as jnp
-import optimistix as optx
 from jax import lax
 from jaxtyping import Array
 
@@ -17,6 +15,9 @@ from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractMode
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
 
+
+if TYPE_CHECKING:  # diffrax is imported where a solve is built, so that `import vmj` stays light
+    import diffrax as dfx
 
 __all__ = ["Smoothed"]
 
@@ -80,6 +81,8 @@ class Smoothed(AbstractSolver):
     def _settings(self, model):
         rtol = model.smoothed_rtol if self.rtol is None else self.rtol
         steps = model.smoothed_max_steps if self.max_steps is None else self.max_steps
+        import diffrax as dfx
+
         ode = self.ode_solver
         if ode is None:
             ode = dfx.Kvaerno5() if model.smoothed_stiff else dfx.Tsit5()
@@ -89,6 +92,8 @@ class Smoothed(AbstractSolver):
     def solve(self, model, x0, v0, t1, saveat):
         """diffrax solution of the smoothed model from `(x0, v0)` at `t = 0` to `t1`, and its
         status code."""
+        import diffrax as dfx
+
         rtol, steps, ode = self._settings(model)
         w = self.smoothing
         y0 = model.initial_state(x0, v0)
@@ -103,6 +108,8 @@ class Smoothed(AbstractSolver):
         time to the next (the solver's and the step-size controller's states carried over).
         (Saving at `SaveAt(ts=...)` compiles a check on the host, which would keep the program
         out of JAX's persistent compilation cache.)"""
+        import diffrax as dfx
+
         rtol, steps, ode = self._settings(model)
         w = self.smoothing
         ts = jnp.linspace(0.0, t1, n_save)
@@ -142,6 +149,9 @@ class Smoothed(AbstractSolver):
         stops for good (`stopped`): a smoothed mass only creeps from there (`|v| < CREEP w`),
         which is stiff and is not integrated. A decay that runs into the horizon still
         creeping is `stopped` too."""
+        import diffrax as dfx
+        import optimistix as optx
+
         rtol, steps, ode = self._settings(model)
         w = self.smoothing
         slow = CREEP * w

@@ -11,6 +11,8 @@ from typing import Any
 import jax
 import numpy as np
 
+from .._files import replacing
+
 __all__ = ["SweepResult"]
 
 
@@ -94,7 +96,7 @@ class SweepResult:
         table = np.empty((len(data[0]), len(data)), dtype=object)
         for j, c in enumerate(data):
             table[:, j] = c.astype(np.int64) if c.dtype.kind == "b" else c
-        with open(path, "w", newline="") as fh:
+        with replacing(path) as tmp, open(tmp, "w", newline="") as fh:
             fh.write("# vmj-sweep " + json.dumps(meta) + "\n")
             fh.write(",".join(header) + "\n")
             np.savetxt(fh, table, fmt=fmts, delimiter=",")
@@ -163,5 +165,7 @@ class SweepResult:
 
     def to_netcdf(self, path: str) -> None:
         """Write `to_xarray()` to a NetCDF file (needs the optional extra `vmj[xarray]`)."""
-        self.to_xarray().to_netcdf(path)
+        data = self.to_xarray()
+        with replacing(path) as tmp:
+            data.to_netcdf(tmp)
 

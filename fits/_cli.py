@@ -1,11 +1,18 @@
-"""`vmj fit FILE ...`: identify friction and damping from a measured decay (the `fits` package)."""
+"""`vmj fit FILE ...`: identify friction and damping from a measured decay.
+
+The command belongs to fits; the `vmj` command line names this module in its list of commands and
+imports it only when `vmj fit` is run (`add_arguments(parser)`, `run(args)`).
+"""
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 
-from ._cli import _number, command, parse_set
+from vmj.cli import figure_path, input_file, number, parse_set
+
+__all__ = ["add_arguments", "run"]
 
 _DEFAULT_FREE = {
     "variable-mass": "FT,mu",
@@ -18,15 +25,16 @@ def _settings(text: str) -> dict:
     out = {}
     for name, value in parse_set(text).items():
         try:
-            out[name] = _number(value)
-        except Exception:
-            raise ValueError(f"--set {name}: not a finite number: {value!r}") from None
+            out[name] = number(value)
+        except argparse.ArgumentTypeError as e:
+            raise ValueError(f"--set {name}: {e}") from None
     return out
 
 
-def _fit_args(p):
-    p.add_argument("FILE", help="peak-sequence CSV (k|time, amplitude|position[, crossed]) or, "
-                                "with --series, a raw signal")
+def add_arguments(p):
+    p.add_argument("FILE", type=input_file,
+                   help="peak-sequence CSV (k|time, amplitude|position[, crossed]) or, with "
+                        "--series, a raw signal")
     p.add_argument("--model", choices=("variable-mass", "rope", "oscillator"),
                    default="variable-mass")
     p.add_argument("--fit", metavar="NAME[,NAME...]",
@@ -43,10 +51,11 @@ def _fit_args(p):
     p.add_argument("--loss", choices=("l2", "huber", "cauchy"), default="l2")
     p.add_argument("--optimizer", choices=("lm", "adam"), default="lm")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", metavar="PATH", help="write a figure (PNG) to PATH")
+    p.add_argument("--plot", metavar="PATH", type=figure_path,
+                   help="write a figure (PNG) to PATH")
 
 
-def _fit(args) -> int:
+def run(args) -> int:
     import warnings
 
     import fits
@@ -72,6 +81,3 @@ def _fit(args) -> int:
     else:
         print(result.report())
     return 0
-
-
-command("fit", "identify friction and damping from a measured decay")((_fit_args, _fit))

@@ -1,0 +1,179 @@
+"""The `vmj` command starts lean: help, version and argument errors without JAX; every option
+documented; the persistent compilation cache configured by the entry point only."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+import vmj
+from vmj.cli import _app, main
+from vmj.cli._options import FIGURE_FORMATS
+
+HEAVY = ("jax", "diffrax", "matplotlib", "fits", "equinox")
+
+
+def _fresh_python(code: str) -> str:
+    """Run `code` in a new interpreter outside the repository (so the installed vmj is used)."""
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.dirname(vmj.__file__)) + "/tests")
+    assert run.returncode == 0, run.stderr
+    return run.stdout
+
+
+def test_help_and_argument_errors_import_nothing_heavy():
+    code = f"""
+import sys
+from vmj.cli import main
+for argv in (["--help"], ["--version"], ["decay", "--help"], ["decay", "variable-mass", "--help"],
+             ["decay", "rope", "--help"], ["table", "--help"], ["sweep", "rope", "--help"],
+             ["sweep", "variable-mass", "--help"], ["sensitivity", "stick-slip", "--help"],
+             ["stick-slip", "--help"], ["linear", "--help"], ["decay", "variable-mass", "--m0"],
+             ["linear", "--m", "nan"], ["table", "7"], ["sweep", "linear", "--n", "0"]):
+    try:
+        main(argv)
+    except SystemExit as e:
+        assert e.code in (0, 2), (argv, e.code)
+print([m for m in {HEAVY!r} if m in sys.modules])
+"""
+    assert _fresh_python(code).splitlines()[-1] == "[]"
+
+
+def test_import_vmj_is_lazy_and_complete():
+    code = f"""
+import sys
+import vmj
+print([m for m in {HEAVY!r} if m in sys.modules])
+assert set(vmj._table()) == set(vmj.__all__)
+assert all(getattr(vmj, name) is not None for name in vmj.__all__)
+assert "diffrax" not in sys.modules  # models, solvers, sweeps: diffrax only when a solve needs it
+assert set(vmj.__all__) <= set(dir(vmj))
+print(vmj.plot.__name__, vmj._checks.__name__)
+try:
+    vmj.no_such_name
+except AttributeError as e:
+    print("AttributeError", e)
+"""
+    lines = _fresh_python(code).splitlines()
+    assert lines[0] == "[]"
+    assert lines[1] == "vmj.plot vmj._checks"
+    assert lines[2].startswith("AttributeError") and "no_such_name" in lines[2]
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"vmj {vmj.__version__}"
+    assert importlib.metadata.version("vmj") == vmj.__version__
+
+
+def _parsers():
+    """Every parser of the command line, with its options added (as when it is named)."""
+    top = _app.build_parser()
+    sub = next(a for a in top._actions if isinstance(a, argparse._SubParsersAction))
+    out = [("vmj", top)]
+    for command in _app.COMMANDS:
+        p = sub.choices[command.name]
+        command.load().add_arguments(p)
+        nested = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+        if nested:
+            out += [(f"{command.name} {name}", q) for name, q in nested[0].choices.items()]
+        else:
+            out.append((command.name, p))
+    return out
+
+
+def test_every_option_has_help_with_unit_or_default():
+    """--help shows what each option is; a number option states its unit, and an option with a
+    default shows it."""
+    from vmj.cli._options import HelpFormatter, count, number
+
+    seen = 0
+    for name, parser in _parsers():
+        formatter = HelpFormatter(parser.prog)
+        for action in parser._actions:
+            if not action.option_strings or action.help == argparse.SUPPRESS:
+                continue
+            seen += 1
+            text = formatter._get_help_string(action)
+            assert text, (name, action.option_strings)
+            if action.type in (number,) and name != "fit":
+                assert "[" in text and "]" in text, (name, action.option_strings, text)
+            if action.default not in (None, False, argparse.SUPPRESS) and action.nargs != 0:
+                assert "(default: %(default)s)" in text, (name, action.option_strings)
+            if action.type is count:
+                assert "default" in text or action.required
+    assert seen > 100
+
+
+def test_figure_formats_are_ones_matplotlib_writes():
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    assert set(FIGURE_FORMATS) <= set(FigureCanvasBase.get_supported_filetypes())
+
+
+def test_cache_directory(monkeypatch, tmp_path):
+    parse = _app.build_parser().parse_args
+    argv = ["linear", "--m", "1", "--c", "1", "--k", "1"]
+    monkeypatch.delenv("VMJ_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert _app.cache_directory(parse(argv)) == (str(tmp_path / "xdg" / "vmj" / "jax"),
+                                                 "default")
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert _app.cache_directory(parse(argv))[0] == str(tmp_path / "home" / ".cache" / "vmj" /
+                                                       "jax")
+    monkeypatch.setenv("VMJ_CACHE_DIR", str(tmp_path / "env"))
+    assert _app.cache_directory(parse(argv)) == (str(tmp_path / "env"), "VMJ_CACHE_DIR")
+    assert _app.cache_directory(parse(["--cache-dir", "flag"] + argv)) == ("flag", "--cache-dir")
+    assert _app.cache_directory(parse(argv + ["--cache-dir", "late"]))[0] == "late"
+    assert _app.cache_directory(parse(["--no-cache"] + argv))[0] is None
+    assert _app.cache_directory(parse(argv + ["--no-cache"]))[0] is None
+    for off in ("off", "OFF", "0", "none"):
+        monkeypatch.setenv("VMJ_CACHE_DIR", off)
+        assert _app.cache_directory(parse(argv)) == (None, "VMJ_CACHE_DIR")
+
+
+def test_no_cache_leaves_jax_configuration_alone(capsys):
+    import jax
+
+    before = jax.config.jax_compilation_cache_dir
+    assert main(["--no-cache", "linear", "--m", "1", "--c", "1", "--k", "14.5", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["damping_ratio"] > 0
+    assert jax.config.jax_compilation_cache_dir == before
+
+
+def test_an_unusable_cache_directory_is_refused(tmp_path, monkeypatch, capsys):
+    a_file = tmp_path / "f"
+    a_file.write_text("")
+    monkeypatch.setenv("VMJ_CACHE_DIR", str(a_file))
+    assert main(["linear", "--m", "1", "--c", "1", "--k", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("vmj: error: VMJ_CACHE_DIR: cannot use") and err.count("\n") == 1
+
+
+def test_the_command_fills_its_persistent_cache(tmp_path):
+    """A decay compiled by `vmj` lands in the cache directory (its executable holds no host
+    callback); a repeat reads it from there."""
+    cache = tmp_path / "cache"
+    argv = [sys.executable, "-m", "vmj.cli", "--cache-dir", str(cache), "decay", "variable-mass",
+            "--m0", "5", "--c", "4900", "--delta", "3", "--eps", "0", "--mu", "2", "--FT",
+            "14.7", "--a0", "0.06", "--n", "2", "--json"]
+    env = {**os.environ, "JAX_EXPLAIN_CACHE_MISSES": "1"}
+    first = subprocess.run(argv, capture_output=True, text=True, env=env)
+    assert first.returncode == 0, first.stderr
+    entries = os.listdir(cache)
+    assert any("turning_points" in e for e in entries), entries
+    assert "uses host callbacks" not in first.stderr
+    miss = "persistent compilation cache miss for 'jit__turning_points'"
+    assert miss in first.stderr.lower()
+    again = subprocess.run(argv, capture_output=True, text=True, env=env)
+    assert again.stdout == first.stdout
+    assert miss not in again.stderr.lower()

@@ -1,0 +1,195 @@
+"""The `vmj` entry point: the list of commands, the parser, the JAX set-up, error handling.
+
+The arguments are parsed before anything heavy is imported: a command's module is imported only
+when that command is named (its options are added then), and JAX only when a command runs. So
+`vmj --help`, `vmj COMMAND --help` and argument errors answer at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import re
+import sys
+from dataclasses import dataclass
+
+from ._options import LARGEST, HelpFormatter
+
+__all__ = ["COMMANDS", "main", "build_parser", "cache_directory"]
+
+
+@dataclass(frozen=True)
+class Command:
+    """A command: its name, one line of help, and the module that defines it, with
+    `add_arguments(parser)` and `run(args) -> int` (imported when the command is named)."""
+
+    name: str
+    help: str
+    module: str
+
+    def load(self):
+        return importlib.import_module(self.module)
+
+
+#: every command of `vmj`, in the order of `vmj --help` (`vmj fit` belongs to the fits package)
+COMMANDS = (
+    Command("decay", "turning points of a free decay (variable-mass, rope)", "vmj.cli._decay"),
+    Command("table", "reproduce a table of the variable-mass paper", "vmj.cli._table"),
+    Command("sweep", "a decay or cycle over a grid of parameters (CSV, NetCDF, figures)",
+            "vmj.cli._sweep"),
+    Command("sensitivity", "derivatives of the turning points with respect to parameters",
+            "vmj.cli._sensitivity"),
+    Command("stick-slip", "stick-slip limit cycle with instantaneous velocity reversal",
+            "vmj.cli._stick_slip"),
+    Command("linear", "linear one-degree-of-freedom oscillator: frequencies, decrement, "
+            "responses", "vmj.cli._linear"),
+    Command("fit", "identify friction and damping from a measured decay", "fits._cli"),
+)
+
+CACHE_ENV = "VMJ_CACHE_DIR"
+_OFF = ("off", "none", "0", "false", "no")
+
+EPILOG = f"""\
+Compiled programs are kept in a persistent cache, so that a repeated command starts faster:
+  ${{XDG_CACHE_HOME:-~/.cache}}/vmj/jax by default; --cache-dir PATH or {CACHE_ENV}=PATH moves
+  it, --no-cache or {CACHE_ENV}=off switches it off.
+Numbers must be finite, of magnitude at most {LARGEST:g}, in the units shown in brackets.
+Bad input prints one line 'vmj: error: ...' and exits with status 2.
+Run 'vmj COMMAND --help' for the options of a command (units in brackets)."""
+
+
+#: what an option's value may look like when it starts with a minus sign: a number with an
+#: exponent, an axis (`-3:3:7`, `-1,0,1`), `-inf`; argparse alone takes `-1e3` for an option
+NEGATIVE = re.compile(r"^-((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?([:,].*)?|inf|infinity|nan)$",
+                      re.IGNORECASE)
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument error is one line on stderr (`vmj: error: ...`), exit status 2; negative
+    numbers with exponents and axes are values, not options."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE
+
+    def error(self, message):
+        where = self.prog.removeprefix("vmj").strip()
+        self.exit(2, f"vmj: error: {where + ': ' if where else ''}{message} "
+                     f"(see '{self.prog} --help')\n")
+
+
+class _Commands(argparse._SubParsersAction):
+    """Subcommands whose options are added only when the command is named."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        name = values[0]
+        command = next((c for c in COMMANDS if c.name == name), None)
+        sub = self._name_parser_map.get(name)
+        if command is not None and sub.get_default("command_run") is None:  # once per parser
+            module = command.load()
+            module.add_arguments(sub)
+            add_global_options(sub, nested=True)
+            sub.set_defaults(command_run=module.run)
+        super().__call__(parser, namespace, values, option_string)
+
+
+def add_global_options(parser, nested: bool = False) -> None:
+    """`--cache-dir` and `--no-cache`, accepted before or after the command (a command module
+    calls this for the subcommands it adds itself)."""
+    if any("--no-cache" in a.option_strings for a in parser._actions):
+        return
+    default = argparse.SUPPRESS if nested else None
+    parser.add_argument("--cache-dir", metavar="PATH", default=default,
+                        help=f"persistent compilation cache directory (default: ${CACHE_ENV}, "
+                             "else $XDG_CACHE_HOME/vmj/jax or ~/.cache/vmj/jax)")
+    parser.add_argument("--no-cache", action="store_true",
+                        default=argparse.SUPPRESS if nested else False,
+                        help=f"do not use the persistent compilation cache (also: {CACHE_ENV}=off)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    import vmj
+
+    parser = _Parser(prog="vmj", formatter_class=HelpFormatter, epilog=EPILOG,
+                     description="Oscillators with dry friction and time-varying parameters.")
+    parser.add_argument("--version", action="version", version=f"vmj {vmj.__version__}")
+    add_global_options(parser)
+    parser.register("action", "commands", _Commands)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                action="commands", parser_class=_Parser)
+    for command in COMMANDS:
+        sub.add_parser(command.name, help=command.help, description=command.help,
+                       formatter_class=HelpFormatter)
+    return parser
+
+
+def cache_directory(args) -> tuple[str | None, str]:
+    """The persistent cache directory (`None`: off) and where the choice came from."""
+    if getattr(args, "no_cache", False):
+        return None, "--no-cache"
+    if getattr(args, "cache_dir", None) is not None:
+        return args.cache_dir, "--cache-dir"
+    env = os.environ.get(CACHE_ENV, "").strip()
+    if env.lower() in _OFF:
+        return None, CACHE_ENV
+    if env:
+        return env, CACHE_ENV
+    base = os.environ.get("XDG_CACHE_HOME", "").strip() or os.path.join(
+        os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "vmj", "jax"), "default"
+
+
+def _set_up_jax(args) -> None:
+    """float64, the persistent compilation cache, host memory reuse (entry point only)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    path, source = cache_directory(args)
+    if path is not None:
+        try:
+            if os.path.exists(path) and not os.path.isdir(path):
+                raise OSError(f"{path!r} is not a directory")
+            os.makedirs(path, exist_ok=True)
+            if not os.access(path, os.W_OK | os.X_OK):
+                raise OSError(f"{path!r} is not writable")
+        except OSError as e:
+            if source != "default":
+                raise ValueError(f"{source}: cannot use {path!r} as the compilation cache ({e})") \
+                    from None
+            print(f"vmj: warning: compilation cache off ({e})", file=sys.stderr)
+            path = None
+    if path is not None:
+        jax.config.update("jax_compilation_cache_dir", path)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    from .._host import retain_host_memory
+
+    retain_host_memory()  # XLA's per-chunk buffers reused, not page-faulted again (sweeps)
+
+
+def _one_line(error: BaseException) -> str:
+    return "; ".join(ln.strip() for ln in str(error).splitlines() if ln.strip()) or \
+        type(error).__name__
+
+
+def main(argv=None) -> int:
+    """Run `vmj` with `argv` (default: `sys.argv[1:]`); returns the exit status. Argument
+    errors, `--help` and `--version` exit through `SystemExit` (status 2 or 0), as argparse
+    does."""
+    args = build_parser().parse_args(argv)
+    try:
+        _set_up_jax(args)
+        return args.command_run(args)
+    except ValueError as e:  # bad input, found by vmj's checks or the command's
+        print(f"vmj: error: {_one_line(e)}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # the reader of our output went away (`vmj ... | head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except OSError as e:  # reading or writing a file failed
+        print(f"vmj: error: {_one_line(e)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("vmj: interrupted", file=sys.stderr)
+        return 130
