@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import equinox.internal as eqxi
 import jax.numpy as jnp
+from jax import lax
 
 from .._solution import RESULTS, DecaySequence
 
@@ -18,14 +19,14 @@ def early_exit_loop(cond, body, init, max_steps: int, buffers=None, kind: str = 
     steps once `cond` is False) both `jax.grad` (reverse mode) and `jax.jacfwd` differentiate
     it; `kind="lax"` is a plain `lax.while_loop`, faster, forward-mode only.
 
-    `cond` must return one boolean for the whole `vmap`ped batch
+    `cond` must bound the steps itself (`k < max_steps`) and return one boolean for the whole
+    `vmap`ped batch
     (`equinox.internal.unvmap_any` of the lanes' own conditions), and `body` must leave lanes
     that are done unchanged itself: the loop then stops as soon as every lane is done, and no
     lane's result depends on the others in its batch. `buffers` as in
     `equinox.internal.while_loop` (arrays written once per index, without copies)."""
-    if kind == "lax":
-        return eqxi.while_loop(cond, body, init, max_steps=max_steps, buffers=buffers,
-                               kind="lax")
+    if kind == "lax":  # (`cond` bounds the steps itself; buffers are updated in place)
+        return lax.while_loop(cond, body, init)
     base = max_steps if max_steps <= 64 else 16  # one level of conditionals up to 64 steps
     return eqxi.while_loop(cond, body, init, max_steps=max_steps, buffers=buffers,
                            kind="bounded", base=max(base, 2))
