@@ -52,7 +52,25 @@ def _solver(solver, method, smoothing, max_substeps, default):
                          f"{kind.name!r}")
     if kind is Exact and max_substeps is not None:
         return Exact(max_substeps=check_int("max_substeps", max_substeps, 1))
-    return kind()
+    return _default(kind)
+
+
+def _default(kind):
+    """The default instance of a solver class (made once: equinox modules cost microseconds
+    to build, and these have no arrays)."""
+    if kind not in _DEFAULTS:
+        _DEFAULTS[kind] = kind()
+    return _DEFAULTS[kind]
+
+
+_DEFAULTS: dict = {}
+
+
+def _checked(solver, model, task: str):
+    """`solver.check(validated(model), task)`. (Methods are called through the class in the
+    entry points: an equinox module binds a method into a new module at every access, which
+    costs more than a warm solve.)"""
+    return type(solver).check(solver, validated(model), task)
 
 
 # The compiled entry points: plain `jax.jit` (its dispatch runs in C++; every leaf of a model
@@ -93,8 +111,8 @@ def turning_points(model, a0, n: int, solver=None, *, method: str | None = None,
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
     n = check_int("n", n, 1)
     require_scalar_fields(model)
-    model = solver.check(validated(model), "turning_points")
-    a0 = scalar(check("a0", a0, *model.release_range()))
+    model = _checked(solver, model, "turning_points")
+    a0 = scalar(check("a0", a0, *type(model).release_range(model)))
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, a0, 0.0)
     seq = _turning_points(model, a0, n, solver)
@@ -167,7 +185,7 @@ def simulate(model, x0, v0, t1, solver=None, *, smoothing=None, n_save: int = 20
     solver = _solver(solver, None, smoothing, None, Smoothed)
     n_save = check_int("n_save", n_save, 2)
     require_scalar_fields(model)
-    model = solver.check(validated(model), "simulate")
+    model = _checked(solver, model, "simulate")
     unit = model.position_unit
     x0 = scalar(check("x0", x0, anything, f"a real number [{unit}]"))
     v0 = scalar(check("v0", v0, anything, f"a real number [{unit}/s]"))
@@ -220,9 +238,9 @@ def limit_cycle(model, solver=None, *, max_reversals: int = MAX_REVERSALS,
     **Returns:** a [`vmj.StickSlipCycle`][] (dimensionless times; `.physical()` for seconds).
     """
     warn_if_float32()
-    solver = Exact() if solver is None else solver
+    solver = _default(Exact) if solver is None else solver
     max_reversals = check_int("max_reversals", max_reversals, 0)
-    model = solver.check(validated(model), "limit_cycle")
+    model = _checked(solver, model, "limit_cycle")
     if isinstance(solver, Smoothed):
         x0, v0 = model.breakaway()
         cycle = model.smoothed_cycle(max_reversals, solver.with_defaults(model, x0, v0))

@@ -106,10 +106,11 @@ def _decay_jvp(primals, tangents, *, n: int, max_substeps: int):
 
 def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: str):
     """From rest at `(t0, x0)` with friction sign `s`, advance by Taylor substeps to the next
-    velocity zero (lanes with `moving` False take no substep). Returns `(found, limited, t1, x1)`: `found` is False when no velocity zero
-    occurred within `max_substeps` substeps, or when a series lost accuracy (its last terms not
-    negligible); `limited` tells whether the substeps were limited by the model's lifetime.
-    The substeps end as soon as every lane of a `vmap`ped batch has found its zero."""
+    velocity zero (lanes with `moving` False take no substep). Returns `(found, limited, t1,
+    x1)`: `found` is False when no velocity zero occurred within `max_substeps` substeps, or
+    when a series lost accuracy (its last terms not negligible); `limited` tells whether the
+    substeps were limited by the model's lifetime. The substeps end as soon as every lane of a
+    `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`)."""
     scale = model.swing_scale(t0, x0)
     zero = jnp.zeros_like(x0)
 
