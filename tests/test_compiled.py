@@ -70,6 +70,25 @@ def test_guards_stay_inside_the_users_own_jit():
         jax.jit(positions)(-1.0).block_until_ready()
 
 
+def test_assume_valid_compiles_no_guards():
+    """Code that keeps its values in range itself traces its solves inside
+    `vmj.assume_valid()`: no host callback, the same answer; concrete values are still checked
+    there."""
+    def positions(mu, a0):
+        model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(14.7))
+        return vmj.turning_points(model, a0, 4).positions
+
+    with vmj.assume_valid():
+        text = jax.jit(positions).lower(2.0, 0.06).as_text()
+        vouched = jax.jit(positions)(2.0, 0.06)
+        with pytest.raises(ValueError, match="^a0 must be finite and > 0"):
+            positions(2.0, -0.06)
+    assert not has_callback(text)
+    # (a new function: JAX would reuse the trace of `positions` made in the block)
+    assert has_callback(jax.jit(lambda mu, a0: positions(mu, a0)).lower(2.0, 0.06).as_text())
+    np.testing.assert_array_equal(vouched, positions(2.0, 0.06))
+
+
 def test_models_rebuilt_without_their_constructor_are_checked_again():
     model = MODELS["variable-mass"]()
     vmj.turning_points(model, 0.06, 4)

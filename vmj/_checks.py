@@ -8,6 +8,8 @@ message.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
 import warnings
 from typing import Callable, ClassVar
@@ -17,8 +19,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["AbstractParams", "validated", "check", "check_all", "check_int", "scalar",
-           "warn_if_float32"]
+__all__ = ["AbstractParams", "validated", "assume_valid", "guard", "check", "check_all",
+           "check_int", "scalar", "warn_if_float32"]
 
 
 def _is_traced(x) -> bool:
@@ -61,6 +63,8 @@ def check_all(items) -> list:
     for i, (name, value, ok, allowed) in enumerate(items):
         message = f"{name} must be finite and {allowed}"
         if _is_traced(value):
+            if _ASSUMED.get():
+                continue
             traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))),
                            message))
             continue
@@ -130,6 +134,33 @@ class AbstractParams(eqx.Module):
 
 #: attribute marking a module whose limited fields were concrete and checked at construction
 _CHECKED = "_vmj_checked"
+_ASSUMED = contextvars.ContextVar("vmj_assume_valid", default=False)
+
+
+@contextlib.contextmanager
+def assume_valid():
+    """Within this block, vmj compiles no runtime checks of traced parameters and arguments.
+
+    Inside `jax.jit`/`jax.vmap` vmj's entry points guard traced values (model parameters,
+    `a0`, ...) with `equinox.error_if`, a host callback: it makes the compiled program
+    synchronous and keeps it out of JAX's persistent compilation cache. Code that keeps its
+    values in range by construction (a fit's transformed parameters, a sweep over arrays that
+    were checked) can trace its solves inside this block instead. Concrete values are still
+    checked; what is traced here is compiled without the guards, also when it runs later.
+
+        with vmj.assume_valid():
+            fitted = jax.jit(residuals)(theta)
+    """
+    token = _ASSUMED.set(True)
+    try:
+        yield
+    finally:
+        _ASSUMED.reset(token)
+
+
+def guard(x, bad, message: str):
+    """`equinox.error_if(x, bad, message)` for a traced check, unless inside `assume_valid`."""
+    return x if _ASSUMED.get() else eqx.error_if(x, bad, message)
 
 
 def _problems(m) -> list:
@@ -179,7 +210,7 @@ def validated(model):
     collect(model)
     _raise_concrete(problems)
     traced = [(message, ok) for message, _, ok, is_traced in problems if is_traced]
-    if not traced:
+    if not traced or _ASSUMED.get():
         return model
     bad = jnp.stack([jnp.logical_not(jnp.all(ok)) for _, ok in traced])
     return eqx.branched_error_if(model, jnp.any(bad), jnp.argmax(bad),

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 from functools import partial
 
-import equinox as eqx
 import jax
 
-from ._checks import (_float, _is_traced, anything, check, check_int, positive, scalar,
+from ._checks import (_float, _is_traced, anything, check, check_int, guard, positive, scalar,
                       validated, warn_if_float32)
 from ._models._base import check_horizon, require_scalar_fields
 from ._models._rope import Rope
@@ -192,8 +191,7 @@ def simulate(model, x0, v0, t1, solver=None, *, smoothing=None, n_save: int = 20
     t1 = scalar(check("t1", t1, positive, "> 0 [s]"))
     check_horizon(model, t1)
     if _is_traced(t1) or _is_traced(model.lifetime()):
-        t1 = eqx.error_if(t1, t1 >= model.lifetime(),
-                          f"t1 must be below {model.lifetime_text}")
+        t1 = guard(t1, t1 >= model.lifetime(), f"t1 must be below {model.lifetime_text}")
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, x0, v0)
     traj = _simulate(model, x0, v0, t1, n_save, solver)
