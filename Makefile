@@ -11,7 +11,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e '.[test,xarray]'
+	$(BIN)/python -m pip install --quiet -e '.[test,xarray,distributed]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -13,6 +13,7 @@ records (`jax.vmap`) reuse it.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -24,6 +25,7 @@ import numpy as np
 import optax
 import optimistix as optx
 
+import vmj
 from vmj._checks import check, nonnegative, positive, unit_interval, warn_if_float32
 
 from ._decrement import decrement, starting_guess
@@ -410,12 +412,20 @@ def _psi_weight(loss, u):
 def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=None, *,
               forward: str = "exact", loss: str = "l2", optimizer: str = "lm",
               compare: bool = True, max_steps: int = 200, adam_steps: int = 3000,
-              outlier_sigma: float = 5.0) -> list:
+              outlier_sigma: float = 5.0, chunk_size: int | None = None, client=None,
+              store=None, resume: bool = False, progress=None) -> list:
     """Fit the same model to many records at once (`jax.vmap` over records; one compilation).
 
     Arguments as in [`fit`][]; `given` is one dict for every record or a list of one dict per
     record (the free parameters are the same for all). Returns a list of
     [`FitResult`][], one per record.
+
+    With `chunk_size`, `client` or `store` the records are fitted in chunks of at most
+    `chunk_size` records through [`vmj.map_chunks`][]: in threads of this process, or as tasks
+    of a Dask cluster (`client`: a `dask.distributed.Client`, `"tcp://host:8786"` or
+    `"local"`), each finished chunk written to a Zarr store (`store`) and a rerun with
+    `resume=True` fitting only the chunks not yet in it; `progress` as in [`vmj.sweep`][]. The
+    same chunks give the same results, to the last bit, in-process and on a cluster.
     """
     warn_if_float32()
     if model not in SPACES:
@@ -432,6 +442,13 @@ def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=No
             raise ValueError(f"given: {len(givens)} dicts for {len(records)} records")
     for g in givens:
         free = _check_inputs(space, free, g, forward, loss, optimizer)
+    if chunk_size is not None or client is not None or store is not None:
+        chunk = functools.partial(_fit_chunk, model=model, free=free, forward=forward,
+                                  loss=loss, optimizer=optimizer, compare=compare,
+                                  max_steps=max_steps, adam_steps=adam_steps,
+                                  outlier_sigma=outlier_sigma)
+        return vmj.map_chunks(chunk, list(zip(records, givens)), chunk_size=chunk_size,
+                              client=client, store=store, resume=resume, progress=progress)
     jobs, decs = _prepare(space, records, free, givens, compare)
     q = len(free)
     has_times = [j.record.times is not None for j in jobs]
@@ -494,6 +511,12 @@ def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=No
         p = jnp.asarray(p)
     return _results(space, forward, loss, optimizer, jobs, decs, d, theta, J, r, ok, iterations,
                     N, n_model, outlier_sigma)
+
+
+def _fit_chunk(items, **settings) -> list:
+    """`fit_batch` of one chunk of `(record, given)` pairs (a picklable function of the chunk,
+    for `vmj.map_chunks`)."""
+    return fit_batch([r for r, _ in items], given=[g for _, g in items], **settings)
 
 
 def _results(space, forward, loss, optimizer, jobs, decs, d, theta, J, r, ok, iterations, N,

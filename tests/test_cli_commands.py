@@ -199,3 +199,23 @@ def test_output_paths_are_checked(tmp_path):
         result.to_csv(str(tmp_path / "missing" / "s.csv"))
     result.to_csv(str(tmp_path / "s.csv"))
     assert os.listdir(tmp_path) == ["s.csv"]
+
+
+def test_sweep_store_and_resume(tmp_path, capsys):
+    pytest.importorskip("zarr")
+    from vmj.cli import main
+
+    store = str(tmp_path / "s.zarr")
+    base = ["sweep", "variable-mass", "--eps", "0:1:3", "--mu", "0,9",
+            "--set", "m0=5,c=4900,FT=14.7,a0=0.06,delta=1", "--n", "6"]
+    assert main(base + ["--store", store, "--out", str(tmp_path / "a.csv")]) == 0
+    capsys.readouterr()
+    assert main(base + ["--store", store]) == 2
+    assert "pass --resume to continue it" in capsys.readouterr().err
+    assert main(base + ["--store", store, "--resume", "--out", str(tmp_path / "b.csv")]) == 0
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
+    assert main(base + ["--resume"]) == 2
+    assert "--resume needs --store" in capsys.readouterr().err
+    other = base[:2] + ["--eps", "0:1:4"] + base[4:]
+    assert main(other + ["--store", store, "--resume"]) == 2
+    assert "holds a different sweep" in capsys.readouterr().err

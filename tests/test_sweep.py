@@ -14,6 +14,12 @@ import pytest
 
 import vmj
 from scipy_reference import variable_mass_turning_points
+from vmj._sweep._engine import CORES
+from vmj._sweep._sweep import chunk_plan
+
+
+def n_chunks(n, chunk_size, lanes=CORES):
+    return -(-n // chunk_plan(n, chunk_size, lanes))
 
 A0 = 0.06
 N_SWINGS = 12
@@ -27,14 +33,15 @@ def paper_model(delta=3.0, eps=0.0, mu=2.0, F=14.7):
 @pytest.fixture(scope="module")
 def exact_grid():
     g = vmj.grid(paper_model(), eps=EPS, mu=MU, delta=DELTA)
-    # 18 points in chunks of 8: three chunks, the last one padded
+    # 18 points in chunks of at most 8, at least one per core, of equal size (4 of 5 on two
+    # cores, the last overlapping the one before)
     return vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=8)
 
 
 def test_grid_axes_and_shape(exact_grid):
     r = exact_grid
     assert r.dims == ("eps", "mu", "delta")
-    assert r.shape == (3, 3, 2) and r.chunks == 3
+    assert r.shape == (3, 3, 2) and r.chunks == n_chunks(18, 8) >= 3
     assert r.values.positions.shape == (3, 3, 2, N_SWINGS)
     assert r.values.count.shape == (3, 3, 2)
     np.testing.assert_array_equal(r.coords["mu"], MU)
@@ -94,8 +101,45 @@ def test_nested_parameter_names():
     np.testing.assert_allclose(r.values.positions[0], one.positions, atol=1e-12 * A0)
 
 
+def test_chunk_plan():
+    # at most chunk_size points, at least one chunk per core, chunks of about equal size
+    assert chunk_plan(18, 8, 2) == 5 and chunk_plan(18, 8, 1) == 6
+    assert chunk_plan(20000, 16384, 2) == 10000  # not 16384 + an overlapping 16384
+    assert chunk_plan(1617, 16384, 2) == 809 and chunk_plan(1617, 16384, 1) == 1617
+    assert chunk_plan(5, 16384, 8) == 1 and chunk_plan(1, 100, 2) == 1
+    assert chunk_plan(5, 16384, 1, multiple=4) == 8  # padded for four devices
+    for n in (1, 7, 100, 12345):
+        for limit in (1, 3, 64, 16384):
+            for lanes in (1, 2, 3, 16):
+                c = chunk_plan(n, limit, lanes)
+                k = -(-n // c)
+                # the fewest rounds of `lanes` chunks side by side that the limit allows, and
+                # at most one point of padding per chunk
+                assert 1 <= c <= limit and -(-k // lanes) == -(-(-(-n // limit)) // lanes)
+                assert k * c - n < k
+
+
+def test_one_point_and_size_one_axes():
+    one = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=[0.5]), a0=A0, n=4)
+    want = vmj.energy_balance(paper_model(eps=0.5), A0, 4)
+    assert one.shape == (1,) and one.chunks == 1
+    np.testing.assert_allclose(one.values.positions[0], want.positions, atol=1e-12 * A0)
+    g = vmj.grid(paper_model(), eps=[0.5], mu=[1.0, 2.0], delta=[3.0])
+    r = vmj.sweep(vmj.energy_balance, g, a0=A0, n=4)
+    assert r.shape == (1, 2, 1)
+    np.testing.assert_allclose(r.values.positions[0, 1, 0],
+                               vmj.energy_balance(paper_model(eps=0.5, mu=2.0), A0, 4).positions,
+                               atol=1e-12 * A0)
+
+
+def test_small_sweeps_use_every_core():
+    r = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=np.linspace(0, 1, 10)),
+                  a0=A0, n=4)
+    assert r.chunks == min(CORES, 10)
+
+
 def test_chunking_gives_identical_results_and_reports_progress(capsys):
-    # one chunk of 5000 points against eleven chunks of 480, the last overlapping the tenth
+    # chunks of 2500 (on two cores) against chunks of at most 480, the last overlapping
     rng = np.random.default_rng(1)
     n = 5000
     model = paper_model(delta=rng.uniform(-3, 3, n), eps=rng.uniform(0, 1, n),
@@ -103,10 +147,12 @@ def test_chunking_gives_identical_results_and_reports_progress(capsys):
     whole = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=n)
     parts = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=480,
                       progress=True)
-    assert whole.chunks == 1 and parts.chunks == 11
+    k = n_chunks(n, 480)
+    assert whole.chunks == n_chunks(n, n) and parts.chunks == k >= 11
     for a, b in zip(whole.values.__dict__.values(), parts.values.__dict__.values()):
         np.testing.assert_array_equal(a, b)
-    assert "11/11 chunks" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"{k}/{k} chunks" in err and "points/s" in err and "ETA" in err
 
 
 def _run(code: str, env_extra: dict | None = None) -> dict:
@@ -137,7 +183,8 @@ def test_million_point_energy_sweep_has_bounded_memory(retain):
         print(json.dumps({{"mb": after - before, "chunks": r.chunks, "shape": r.values.shape,
                            "finite": bool(np.isfinite(r.values).all()), "applied": applied}}))
     """)
-    assert got["shape"] == [100, 100, 100, 12] and got["chunks"] == 16 and got["finite"]
+    assert got["shape"] == [100, 100, 100, 12] and got["finite"]
+    assert got["chunks"] == n_chunks(10**6, 65536) >= 16
     assert got["applied"] in ((None,) if not retain else (True, False))
     # the result itself is 96 MB; an unchunked evaluation keeps several 10^6 x 12 buffers
     assert got["mb"] < 250, got
@@ -253,3 +300,41 @@ def test_cli_sweep(tmp_path, capsys):
     assert "eps must be finite and in [0, 1]" in capsys.readouterr().err
     assert main(["sweep", "variable-mass", "--eps", "0:1:3", "--set", "m0=5,c=4900,FT=1"]) == 2
     assert "--set a0= (initial deflection [m])" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
+    # The smoothed solve needs about 27 MB of XLA working memory per point (12 swings): at the
+    # default chunk the 11 x 21 x 7 grid would ask for 22 GB per chunk. Here the machine is
+    # made to look small (600 MB available), so that the default shrinks to what fits in a
+    # quarter of it, and an explicit chunk size that cannot fit at all is refused.
+    from vmj._sweep import _sweep as sweep_module
+
+    seen = []
+
+    def spy(job, chunk):
+        need = real(job, chunk)
+        seen.append(need / chunk)
+        return need
+
+    real = sweep_module.chunk_bytes
+    monkeypatch.setattr(sweep_module, "chunk_bytes", spy)
+    memory = 600e6
+    monkeypatch.setattr(sweep_module, "available_memory", lambda device: memory)
+    g = vmj.grid(paper_model(), eps=[0.0, 0.5, 1.0, 0.25], mu=[2.0, 9.0])
+    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
+    (per_point,) = seen
+    assert 5e6 < per_point < 1e9  # megabytes per point: 16384 points would need tens of GB
+    fits = int(sweep_module.MEMORY_FRACTION * memory / CORES / per_point)
+    assert 1 <= fits < 4
+    assert r.chunks == n_chunks(8, fits) > CORES
+    exact = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS)
+    np.testing.assert_array_equal(r.values.count, exact.values.count)
+    # the turning points before the last (where the smoothed model creeps to its rest)
+    before_rest = np.arange(N_SWINGS) < exact.values.count[..., None] - 1
+    np.testing.assert_allclose(r.values.positions[before_rest],
+                               exact.values.positions[before_rest], rtol=0, atol=1e-6 * A0)
+    memory = 150e6  # not even two chunks of 4 points
+    with pytest.raises(ValueError, match=r"chunk_size=8 needs .* GB of working memory per chunk "
+                                         r".* use chunk_size <= \d+, or leave it"):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth", chunk_size=8)

@@ -54,7 +54,8 @@ if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs a
     from ._solvers._closed import ClosedForm, EnergyBalance
     from ._solvers._exact import Exact
     from ._solvers._smoothed import Smoothed
-    from ._sweep import Grid, SweepResult, grid, resolve_field, sensitivity, sweep
+    from ._sweep import (Grid, SweepError, SweepResult, grid, map_chunks, resolve_field,
+                         sensitivity, sweep)
     from ._tables import PAPER, paper_cells, paper_model, paper_table
 
 
@@ -79,7 +80,8 @@ __all__ = [
     # the older per-model spellings
     "stick_slip_cycle", "stick_slip_closed_form", "stick_slip_simulate", "linear_simulate",
     # sweeps and sensitivities
-    "Grid", "SweepResult", "grid", "sweep", "sensitivity", "resolve_field",
+    "Grid", "SweepResult", "SweepError", "grid", "sweep", "sensitivity", "map_chunks",
+    "resolve_field",
     "retain_host_memory",
     # the variable-mass paper's tables
     "PAPER", "paper_cells", "paper_model", "paper_table",

@@ -26,6 +26,28 @@ def _leaf_names(tree) -> list[str]:
     return [name(p) for p, _ in jax.tree_util.tree_flatten_with_path(tree)[0]]
 
 
+def export_names(values, lead: int, taken=()):
+    """Names for the fields of `values` (leaves with `lead` leading sweep axes) in an export:
+    `(names, inner dims per field, inner coordinates)`. A field's name is its path with `_`
+    for `.` (and `_value` after it where it would be one of the names `taken` by the
+    coordinates); inner axes are named `k` (1-based, the turning point index) when all fields
+    agree on their length, else `NAME_k`."""
+    names = _leaf_names(values)
+    shapes = [tuple(np.shape(v)) for v in jax.tree.leaves(values)]
+    shared_k = len({s[lead] for s in shapes if len(s) > lead}) == 1
+    out, dims, coords = [], [], {}
+    for name, s in zip(names, shapes):
+        kdims = []
+        for j in range(len(s) - lead):
+            kd = ("k" if shared_k else f"{name}_k") + (f"{j}" if j else "")
+            kdims.append(kd)
+            coords[kd] = np.arange(1, s[lead + j] + 1)
+        name = name.replace(".", "_")
+        out.append(name + "_value" if name in taken else name)
+        dims.append(tuple(kdims))
+    return out, dims, coords
+
+
 @dataclass(frozen=True)
 class SweepResult:
     """Values of a solution over a sweep, with named axes.
@@ -40,6 +62,8 @@ class SweepResult:
       swept parameter broadcast to `shape`.
     - `shape`: the sweep's shape (the broadcast shape of the model's parameters).
     - `devices`: number of devices the evaluation was sharded over.
+    - `chunks`: number of chunks the points were evaluated in; `computed` of them in this call,
+      `resumed` read back from a store.
     """
 
     values: Any
@@ -48,6 +72,8 @@ class SweepResult:
     shape: tuple
     devices: int = 1
     chunks: int = field(default=1, compare=False)
+    computed: int = field(default=0, compare=False)
+    resumed: int = field(default=0, compare=False)
 
     def columns(self) -> dict[str, np.ndarray]:
         """Flat columns, one row per point (C order): the parameters, then every field of
@@ -143,19 +169,11 @@ class SweepResult:
         except ImportError:  # pragma: no cover - exercised only without the extra
             raise ImportError("SweepResult.to_xarray needs xarray: pip install 'vmj[xarray]'") \
                 from None
-        names = _leaf_names(self.values)
+        names, kdims, extra_coords = export_names(self.values, len(self.shape),
+                                                  set(self.coords) | set(self.dims))
         leaves = [np.asarray(v) for v in jax.tree.leaves(self.values)]
-        inner_lengths = {v.shape[len(self.shape)] for v in leaves if v.ndim > len(self.shape)}
-        shared_k = len(inner_lengths) == 1
-        data_vars, extra_coords = {}, {}
-        for name, v in zip(names, leaves):
-            inner = v.ndim - len(self.shape)
-            kdims = []
-            for j in range(inner):
-                kd = ("k" if shared_k else f"{name}_k") + (f"{j}" if j else "")
-                kdims.append(kd)
-                extra_coords[kd] = np.arange(1, v.shape[len(self.shape) + j] + 1)
-            data_vars[name.replace(".", "_")] = (tuple(self.dims) + tuple(kdims), v)
+        data_vars = {name: (tuple(self.dims) + kd, v)
+                     for name, kd, v in zip(names, kdims, leaves)}
         if self._is_grid:
             coords = {d: self.coords[d] for d in self.dims}
         else:
@@ -168,4 +186,37 @@ class SweepResult:
         data = self.to_xarray()
         with replacing(path) as tmp:
             data.to_netcdf(tmp)
+
+    @staticmethod
+    def read_zarr(path: str) -> "SweepResult":
+        """Read the sweep in a Zarr store written by [`vmj.sweep`][] with `store=` (needs the
+        optional extra `vmj[distributed]`); `values` becomes a dict of field name to array, as
+        for [`vmj.SweepResult.read_csv`][]. Every chunk must be complete and match its
+        checksum; an unfinished sweep is refused (resume it with `vmj.sweep(..., store=path,
+        resume=True)`)."""
+        from ._store import ChunkStore
+
+        st = ChunkStore.read_only(path, kind="sweep")
+        meta = st.meta
+        names = [f[0] for f in meta["fields"]]
+        n, shape = meta["n"], tuple(meta["shape"])
+        out = {nm: np.empty((n,) + tuple(inner), dtype=np.dtype(dt))
+               for nm, dt, inner in meta["fields"]}
+        missing = []
+        for c, got in st.finished(names):
+            if got is None:
+                missing.append(c)
+                continue
+            lo = c * meta["chunk"]
+            for nm, g in zip(names, got):
+                out[nm][lo:lo + len(g)] = g
+        if missing:
+            raise ValueError(f"store {path!r} holds an unfinished sweep: {len(missing)} of "
+                             f"{meta['n_chunks']} chunks are missing, failed or do not match "
+                             f"their checksum; resume it with vmj.sweep(..., store={path!r}, "
+                             f"resume=True)")
+        coords = {k: np.asarray(st.group[k][...]) for k in meta["coords"]}
+        values = {nm: v.reshape(shape + v.shape[1:]) for nm, v in out.items()}
+        return SweepResult(values, tuple(meta["dims"]), coords, shape, 1, meta["n_chunks"],
+                           resumed=meta["n_chunks"])
 

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._checks import _float
+from ._grid import Grid
 from ._tree import _get, resolve_field
 
 __all__ = ["sensitivity"]
@@ -21,9 +22,16 @@ def sensitivity(
     wrt: Sequence[str],
     *,
     mode: str = "forward",
+    chunk_size: int | None = None,
+    progress=None,
+    devices=None,
+    client=None,
+    store=None,
+    resume: bool = False,
     **solver_args,
-) -> dict:
-    """Derivatives of `fn(model, **solver_args)` with respect to the parameters named in `wrt`.
+):
+    """Derivatives of `fn(model, **solver_args)` with respect to the parameters named in `wrt`,
+    at one point or at every point of a grid.
 
     **Arguments:**
 
@@ -31,16 +39,23 @@ def sensitivity(
       `lambda m, a0, n: vmj.turning_points(m, a0, n).amplitudes` (amplitudes [m]) or
       `.stop_time` [s]. Integer and boolean outputs (counts, flags) have no derivative: select
       the float fields you need.
-    - `model`: a model with scalar parameters (to differentiate over a grid of models, wrap the
-      call in [`vmj.sweep`][] or `jax.vmap`: this function is vmappable and jittable).
+    - `model`: a model with scalar parameters; or a [`vmj.Grid`][] or a model with array
+      parameters (paired points, as in [`vmj.sweep`][]): the derivatives at every point, through
+      the sweep's machinery (chunks, threads, a Dask cluster, a resumable store). The scalar
+      form is also vmappable and jittable.
     - `wrt`: parameter names: model fields (`"eps"`, `"mu"`, `"delta"`, `"F"` for `friction.F`,
       or a dotted path) and float keyword arguments of `fn` (e.g. `"a0"`).
     - `mode`: `"forward"` (`jax.jacfwd`, best for few parameters) or `"reverse"`
       (`jax.jacrev`, best for a scalar output); both give the same numbers.
+    - `chunk_size`, `progress`, `devices`, `client`, `store`, `resume`: for a grid, as in
+      [`vmj.sweep`][].
     - `**solver_args`: passed to `fn` (e.g. `a0=0.06, n=12`).
 
     **Returns:** a dict mapping each name in `wrt` to `d fn / d parameter`, shaped like the
-    output of `fn` (in the output's unit per the parameter's unit, e.g. m per kg/s).
+    output of `fn` (in the output's unit per the parameter's unit, e.g. m per kg/s). For a grid,
+    a [`vmj.SweepResult`][] whose `values` map `"d_" + name` to the derivative at every point
+    (the grid's shape in front; the prefix keeps the fields apart from the grid's coordinates
+    in exports).
     """
     if mode not in ("forward", "reverse"):
         raise ValueError(f"mode must be 'forward' or 'reverse' (got {mode!r})")
@@ -49,11 +64,18 @@ def sensitivity(
         raise ValueError("wrt must name at least one parameter")
     if len(set(wrt)) != len(wrt):
         raise ValueError(f"wrt names a parameter twice: {wrt}")
+    base = model.model if isinstance(model, Grid) else model
     field_names = [w for w in wrt if w not in solver_args]
-    paths = [resolve_field(model, w) for w in field_names]
+    paths = [resolve_field(base, w) for w in field_names]
     for w in wrt:
         if w in solver_args and isinstance(solver_args[w], (bool, str)):
             raise ValueError(f"{w} is not a float argument of fn (got {solver_args[w]!r})")
+    if isinstance(model, Grid) or any(np.ndim(x) for x in jax.tree.leaves(model)):
+        from ._sweep import sweep
+
+        return sweep(_PointSensitivity(fn, wrt, mode), model, chunk_size=chunk_size,
+                     progress=progress, devices=devices, client=client, store=store,
+                     resume=resume, **solver_args)
     theta0 = {w: _float(solver_args[w] if w in solver_args else
                         _get(model, paths[field_names.index(w)])) for w in wrt}
     for w, v in theta0.items():
@@ -64,6 +86,19 @@ def sensitivity(
     out = _sensitivity(fn, model, tuple(paths), tuple(field_names), wrt, mode, theta0,
                        solver_args)
     return {w: out[w] for w in wrt}
+
+
+class _PointSensitivity(eqx.Module):
+    """The sensitivities at one point of a grid, named `d_<parameter>` (a picklable function
+    of the point's model, so that a cluster's workers receive it once)."""
+
+    fn: Callable = eqx.field(static=True)
+    wrt: tuple = eqx.field(static=True)
+    mode: str = eqx.field(static=True)
+
+    def __call__(self, model, **solver_args):
+        got = sensitivity(self.fn, model, self.wrt, mode=self.mode, **solver_args)
+        return {f"d_{w}": got[w] for w in self.wrt}
 
 
 @eqx.filter_jit

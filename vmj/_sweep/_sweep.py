@@ -1,64 +1,88 @@
 """Sweeps: evaluate a solution at every point of a model's array-valued parameters.
 
 `sweep(fn, model, **solver_args)` broadcasts the model's array fields together as NumPy does,
-evaluates `fn(point_model, **solver_args)` at every point with `jax.vmap`, in chunks of a fixed
-size (one compilation, bounded memory), sharded across the local devices when there are several,
-and returns a [`vmj.SweepResult`][] whose fields carry the batch shape in front. `grid(model,
-eps=..., mu=...)` builds outer products with named axes. Nothing here knows about a particular
-model: any `equinox.Module` whose parameters are array fields works.
+evaluates `fn(point_model, **solver_args)` at every point with `jax.vmap`, in chunks (one
+compilation; the chunk size bounded by the memory the compiled chunk needs), and returns a
+[`vmj.SweepResult`][] whose fields carry the batch shape in front. The chunks run in threads of
+this process (one per core, sharded across the local devices when there are several), or as
+tasks of a Dask cluster (`client=`); with `store=` every finished chunk is written to a Zarr
+store as it completes, and a rerun resumes. `grid(model, eps=..., mu=...)` builds outer products
+with named axes. Nothing here knows about a particular model: any `equinox.Module` whose
+parameters are array fields works.
 """
 
 from __future__ import annotations
 
-import concurrent.futures
+import collections
 import math
 import os
 import sys
-import time
+import threading
 from typing import Callable
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from .._checks import check_int, warn_if_float32
+from .._solution import RESULTS
+from ._engine import CORES, Progress, cluster, failure_message, run_chunks, threads_of, \
+    worker_memory
 from ._grid import Grid
-from ._result import SweepResult
+from ._result import SweepResult, export_names
+from ._store import ChunkStore, describe_fn, digest
 from ._tree import _field_paths, _get, _short_name
 
-__all__ = ["sweep"]
+__all__ = ["sweep", "SweepError"]
+
+#: the largest chunk unless a chunk_size is given [points]
+DEFAULT_CHUNK = 16384
+#: the share of the available memory that the chunks evaluated side by side may take
+MEMORY_FRACTION = 0.25
+#: traces of the chunk function in this process (each worker of a cluster should trace once)
+_TRACES = 0
+#: what this process knows of the compiled chunks of recent sweeps (see `_SweepJob.known`)
+_KNOWN: collections.OrderedDict = collections.OrderedDict()
+_KNOWN_LOCK = threading.Lock()
 
 
-class _Progress:
-    def __init__(self, total: int, enabled: bool, stream=None):
-        self.total, self.enabled, self.stream = total, enabled, stream or sys.stderr
-        self.start = time.perf_counter()
-        self.done = 0
+class SweepError(RuntimeError):
+    """Some chunks of a sweep raised (e.g. `throw=True` and a solve failed, or a worker was
+    lost too often); the others were evaluated (and stored, with a store).
 
-    def update(self, k: int = 1) -> None:
-        self.done += k
-        if not self.enabled:
-            return
-        frac = self.done / self.total
-        bar = "#" * int(30 * frac)
-        elapsed = time.perf_counter() - self.start
-        self.stream.write(f"\rsweep [{bar:<30}] {self.done}/{self.total} chunks {elapsed:6.1f} s")
-        if self.done == self.total:
-            self.stream.write("\n")
-        self.stream.flush()
+    **Fields:** `failures` (chunk number to `(first point, last point, status code,
+    message)`; the code is a [`vmj.RESULTS`][] member when the message is one of theirs, else
+    -1) and `result` (the [`vmj.SweepResult`][] with the failed points' floats set to NaN and
+    their other fields to 0).
+    """
+
+    def __init__(self, message: str, failures: dict, result: SweepResult):
+        super().__init__(message)
+        self.failures, self.result = failures, result
 
 
-#: threads evaluating chunks on a single device
-_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+def _take(x, shape, idx):
+    """The entries of `x` (broadcastable to `shape`) at the flat C-order indices `idx`."""
+    full = (1,) * (len(shape) - x.ndim) + tuple(x.shape)
+    flat, x_stride, out_stride = jnp.zeros_like(idx), 1, 1
+    for k in range(len(shape) - 1, -1, -1):
+        if full[k] > 1:
+            flat = flat + (idx // out_stride) % shape[k] * x_stride
+        x_stride *= full[k]
+        out_stride *= shape[k]
+    return jnp.reshape(x, (-1,))[flat]
 
 
 @eqx.filter_jit
-def _evaluate(fn, kwargs, model, swept, start, size, sharding):
-    """`fn` at the points `start ... start + size` of a model whose swept leaves (flags in
-    `swept`) are flat arrays over the whole sweep, already on the device(s)."""
+def _evaluate(fn, kwargs, model, swept, shape, start, size, sharding):
+    """`fn` at the points `start ... start + size` (flat, C order; indices past the last point
+    repeat it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`."""
+    global _TRACES
+    _TRACES += 1
     leaves, treedef = jax.tree.flatten(model)
-    part = [jax.lax.dynamic_slice_in_dim(x, start, size) if s else x
-            for x, s in zip(leaves, swept)]
+    idx = jnp.minimum(start + jnp.arange(size), math.prod(shape) - 1)
+    part = [_take(x, shape, idx) if s else x for x, s in zip(leaves, swept)]
     if sharding is not None:
         part = [jax.lax.with_sharding_constraint(x, sharding) if s else x
                 for x, s in zip(part, swept)]
@@ -71,6 +95,96 @@ def _evaluate(fn, kwargs, model, swept, start, size, sharding):
     return jax.vmap(point)([x for x, s in zip(part, swept) if s])
 
 
+class _SweepJob:
+    """What evaluating chunks of one sweep needs: picklable (NumPy leaves), so that it is sent
+    to the workers of a cluster once; each process puts the model on its device once."""
+
+    def __init__(self, fn, kwargs, model, swept, shape, chunk, token, *, devices=None,
+                 sharding=None):
+        self.fn, self.kwargs, self.swept, self.shape = fn, kwargs, swept, tuple(shape)
+        self.model = jax.tree.map(np.asarray, model)
+        self.n, self.chunk, self.token = math.prod(shape), chunk, token
+        self.devices, self.sharding = devices, sharding
+        self._lock = threading.Lock()
+        self._on_device = None
+
+    def __getstate__(self):
+        # a worker evaluates on its own default device
+        state = dict(self.__dict__, devices=None, sharding=None, _on_device=None)
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
+    def on_device(self):
+        with self._lock:
+            if self._on_device is None:
+                devs = self.devices
+                place = None
+                if devs is not None and len(devs) == 1:
+                    place = devs[0]
+                elif devs is not None:
+                    place = jax.sharding.NamedSharding(self.sharding.mesh,
+                                                       jax.sharding.PartitionSpec())
+                self._on_device = jax.tree.map(lambda x: jax.device_put(x, place), self.model)
+            return self._on_device
+
+    def first(self, c: int) -> int:
+        """The first point evaluated by chunk `c` (the last chunk ends at the last point)."""
+        return min(c * self.chunk, max(self.n - self.chunk, 0))
+
+    def args(self, start: int, chunk: int | None = None):
+        return (self.fn, self.kwargs, self.on_device(), self.swept, self.shape,
+                jnp.asarray(start), chunk or self.chunk, self.sharding)
+
+    def key(self, chunk: int):
+        """What the compiled chunk depends on, hashable (None if it cannot be hashed)."""
+        leaves, treedef = jax.tree.flatten(self.model)
+        try:
+            key = (self.fn, tuple(sorted(self.kwargs.items())), treedef,
+                   tuple((np.shape(x), np.result_type(x).str) for x in leaves), self.swept,
+                   self.shape, chunk, self.sharding, bool(jax.config.jax_enable_x64))
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
+    def known(self, chunk: int) -> dict:
+        """What this process knows of the compiled chunk: compiled it (`"compiled"`), its
+        memory (`"bytes"`) and output structure (`"spec"`); {} if nothing."""
+        key = self.key(chunk)
+        if key is None:
+            return {}
+        with _KNOWN_LOCK:
+            entry = _KNOWN.setdefault(key, {})
+            _KNOWN.move_to_end(key)
+            while len(_KNOWN) > 64:
+                _KNOWN.popitem(last=False)
+        return entry
+
+    def compile(self, chunk: int | None = None):
+        """The compiled chunk (JAX keeps it: later calls with the same shapes reuse it)."""
+        compiled = _evaluate.lower(*self.args(0, chunk)).compile()
+        self.known(chunk or self.chunk)["compiled"] = True
+        return getattr(compiled, "compiled", compiled)
+
+    def spec(self):
+        """The output's structure (leaves with the chunk axis in front), without evaluating."""
+        known = self.known(self.chunk)
+        if "spec" not in known:
+            known["spec"] = eqx.filter_eval_shape(_evaluate, *self.args(0))
+        return known["spec"]
+
+    def compute(self, c: int) -> list:
+        """The result leaves of the points `c * chunk ... (c + 1) * chunk - 1` of chunk `c`."""
+        start = self.first(c)
+        out = jax.tree.leaves(_evaluate(*self.args(start)))
+        lo, hi = c * self.chunk, min((c + 1) * self.chunk, self.n)
+        return [np.asarray(g)[lo - start:hi - start] for g in out]
+
+
 def _devices(devices):
     if devices is None:
         devices = jax.local_devices()
@@ -80,13 +194,118 @@ def _devices(devices):
     return devices
 
 
+def chunk_plan(n: int, limit: int, lanes: int, multiple: int = 1) -> int:
+    """The chunk size for `n` points: at most `limit`, and at least `lanes` chunks of about
+    equal size (a multiple of `lanes`), so that every core has work even in a small sweep;
+    rounded up to a `multiple` (the number of devices a chunk is sharded over)."""
+    k = max(-(-n // limit), min(lanes, n))
+    k = -(-k // lanes) * lanes if n >= lanes else k
+    chunk = -(-n // k)
+    return -(-chunk // multiple) * multiple
+
+
+def available_memory(device) -> int | None:
+    """Bytes of memory free for new buffers on `device` (the host's available memory for a
+    CPU), or None if unknown."""
+    if device.platform != "cpu":
+        try:
+            stats = device.memory_stats() or {}
+            return int(stats["bytes_limit"] - stats.get("bytes_in_use", 0))
+        except Exception:
+            return None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def chunk_bytes(job, chunk: int) -> int | None:
+    """The memory one compiled chunk of `chunk` points needs (XLA's memory analysis of the
+    compiled chunk: temporaries, outputs and arguments), or None if the backend does not say.
+    Compiling here also compiles the chunks that follow (JAX caches the executable); the answer
+    is remembered for the next sweep of the same function and shapes."""
+    known = job.known(chunk)
+    if "bytes" not in known:
+        compiled = job.compile(chunk)  # a bad argument of fn raises here
+        try:
+            m = compiled.memory_analysis()
+            need = int(m.temp_size_in_bytes + m.output_size_in_bytes + m.argument_size_in_bytes)
+        except Exception:
+            need = None
+        known["bytes"] = need
+    return known["bytes"]
+
+
+def _sized(job, n, chunk_size, lanes, multiple, memory, concurrent) -> int:
+    """The chunk size: `chunk_size` points at most (default `DEFAULT_CHUNK`), `lanes` chunks at
+    least, and small enough that `concurrent` chunks side by side need at most
+    `MEMORY_FRACTION` of `memory` bytes. An explicit `chunk_size` is kept unless its chunks do
+    not fit in `memory` at all (refused, with the size that fits); the default shrinks."""
+    chunk = chunk_plan(n, chunk_size or DEFAULT_CHUNK, lanes, multiple)
+    need = chunk_bytes(job, chunk) if memory else None
+    if need is None:
+        return chunk
+    per_point = need / chunk
+    if chunk_size is not None:
+        if need * concurrent <= memory:
+            return chunk
+        fits = int(memory / concurrent / per_point)
+        raise ValueError(f"chunk_size={chunk_size} needs {need / 1e9:.3g} GB of working memory "
+                         f"per chunk ({per_point / 1e6:.3g} MB per point, {concurrent} chunks "
+                         f"side by side), more than the {memory / 1e9:.3g} GB available; use "
+                         f"chunk_size <= {max(fits, 1)}, or leave it at the default, which is "
+                         f"sized to fit")
+    budget = MEMORY_FRACTION * memory
+    if need * concurrent <= budget:
+        return chunk
+    fits = int(budget / concurrent / per_point)
+    if fits < multiple:
+        raise ValueError(f"one point of this sweep needs {per_point / 1e6:.3g} MB of working "
+                         f"memory, more than the {budget / concurrent / 1e9:.3g} GB available "
+                         f"to each of its {concurrent} chunks side by side")
+    return chunk_plan(n, fits, lanes, multiple)
+
+
+def _layout(model):
+    """(dims, coords, model, shape, is a grid) of a sweep over `model` (a model or a
+    `vmj.Grid`)."""
+    grid = isinstance(model, Grid)
+    if grid:
+        dims, coords, model = model.dims, model.coords, model.model
+    leaves = jax.tree.leaves(model)
+    try:
+        shape = tuple(np.broadcast_shapes(*(np.shape(x) for x in leaves
+                                            if eqx.is_array_like(x))))
+    except ValueError as e:
+        raise ValueError(f"the model's parameters do not broadcast together: {e}") from None
+    if not grid:
+        dims = ("point",) if len(shape) == 1 else tuple(f"point_{i}" for i in range(len(shape)))
+        coords = {}
+        paths = _field_paths(model)
+        for path in paths:
+            value = np.asarray(_get(model, path))
+            if value.ndim:
+                coords[_short_name(paths, path)] = value
+    return tuple(dims), dict(coords), model, shape, grid
+
+
 def sweep(
     fn: Callable,
     model,
     *,
-    chunk_size: int = 16384,
-    progress: bool | None = None,
+    chunk_size: int | None = None,
+    progress: bool | Callable | None = None,
     devices=None,
+    client=None,
+    store=None,
+    resume: bool = False,
     **solver_args,
 ) -> SweepResult:
     """Evaluate `fn(point, **solver_args)` at every point of a sweep over model parameters.
@@ -99,95 +318,204 @@ def sweep(
     - `model`: a model whose array fields broadcast together as in NumPy (three fields of shape
       `(N,)` are `N` paired points; shapes `(N, 1)` and `(M,)` are an `N x M` product), or a
       [`vmj.Grid`][] from [`vmj.grid`][] (named axes).
-    - `chunk_size`: points evaluated per compiled call (static; the last chunk overlaps the one
-      before it, and a sweep smaller than one chunk is padded, so there is one compilation).
-      Working memory is proportional to it (times the number of cores, whose threads evaluate
-      chunks side by side); the swept parameters themselves (8 bytes per point each) are put on
-      the device once.
-    - `progress`: print a progress bar to stderr; default: when stderr is a terminal and there is
-      more than one chunk.
+    - `chunk_size`: the most points evaluated per compiled call (static). Default: 16384, and
+      fewer when the compiled chunk would need more than a quarter of the available memory
+      (host memory, or the device's) for the chunks evaluated side by side: XLA's memory
+      analysis of the compiled chunk decides. A sweep is split into at least one chunk per
+      core (per worker thread of a cluster), so that every core has work; the last chunk
+      overlaps the one before it. An explicit `chunk_size` whose chunks do not fit in memory
+      is refused with the size that fits.
+    - `progress`: print chunks done / total, rate and time left to stderr (`True`), or call
+      `progress(done, total)` after each chunk; default: print when stderr is a terminal and
+      there is more than one chunk.
     - `devices`: devices to shard each chunk over (default: every local device); with several,
-      the chunk's batch axis is split across them with `jax.sharding`.
+      the chunk's batch axis is split across them with `jax.sharding`. In-process only.
+    - `client`: evaluate the chunks as tasks of a Dask cluster (needs `pip install
+      'vmj[distributed]'`): a `dask.distributed.Client`, a scheduler address
+      (`"tcp://host:8786"`), or `"local"` (a `LocalCluster` with one worker process per core
+      of this machine, closed at the end). The function, model and arguments are sent to each
+      worker once; each worker compiles once. Results are the same, to the last bit, as
+      in-process on the same kind of machine.
+    - `store`: a path of a Zarr store (`"sweep.zarr"`): every finished chunk is written to it
+      as it completes (with a checksum and a completion marker), labelled like
+      [`vmj.SweepResult.to_xarray`][]; read it back with [`vmj.SweepResult.read_zarr`][].
+    - `resume`: continue the sweep already in `store`: only the chunks not yet in it (or
+      whose data does not match their checksum) are computed. The store must hold the same
+      sweep (function, model parameters, solver arguments, shape, `chunk_size`); a different
+      one is refused. Without `resume=True` an existing store is refused.
     - `**solver_args`: passed to `fn` unchanged at every point (e.g. `a0=0.06, n=12,
       method="exact"`); they are not swept.
 
     **Returns:** a [`vmj.SweepResult`][] whose `values` have the sweep's shape in front; results
     are the same as calling `fn` point by point.
+
+    **Raises:** with a `client` or a `store`, a chunk that raises (e.g. `throw=True` and a solve
+    failed) does not stop the sweep: the other chunks are evaluated (and stored), and then
+    [`vmj.SweepError`][] names the failed chunks and carries the rest of the result. Without
+    either, the first failure is raised at once.
     """
     warn_if_float32()
-    chunk_size = check_int("chunk_size", chunk_size, 1)
-    if isinstance(model, Grid):
-        dims, coords, model = model.dims, model.coords, model.model
-    else:
-        dims = coords = None
-    leaves, treedef = jax.tree.flatten(model)
-    try:
-        shape = tuple(np.broadcast_shapes(*(np.shape(x) for x in leaves
-                                            if eqx.is_array_like(x))))
-    except ValueError as e:
-        raise ValueError(f"the model's parameters do not broadcast together: {e}") from None
-    if dims is None:
-        dims = ("point",) if len(shape) == 1 else tuple(f"point_{i}" for i in range(len(shape)))
-        coords = {}
-        paths = _field_paths(model)
-        for path in paths:
-            value = np.asarray(_get(model, path))
-            if value.ndim:
-                coords[_short_name(paths, path)] = value
+    if chunk_size is not None:
+        chunk_size = check_int("chunk_size", chunk_size, 1)
+    if not isinstance(resume, bool):
+        raise ValueError(f"resume must be True or False (got {resume!r})")
+    if resume and store is None:
+        raise ValueError("resume=True needs a store (the path of the sweep to continue)")
+    dims, coords, model, shape, is_grid = _layout(model)
     n = math.prod(shape)
-    devs = _devices(devices)
-    nd = len(devs)
-    chunk = min(chunk_size, n)
-    chunk = -(-chunk // nd) * nd
-    n_chunks = -(-n // chunk)
-    sharding = None
-    if nd > 1:
-        mesh = jax.sharding.Mesh(np.array(devs), ("batch",))
-        sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
-    # the swept parameters flattened once (C order) and put on the device(s) once; the compiled
-    # chunk slices them (no copy per chunk). The last chunk ends at the last point and overlaps
-    # the one before it; only a sweep smaller than one chunk is padded (with its last point).
+    leaves, treedef = jax.tree.flatten(model)
     swept = tuple(eqx.is_array_like(x) and np.ndim(x) > 0 for x in leaves)
-    size = max(n, chunk)
-    place = devs[0] if nd == 1 else jax.sharding.NamedSharding(
-        mesh, jax.sharding.PartitionSpec())
-    on_device = []
-    for x, s in zip(leaves, swept):
-        if s:
-            f = np.broadcast_to(np.asarray(x), shape).reshape(n)
-            if size > n:
-                f = np.concatenate([f, np.repeat(f[-1:], size - n)])
-            x = jax.device_put(f, place)
-        elif eqx.is_array_like(x):
-            x = jax.device_put(np.asarray(x), place)
-        on_device.append(x)
-    model = jax.tree.unflatten(treedef, on_device)
+    model = jax.tree.unflatten(treedef, [np.asarray(x) if eqx.is_array_like(x) else x
+                                         for x in leaves])
+    # what the store records and a cluster's workers key their copy on (digests of the model's
+    # arrays: computed only when there is a store or a cluster)
+    definition = described = None
+    token = ""
+    if store is not None or client is not None:
+        definition, described = _definition(fn, model, solver_args, shape, dims, coords,
+                                            chunk_size)
+        token = digest(definition)
 
-    def first(c):  # the first point evaluated by chunk c
-        return min(c * chunk, size - chunk)
+    with cluster(client) as cl:
+        if cl is not None:
+            if devices is not None:
+                raise ValueError("devices applies to the in-process sweep; a cluster's workers "
+                                 "each use their own default device")
+            devs, nd, sharding = jax.local_devices()[:1], 1, None
+            lanes = threads = threads_of(cl)
+            # the smallest memory limit of a worker thread (else this machine's); the client
+            # compiles a chunk to size it only when no chunk_size is given
+            memory = None
+            if chunk_size is None:
+                memory = worker_memory(cl) or available_memory(devs[0])
+            concurrent = 1
+        else:
+            devs = _devices(devices)
+            nd = len(devs)
+            sharding = None
+            if nd > 1:
+                mesh = jax.sharding.Mesh(np.array(devs), ("batch",))
+                sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
+            lanes = CORES if nd == 1 and devs[0].platform == "cpu" else 1
+            threads = CORES if nd == 1 else 1
+            memory = available_memory(devs[0])
+            concurrent = threads
+        job = _SweepJob(fn, solver_args, model, swept, shape, 1, token,
+                        devices=devs if cl is None else None, sharding=sharding)
 
-    def evaluate(c):
-        start = np.asarray(first(c), dtype=np.int64)
-        return jax.tree.flatten(_evaluate(fn, solver_args, model, swept, start, chunk, sharding))
+        st = None
+        if store is not None:
+            st = ChunkStore.existing(store, kind="sweep", definition=definition,
+                                     described=described, resume=resume)
+        if st is not None:
+            job.chunk = int(st.meta["chunk"])
+        else:
+            job.chunk = _sized(job, n, chunk_size, lanes, nd, memory, concurrent)
+        chunk = job.chunk
+        n_chunks = -(-n // chunk)
 
-    def store(c, got_leaves):
-        lo, stop = c * chunk, min((c + 1) * chunk, n)
-        for o, g in zip(out_leaves, got_leaves):
-            o[lo:stop] = np.asarray(g)[lo - first(c):stop - first(c)]
+        # the output's structure, without evaluating anything
+        spec = job.spec()
+        spec_leaves, out_def = jax.tree.flatten(spec)
+        names, kdims, kcoords = export_names(
+            spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"})
+        out = [np.empty((n,) + s.shape[1:], dtype=s.dtype) for s in spec_leaves]
+        if store is not None and st is None:
+            plan = {"n": n, "chunk": chunk, "n_chunks": n_chunks, "dims": list(dims),
+                    "shape": list(shape), "grid": is_grid,
+                    "fields": [[nm, np.dtype(s.dtype).str, list(s.shape[1:])]
+                               for nm, s in zip(names, spec_leaves)],
+                    "coords": list(coords)}
+            st = ChunkStore.create(store, kind="sweep", definition=definition,
+                                   described=described, plan=plan)
+            coord_dims = {k: ((k,) if is_grid else tuple(f"{k}_{i}" for i in range(np.ndim(v))))
+                          for k, v in coords.items()}
+            st.create_sweep_arrays(
+                [(nm, s.dtype, s.shape[1:], kd) for nm, s, kd in zip(names, spec_leaves, kdims)],
+                coords, coord_dims, kcoords)
 
-    show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
-    bar = _Progress(n_chunks, bool(show))
-    got_leaves, out_def = evaluate(0)  # compiles; fixes the output structure
-    out_leaves = [np.empty((n,) + g.shape[1:], dtype=g.dtype) for g in got_leaves]
-    store(0, got_leaves)
-    bar.update()
-    # A compiled chunk runs synchronously (its runtime checks call back to the host), so on a
-    # single device the chunks run in threads, one per core; results go straight into place.
-    workers = max(1, min(_CORES, n_chunks - 1)) if nd == 1 else 1
-    with concurrent.futures.ThreadPoolExecutor(workers) as pool:
-        jobs = [pool.submit(lambda c: store(c, evaluate(c)[0]), c) for c in range(1, n_chunks)]
-        for job in concurrent.futures.as_completed(jobs):
-            job.result()
-            bar.update()
-    values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out_leaves])
-    return SweepResult(values, tuple(dims), dict(coords), shape, nd, n_chunks)
+        def rows(c):
+            return slice(c * chunk, min((c + 1) * chunk, n))
+
+        todo = list(range(n_chunks))
+        if st is not None and resume:
+            todo = []
+            for c, got in st.finished(names):
+                if got is None:
+                    todo.append(c)
+                else:
+                    for o, g in zip(out, got):
+                        o[rows(c)] = g
+        resumed = n_chunks - len(todo)
+
+        def sink(c, got):
+            for o, g in zip(out, got):
+                o[rows(c)] = g
+            if st is not None:
+                st.write(c, got, names)
+
+        failures = {}
+
+        def fail(c, exc):
+            message = failure_message(exc)
+            code = RESULTS.messages.index(message) if message in RESULTS.messages else -1
+            r = rows(c)
+            failures[c] = (r.start, r.stop - 1, code, message)
+            if st is not None:
+                st.fail(c, code, message)
+
+        if cl is None and todo and not job.known(chunk).get("compiled"):
+            job.compile()  # here, once, before the threads share the executable
+        show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
+        bar = Progress(n_chunks, n, show, already=resumed)
+        run_chunks(job, todo, sink=sink, progress=bar, client=cl, threads=threads,
+                   fail=fail if (cl is not None or st is not None) else None,
+                   sink_in_thread=cl is None and st is None, store=st)
+
+    values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out])
+    result = SweepResult(values, tuple(dims), dict(coords), shape, nd, n_chunks,
+                         computed=len(todo) - len(failures), resumed=resumed)
+    if failures:
+        for c in failures:
+            for o in out:
+                o[rows(c)] = np.nan if o.dtype.kind in "fc" else 0
+        lo, hi, code, message = failures[min(failures)]
+        text = (f"{len(failures)} of {n_chunks} chunks failed (the first: points {lo} to {hi}: "
+                f"{message})")
+        if st is not None:
+            text += (f"; the other chunks are in the store {st.path!r}: rerun with resume=True "
+                     f"to compute only the failed ones")
+        raise SweepError(text, failures, result)
+    return result
+
+
+def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
+    """The definition of a sweep (digests) and the same in words, for the store's refusals."""
+    definition = {"fn": digest(fn), "model": digest(model), "solver_args": digest(solver_args),
+                  "shape": list(shape), "dims": list(dims), "coords": digest(coords),
+                  "chunk_size": chunk_size, "vmj": _version(), "jax": jax.__version__,
+                  "x64": bool(jax.config.jax_enable_x64)}
+    described = {
+        "fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",
+        "model": f"{type(model).__name__} (parameters {definition['model'][:8]})",
+        "solver arguments": f"{_describe_args(solver_args)} ({definition['solver_args'][:8]})",
+        "shape": " x ".join(f"{d} {s}" for d, s in zip(dims, shape)) or "()",
+        "chunk_size": "default" if chunk_size is None else str(chunk_size),
+        "versions": f"vmj {definition['vmj']}, jax {definition['jax']}",
+        "float64": str(definition["x64"]),
+    }
+    return definition, described
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
+def _describe_args(args: dict) -> str:
+    def short(v):
+        text = repr(v)
+        return text if len(text) <= 40 else type(v).__name__
+
+    return ", ".join(f"{k}={short(v)}" for k, v in sorted(args.items())) or "none"

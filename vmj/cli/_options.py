@@ -152,6 +152,19 @@ def output_path(text: str) -> str:
         raise argparse.ArgumentTypeError(str(e).removeprefix("path ")) from None
 
 
+def store_path(text: str) -> str:
+    """A directory store (argparse type): an existing store, or a new one in a directory that
+    exists and is writable. Whether it may be continued is decided by the store itself."""
+    path = os.path.abspath(text)
+    if os.path.isdir(path):
+        if not os.access(path, os.W_OK):
+            raise argparse.ArgumentTypeError(f"{text!r}: the store is not writable")
+        return text
+    if os.path.exists(path):
+        raise argparse.ArgumentTypeError(f"{text!r} exists and is not a store (a directory)")
+    return output_path(text)
+
+
 #: figure formats matplotlib writes with its default backends (checked by the tests)
 FIGURE_FORMATS = ("png", "pdf", "svg", "svgz", "eps", "ps", "jpg", "jpeg", "tif", "tiff",
                   "webp", "pgf", "raw", "rgba")

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from ._options import (count, figure_path, output_path, parse_axis, parse_set, refuse_above,
-                       traced_checks)
+                       store_path, traced_checks)
 from ._params import MODELS, add_options
 
 __all__ = ["add_arguments", "run", "SWEEPS", "MAX_BYTES", "MAX_SECONDS", "MAX_AXIS"]
@@ -64,7 +64,7 @@ def _turning_points(args, g, scalars, method=None):
     method = method or args.method
     extra = {"max_substeps": 12} if args.model == "rope" and method == "exact" else {}
     return vmj.sweep(vmj.turning_points, g, a0=scalars["a0"], n=args.n, method=method,
-                     chunk_size=args.chunk_size, progress=_progress(args), **extra)
+                     **_engine(args), **extra)
 
 
 def _decay_summary(args, result) -> tuple:
@@ -89,7 +89,7 @@ def _stick_slip_eval(args, g, scalars):
     top = float(np.max(np.asarray(g.model.eps)))
     solver = vmj.ClosedForm() if args.method == "closed" else vmj.Exact()
     return vmj.sweep(vmj.limit_cycle, g, solver=solver, max_reversals=reversal_bound(top),
-                     chunk_size=args.chunk_size, progress=_progress(args))
+                     **_engine(args))
 
 
 def _linear_eval(args, g, scalars):
@@ -98,8 +98,7 @@ def _linear_eval(args, g, scalars):
     from ._linear import characteristics
 
     return vmj.sweep(characteristics, g, x0=scalars["x0"], v0=scalars["v0"],
-                     forced="F0" in scalars,
-                     chunk_size=args.chunk_size, progress=_progress(args))
+                     forced="F0" in scalars, **_engine(args))
 
 
 def _cycle_summary(args, result):
@@ -162,7 +161,19 @@ def add_arguments(p) -> None:
             q.add_argument("--error-plot", metavar="PNG", type=figure_path,
                            help="energy-balance error against the exact solution over the same "
                                 "grid")
-        q.add_argument("--chunk-size", type=count, default=16384, help="points per compiled call")
+        q.add_argument("--chunk-size", type=count, default=None,
+                       help="points per compiled call (default: 16384, fewer for the smoothed "
+                            "solver, sized from the memory one point needs)")
+        q.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run the chunks on a Dask cluster: tcp://HOST:8786 (a running "
+                            "`dask scheduler`), or `local` (a cluster of this machine's cores); "
+                            "needs the extra vmj[distributed]")
+        q.add_argument("--store", metavar="PATH.zarr", type=store_path,
+                       help="write every finished chunk to this Zarr store as it completes "
+                            "(needs vmj[distributed]); a rerun with --resume computes only the "
+                            "missing chunks")
+        q.add_argument("--resume", action="store_true",
+                       help="continue the sweep in an existing --store (the same definition)")
         q.add_argument("--progress", action="store_true", help="always show the progress bar")
         q.add_argument("--force", action="store_true",
                        help=f"run a sweep estimated above {MAX_BYTES / 2**30:g} GiB of results or "
@@ -170,8 +181,12 @@ def add_arguments(p) -> None:
         add_global_options(q, nested=True)
 
 
-def _progress(args):
-    return True if args.progress else None
+def _engine(args) -> dict:
+    """Where the chunks run and where they are kept: `vmj.sweep`'s `client`, `store`,
+    `resume` and `progress`."""
+    return {"client": args.scheduler, "store": args.store, "resume": args.resume,
+            "chunk_size": args.chunk_size,
+            "progress": True if (args.progress or args.scheduler) else None}
 
 
 def gather(spec, args, force: bool):
@@ -221,6 +236,14 @@ def run(args) -> int:
     if plots and (list(axes)[:2] != ["eps", "mu"] or len(axes) > 3):
         raise ValueError("--plot and --error-plot need the axes --eps and --mu, and optionally "
                          f"--delta (got {', '.join('--' + k for k in axes)})")
+    if (args.scheduler or args.store) and importlib.util.find_spec("dask") is None:
+        raise ValueError("--scheduler and --store need Dask and Zarr: pip install "
+                         "'vmj[distributed]'")
+    if args.resume and not args.store:
+        raise ValueError("--resume needs --store PATH.zarr (the store to continue)")
+    if args.store and plots:
+        raise ValueError("--store cannot be combined with --plot/--error-plot (write the store, "
+                         "then draw from it)")
     if args.netcdf and importlib.util.find_spec("xarray") is None:
         raise ValueError("--netcdf needs xarray and netCDF4: pip install 'vmj[xarray]'")
     if plots and min(len(axes["eps"]), len(axes["mu"])) < 2:
@@ -246,8 +269,14 @@ def run(args) -> int:
     short = {p.name: p.field.rsplit(".", 1)[-1] for p in spec.fields}
     g = vmj.grid(model, **{short[name]: np.asarray(v) for name, v in axes.items()})
     t = time.perf_counter()
-    with traced_checks():
-        result = how.evaluate(args, g, scalars)
+    try:
+        with traced_checks():
+            result = how.evaluate(args, g, scalars)
+    except ValueError as e:  # the store's messages name the Python argument
+        raise ValueError(str(e).replace("resume=True", "--resume")) from None
+    except vmj.SweepError as e:  # some chunks raised; the others are in the store, if any
+        print(f"vmj: error: {e}", file=sys.stderr)
+        return 1
     elapsed = time.perf_counter() - t
     if args.out:
         result.to_csv(args.out)

@@ -1,0 +1,255 @@
+"""Running chunks of work: in threads of this process, or as Dask tasks on a cluster.
+
+A *job* is a picklable object with a `token` (a digest of what it computes), a `chunk` size
+and a method `compute(c)` that returns the result of chunk `c`. [`run_chunks`][] evaluates the
+chunks still to do and hands each finished one, in this process, to a `sink`; chunk failures
+are recorded and the run goes on, or (in-process without a store) raised at once as before. Dask is imported only
+when a client is asked for.
+
+On a cluster the job is scattered to every worker once (`Client.scatter(broadcast=True)`), each
+task carries only its chunk number, and each worker process keeps the first copy of a job it
+receives ([`_worker_job`][]), so that the function it holds is compiled once per process and
+reused for every chunk; it follows the client's float64 setting. A worker that dies has its tasks
+rescheduled by Dask.
+"""
+
+from __future__ import annotations
+
+import collections
+import concurrent.futures
+import contextlib
+import os
+import re
+import sys
+import threading
+import time
+import uuid
+from typing import Callable
+
+__all__ = ["run_chunks", "cluster", "Progress", "CORES", "failure_message"]
+
+#: the cores this process may run on (threads evaluating chunks side by side)
+CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+class Progress:
+    """Chunks done / total, rate and estimated time left, on stderr (or to a callable)."""
+
+    def __init__(self, total: int, points: int, show, *, already: int = 0, label: str = "sweep",
+                 unit: str = "points", stream=None):
+        self.total, self.points, self.label, self.unit = total, points, label, unit
+        self.callback = show if callable(show) else None
+        self.enabled = bool(show) and self.callback is None
+        self.stream = stream or sys.stderr
+        self.start = time.perf_counter()
+        self.already = self.done = already
+
+    def update(self, k: int = 1) -> None:
+        self.done += k
+        if self.callback is not None:
+            self.callback(self.done, self.total)
+        if not self.enabled:
+            return
+        elapsed = time.perf_counter() - self.start
+        new = self.done - self.already
+        rate = new / elapsed if elapsed > 0 else 0.0
+        left = (self.total - self.done) / rate if rate > 0 else float("nan")
+        per_point = self.points / self.total
+        bar = "#" * int(30 * self.done / self.total)
+        self.stream.write(f"\r{self.label} [{bar:<30}] {self.done}/{self.total} chunks "
+                          f"{rate * per_point:9.3g} {self.unit}/s  {elapsed:6.1f} s  "
+                          f"ETA {left:6.1f} s")
+        if self.done == self.total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+def failure_message(exc: BaseException) -> str:
+    """A one-line message for a failed chunk: the message of an `equinox.error_if` check or
+    a solver status, without the long stack text around it."""
+    text = str(exc)
+    hit = re.search(r"EquinoxRuntimeError: (.*)", text)
+    if hit:
+        return hit.group(1).strip()
+    first = text.strip().splitlines()[0] if text.strip() else ""
+    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+
+
+# -- the worker side ---------------------------------------------------------------------------
+#: the jobs this process has received, by token and chunk size (the first copy is kept, so that
+#: its function's compiled code is reused for every chunk); at most a few are kept
+_JOBS: collections.OrderedDict = collections.OrderedDict()
+_JOBS_LOCK = threading.Lock()
+_KEEP_JOBS = 4
+
+
+def _worker_job(job):
+    key = (job.token, job.chunk)
+    with _JOBS_LOCK:
+        kept = _JOBS.get(key)
+        if kept is None:
+            kept = _JOBS[key] = job
+            while len(_JOBS) > _KEEP_JOBS:
+                _JOBS.popitem(last=False)
+        else:
+            _JOBS.move_to_end(key)
+    return kept
+
+
+def _run_on_worker(job, c):
+    return _worker_job(job).compute(c)
+
+
+def _float64_plugin(x64: bool):
+    """A Dask worker plugin that sets JAX's float64 mode on every worker (those running and
+    those that join later) before any task's arguments are unpickled into arrays."""
+    import distributed
+
+    class Float64(distributed.WorkerPlugin):
+        name = "vmj-float64"
+
+        def __init__(self, x64):
+            self.x64 = x64
+
+        def setup(self, worker):
+            import jax
+
+            jax.config.update("jax_enable_x64", self.x64)
+
+    return Float64(x64)
+
+
+# -- clusters ----------------------------------------------------------------------------------
+@contextlib.contextmanager
+def cluster(client):
+    """The `distributed.Client` for `client`: itself, a new one connected to a scheduler
+    address (`"tcp://host:8786"`), or, for `"local"`, a `LocalCluster` on this machine with one
+    single-threaded worker process per core (closed again at the end)."""
+    if client is None:
+        yield None
+        return
+    try:
+        import distributed
+    except ImportError:  # pragma: no cover - exercised only without the extra
+        raise ImportError("a Dask client needs the optional extra: pip install "
+                          "'vmj[distributed]'") from None
+    if isinstance(client, distributed.Client):
+        yield client
+        return
+    if not isinstance(client, str):
+        raise ValueError(f"client must be a dask.distributed.Client, a scheduler address such as "
+                         f"'tcp://host:8786', or 'local' (got {type(client).__name__})")
+    if client == "local":
+        lc = distributed.LocalCluster(n_workers=CORES, threads_per_worker=1, processes=True,
+                                      host="127.0.0.1", dashboard_address=None)
+        with lc, distributed.Client(lc) as c:
+            yield c
+        return
+    with distributed.Client(client) as c:
+        yield c
+
+
+def threads_of(client) -> int:
+    """The number of chunks a cluster evaluates side by side (its workers' threads)."""
+    workers = client.scheduler_info(n_workers=-1)["workers"].values()
+    return max(1, sum(w["nthreads"] for w in workers))
+
+
+def worker_memory(client) -> int | None:
+    """The smallest memory limit per worker thread in bytes (None: no limits set)."""
+    limits = [w["memory_limit"] / max(1, w["nthreads"])
+              for w in client.scheduler_info(n_workers=-1)["workers"].values()
+              if w.get("memory_limit")]
+    return int(min(limits)) if limits else None
+
+
+# -- running -----------------------------------------------------------------------------------
+class Interrupted(RuntimeError):
+    """A run stopped before every chunk was done (its client closed, its tasks cancelled)."""
+
+
+def run_chunks(job, todo, *, sink: Callable, fail: Callable | None, progress: Progress,
+               client=None, threads: int = 1, sink_in_thread: bool = False,
+               store=None) -> None:
+    """Evaluate `job.compute(c)` for every chunk `c` in `todo` and pass each result to
+    `sink(c, result)` as it arrives (in this process; with `sink_in_thread` and no client, in
+    the thread that computed it). A chunk that raises is passed to `fail(c, exception)` and the
+    others go on; with `fail=None` the first failure is raised at once. Interrupted (Ctrl-C, the
+    client closed), the chunks not started are cancelled and the exception is raised; chunks
+    already handed to `sink` are complete, and what a `store` holds is said on stderr."""
+    todo = list(todo)
+    if not todo:
+        return
+    try:
+        if client is None:
+            _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread)
+        else:
+            _run_dask(job, todo, sink, fail, progress, client)
+    except BaseException:
+        if store is not None:
+            done = int((store.status() == 1).sum())
+            sys.stderr.write(f"\n{progress.label} stopped: {done} of {progress.total} chunks "
+                             f"are in the store {store.path!r}; rerun with resume=True to "
+                             f"compute only the others\n")
+        raise
+
+
+def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
+    def task(c):
+        out = job.compute(c)
+        if sink_in_thread:
+            sink(c, out)
+        return out
+
+    pool = concurrent.futures.ThreadPoolExecutor(max(1, min(threads, len(todo))))
+    try:
+        jobs = {pool.submit(task, c): c for c in todo}
+        for done in concurrent.futures.as_completed(jobs):
+            c = jobs[done]
+            try:
+                out = done.result()
+            except Exception as e:
+                if fail is None:
+                    raise
+                fail(c, e)
+            else:
+                if not sink_in_thread:
+                    sink(c, out)
+            progress.update()
+    finally:
+        # on an exception, chunks not yet started are dropped; running ones finish first
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _run_dask(job, todo, sink, fail, progress, client):
+    import distributed
+
+    import jax
+
+    client.register_plugin(_float64_plugin(bool(jax.config.jax_enable_x64)))
+    shared = client.scatter(job, broadcast=True, hash=False)
+    run = uuid.uuid4().hex[:8]  # task keys of this run only
+    futures = {client.submit(_run_on_worker, shared, c, key=f"vmj-{job.token[:12]}-{run}-{c}",
+                             pure=False): c for c in todo}
+    try:
+        # results are fetched in the client's event loop as tasks finish, side by side
+        for f, value in distributed.as_completed(list(futures), with_results=True,
+                                                 raise_errors=False):
+            c = futures.pop(f)
+            if f.status == "finished":
+                sink(c, value)
+            elif f.status == "error":
+                exc = value[1] if isinstance(value, tuple) else value
+                if fail is None:
+                    raise exc
+                fail(c, exc)
+            else:  # cancelled: the client or the cluster went away
+                raise Interrupted(f"the run was interrupted (chunk {c} {f.status})")
+            f.release()
+            progress.update()
+    finally:
+        if futures:
+            with contextlib.suppress(Exception):
+                client.cancel(list(futures))
+        with contextlib.suppress(Exception):
+            shared.release()

@@ -1,0 +1,307 @@
+"""Resumable results in a Zarr store: one Zarr chunk per chunk of work, a completion marker and
+a checksum per chunk, and the definition of the work that refuses a different one.
+
+Layout of a store (a Zarr v3 group):
+
+- attributes `vmj`: the format, the definition (a digest and a readable description), the
+  plan (points, chunk size, number of chunks), and for a sweep its dims, shape and fields;
+  `vmj_failures`: the chunks whose evaluation raised, with their status code and message;
+- `vmj_status` (one `int8` per chunk: 0 not done, 1 done, 2 failed) and `vmj_checksum` (one
+  `uint64` per chunk, a BLAKE2b digest of the chunk's data), each entry its own Zarr chunk so
+  that a marker is one atomic file; the status is written after the data and the checksum;
+- a sweep: one array per field of the result with the points flattened in C order along
+  `point` (Zarr chunks equal to the sweep's chunks, inner axes named as in
+  [`vmj.SweepResult.to_xarray`][]), and the coordinates (a grid's axes, or every swept
+  parameter of paired points);
+- a map over items: `vmj_chunk_<c>`, the pickled results of chunk `c` as bytes.
+
+A chunk counts as done only when its status says so and its data matches its checksum, so a
+chunk half written (the process killed between its arrays) or corrupted on disk is computed
+again; every write replaces whole files atomically, so nothing finished is lost.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import os
+import pickle
+import re
+import types
+
+import numpy as np
+
+__all__ = ["digest", "ChunkStore"]
+
+FORMAT = 1
+NOT_DONE, DONE, FAILED = 0, 1, 2
+
+
+# -- digests of a definition -------------------------------------------------------------------
+_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
+
+
+def _feed(h, obj, seen) -> None:
+    import jax
+
+    if id(obj) in seen:
+        h.update(b"<cycle>")
+        return
+    if isinstance(obj, (np.ndarray, np.generic, jax.Array)):
+        a = np.ascontiguousarray(np.asarray(obj))
+        h.update(f"array {a.dtype.str} {a.shape}".encode())
+        h.update(a.tobytes())
+    elif obj is None or isinstance(obj, (bool, int, float, complex, str, bytes)):
+        h.update(repr((type(obj).__name__, obj)).encode())
+    elif isinstance(obj, (list, tuple)):
+        h.update(f"{type(obj).__name__} {len(obj)}".encode())
+        seen = seen | {id(obj)}
+        for x in obj:
+            _feed(h, x, seen)
+    elif isinstance(obj, dict):
+        h.update(f"dict {len(obj)}".encode())
+        seen = seen | {id(obj)}
+        for k in sorted(obj, key=repr):
+            _feed(h, k, seen)
+            _feed(h, obj[k], seen)
+    elif isinstance(obj, functools.partial):
+        h.update(b"partial")
+        _feed(h, (obj.func, obj.args, obj.keywords), seen | {id(obj)})
+    elif isinstance(obj, types.FunctionType):
+        h.update(f"function {obj.__module__}.{obj.__qualname__}".encode())
+        seen = seen | {id(obj)}
+        _feed_code(h, obj.__code__)
+        _feed(h, (obj.__defaults__, obj.__kwdefaults__), seen)
+        for cell in obj.__closure__ or ():
+            try:
+                value = cell.cell_contents
+            except ValueError:  # an empty cell
+                value = None
+            _feed(h, value, seen)
+    elif isinstance(obj, types.MethodType):
+        _feed(h, (obj.__func__, obj.__self__), seen | {id(obj)})
+    elif isinstance(obj, (type, types.BuiltinFunctionType, types.ModuleType)):
+        h.update(f"{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', obj)}".encode())
+    elif dataclasses.is_dataclass(obj):  # models, laws, solver objects (equinox modules)
+        h.update(f"{type(obj).__module__}.{type(obj).__qualname__}".encode())
+        seen = seen | {id(obj)}
+        for f in dataclasses.fields(obj):
+            h.update(f.name.encode())
+            _feed(h, getattr(obj, f.name, None), seen)
+    else:
+        try:
+            h.update(pickle.dumps(obj, protocol=5))
+        except Exception:
+            h.update(_ADDRESS.sub("", repr(obj)).encode())
+
+
+def _feed_code(h, code) -> None:
+    h.update(code.co_code)
+    h.update(repr(code.co_names).encode())
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            _feed_code(h, const)
+        else:
+            h.update(_ADDRESS.sub("", repr(const)).encode())
+
+
+def digest(obj) -> str:
+    """A hex digest of a value: arrays by dtype, shape and bytes; functions by module, name,
+    code and the values they close over (so a function edited or given other constants
+    differs, but line numbers and memory addresses do not count); modules (models, laws,
+    solver objects) by type and fields."""
+    h = hashlib.blake2b(digest_size=16)
+    _feed(h, obj, frozenset())
+    return h.hexdigest()
+
+
+def describe_fn(fn) -> str:
+    """A readable name of a function, for error messages."""
+    if isinstance(fn, functools.partial):
+        return f"partial({describe_fn(fn.func)}, ...)"
+    name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
+    return f"{getattr(fn, '__module__', type(fn).__module__)}.{name}"
+
+
+def chunk_checksum(arrays) -> int:
+    h = hashlib.blake2b(digest_size=8)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str} {a.shape}".encode())
+        h.update(a.tobytes())
+    return int.from_bytes(h.digest(), "little")
+
+
+# -- the store ---------------------------------------------------------------------------------
+def _zarr():
+    try:
+        import zarr
+    except ImportError:  # pragma: no cover - exercised only without the extra
+        raise ImportError("a store needs the optional extra: pip install 'vmj[distributed]'") \
+            from None
+    return zarr
+
+
+class ChunkStore:
+    """A Zarr group holding the chunks of one definition of work (see the module text)."""
+
+    def __init__(self, group, path: str, meta: dict):
+        self.group, self.path, self.meta = group, path, meta
+        self._status = group["vmj_status"]
+        self._checksum = group["vmj_checksum"]
+        # this process is the store's one writer: the failures are kept here and written whole
+        self._failures = dict(group.attrs.get("vmj_failures", {}))
+
+    # -- opening -------------------------------------------------------------------------------
+    @classmethod
+    def existing(cls, path, *, kind: str, definition: dict, described: dict,
+                 resume: bool) -> "ChunkStore | None":
+        """The store at `path` if there is one (None otherwise). It must hold work of `kind`
+        (`"sweep"` or `"map"`) with the same `definition` (a dict of digests; `described` says
+        the same in words), and `resume=True` is needed to continue it; its stored plan (chunk
+        size, number of chunks) is the one used."""
+        zarr = _zarr()
+        path = os.fspath(path)
+        if not os.path.exists(path):
+            return None
+        try:
+            group = zarr.open_group(path, mode="r+")
+            meta = group.attrs.get("vmj")
+        except Exception:
+            meta = None
+        if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+            raise ValueError(f"store {path!r} exists and is not a vmj store: choose another path")
+        if meta.get("kind") != kind or meta.get("token") != digest(definition):
+            raise ValueError(f"store {path!r} holds a different {meta.get('kind', 'sweep')}: "
+                             f"{_differences(meta.get('described', {}), described)}. Use another "
+                             f"store path, or delete this one to start over")
+        if not resume:
+            raise ValueError(f"store {path!r} already holds this {kind}: pass resume=True to "
+                             f"continue it (only the chunks not yet in it are computed), or "
+                             f"choose another path")
+        return cls(group, path, meta)
+
+    @classmethod
+    def read_only(cls, path, *, kind: str) -> "ChunkStore":
+        """An existing store opened for reading."""
+        zarr = _zarr()
+        path = os.fspath(path)
+        try:
+            group = zarr.open_group(path, mode="r")
+            meta = group.attrs.get("vmj")
+        except Exception:
+            meta = None
+        if not isinstance(meta, dict) or meta.get("kind") != kind:
+            raise ValueError(f"{path!r} is not a vmj {kind} store")
+        return cls(group, path, meta)
+
+    @classmethod
+    def create(cls, path, *, kind: str, definition: dict, described: dict,
+               plan: dict) -> "ChunkStore":
+        """A new store at `path` for work of `kind` with `plan` (`n`, `chunk`, `n_chunks`, and
+        for a sweep its `dims`, `shape`, `grid`, `fields`)."""
+        zarr = _zarr()
+        path = os.fspath(path)
+        meta = {"format": FORMAT, "kind": kind, "token": digest(definition),
+                "described": described, **plan}
+        group = zarr.open_group(path, mode="w-", zarr_format=3)
+        n_chunks = plan["n_chunks"]
+        group.create_array("vmj_status", shape=(n_chunks,), chunks=(1,), dtype="int8",
+                           fill_value=NOT_DONE, dimension_names=("chunk",))
+        group.create_array("vmj_checksum", shape=(n_chunks,), chunks=(1,), dtype="uint64",
+                           fill_value=0, dimension_names=("chunk",))
+        group.attrs.update({"vmj_failures": {}, "vmj": meta})  # the definition last
+        return cls(group, path, meta)
+
+    # -- sweeps --------------------------------------------------------------------------------
+    def create_sweep_arrays(self, fields, coords: dict, coord_dims: dict, inner_coords: dict):
+        """The arrays of a sweep's fields (`[(name, dtype, inner shape, inner dims)]`) and its
+        coordinates; created once (a resumed store has them)."""
+        n, chunk = self.meta["n"], self.meta["chunk"]
+        for name, dtype, inner, kdims in fields:
+            if name not in self.group:
+                self.group.create_array(name, shape=(n,) + tuple(inner),
+                                        chunks=(chunk,) + tuple(inner), dtype=dtype,
+                                        fill_value=np.zeros((), dtype).item(),
+                                        dimension_names=("point",) + tuple(kdims))
+        for name, value in {**coords, **inner_coords}.items():
+            if name not in self.group:
+                value = np.asarray(value)
+                dims = coord_dims.get(name, (name,))
+                self.group.create_array(name, data=value, chunks=value.shape or (1,),
+                                        dimension_names=tuple(dims))
+
+    def write(self, c: int, arrays, names=None) -> None:
+        """Write chunk `c` (one array per field, its rows only; for a map, `names=None` and one
+        bytes object), then its checksum, then its completion marker."""
+        if names is None:
+            blob = np.frombuffer(arrays, dtype=np.uint8)
+            key = f"vmj_chunk_{c}"
+            if key in self.group:
+                del self.group[key]
+            self.group.create_array(key, data=blob, chunks=(max(1, blob.size),))
+            total = chunk_checksum([blob])
+        else:
+            lo = c * self.meta["chunk"]
+            for name, a in zip(names, arrays):
+                self.group[name][lo:lo + len(a)] = a
+            total = chunk_checksum(arrays)
+        self._checksum[c] = np.uint64(total)
+        self._status[c] = DONE
+        if self._failures.pop(str(c), None) is not None:
+            self.group.attrs["vmj_failures"] = self._failures
+
+    def fail(self, c: int, code: int, message: str) -> None:
+        """Record that chunk `c` raised (its status code, or -1, and message)."""
+        self._status[c] = FAILED
+        self._failures[str(c)] = {"code": int(code), "message": message}
+        self.group.attrs["vmj_failures"] = self._failures
+
+    def status(self) -> np.ndarray:
+        """The status of every chunk (a marker that cannot be read counts as not done)."""
+        try:
+            return np.asarray(self._status[:])
+        except Exception:
+            out = np.zeros(self.meta["n_chunks"], dtype=np.int8)
+            for c in range(len(out)):
+                try:
+                    out[c] = self._status[c]
+                except Exception:
+                    pass
+            return out
+
+    def finished(self, names=None):
+        """`(c, data)` for every chunk: its data if it is complete and matches its checksum,
+        else None (to be computed)."""
+        status = self.status()
+        for c in range(self.meta["n_chunks"]):
+            yield c, (self.read(c, names) if status[c] == DONE else None)
+
+    def read(self, c: int, names=None):
+        """The data of chunk `c` (marked done) if it matches its checksum, else None."""
+        try:
+            want = int(self._checksum[c])
+            if names is None:
+                blob = np.asarray(self.group[f"vmj_chunk_{c}"][:])
+                return blob.tobytes() if chunk_checksum([blob]) == want else None
+            lo = c * self.meta["chunk"]
+            hi = min(lo + self.meta["chunk"], self.meta["n"])
+            arrays = [np.asarray(self.group[name][lo:hi]) for name in names]
+        except Exception:  # a marker or data file that cannot be decoded
+            return None
+        return arrays if chunk_checksum(arrays) == want else None
+
+
+def _differences(stored: dict, now: dict) -> str:
+    keys = [k for k in now if stored.get(k) != now[k]] + [k for k in stored if k not in now]
+    if not keys:
+        return "its definition differs"
+    parts = []
+    for k in keys:
+        was, new = stored.get(k), now.get(k)
+        if isinstance(was, str) and isinstance(new, str) and len(was) + len(new) < 120:
+            parts.append(f"{k} (stored {was}, now {new})")
+        else:
+            parts.append(f"{k} differ" if k.endswith("s") else f"{k} differs")
+    return "; ".join(parts)
