@@ -124,7 +124,7 @@ class AbstractParams(eqx.Module):
     _relations: ClassVar[dict] = {}
 
     def __check_init__(self):
-        problems = _problems(self)
+        problems = _problems(self, traced=False)
         _raise_concrete(problems)
         if not any(traced for *_, traced in problems):
             # Checked here, once. The mark lives on this instance only: every other way to make
@@ -163,20 +163,24 @@ def guard(x, bad, message: str):
     return x if _ASSUMED.get() else eqx.error_if(x, bad, message)
 
 
-def _problems(m) -> list:
+def _problems(m, traced: bool = True) -> list:
     """`(message, field value, ok, traced)` of each check of the module `m` itself: `ok` is a
-    boolean array (all True when the check passes)."""
+    boolean array (all True when the check passes); for a traced value only a placeholder
+    unless `traced`."""
     out = []
     for n, (ok, allowed) in type(m)._limits.items():
         value = getattr(m, n)
         if _is_traced(value):
             out.append((f"{n} must be finite and {allowed}", value,
-                        jnp.isfinite(value) & ok(value), True))
+                        jnp.isfinite(value) & ok(value) if traced else None, True))
         else:
             arr = np.asarray(value, dtype=float)
             out.append((f"{n} must be finite and {allowed}", arr,
                         np.isfinite(arr) & ok(arr), False))
     for n, (ok, allowed) in type(m)._relations.items():
+        if not traced and any(_is_traced(x) for x in jax.tree.leaves(m)):
+            out.append((f"{n} must be {allowed}", getattr(m, n), None, True))
+            continue
         flags = ok(m)
         out.append((f"{n} must be {allowed}", getattr(m, n), flags, _is_traced(flags)))
     return out
