@@ -20,10 +20,9 @@ def early_exit_loop(cond, body, init, max_steps: int, buffers=None, kind: str = 
     it; `kind="lax"` is a plain `lax.while_loop`, faster, forward-mode only.
 
     `cond` must bound the steps itself (`k < max_steps`) and return one boolean for the whole
-    `vmap`ped batch
-    (`equinox.internal.unvmap_any` of the lanes' own conditions), and `body` must leave lanes
-    that are done unchanged itself: the loop then stops as soon as every lane is done, and no
-    lane's result depends on the others in its batch. `buffers` as in
+    `vmap`ped batch (`equinox.internal.unvmap_any` of the lanes' own conditions), and `body`
+    must leave lanes that are done unchanged itself: the loop then stops as soon as every lane
+    is done, and no lane's result depends on the others in its batch. `buffers` as in
     `equinox.internal.while_loop` (arrays written once per index, without copies)."""
     if kind == "lax":  # (`cond` bounds the steps itself; buffers are updated in place)
         return lax.while_loop(cond, body, init)
@@ -36,10 +35,11 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
     """The first `n` turning points of `model` released from rest at `x = -a0`: at each turning
     point the model's stick rule (`model.rest`) decides whether and when the mass moves on, and
     `swing(t, x, s, moving) -> (found, failure, t1, x1)` takes it to the next one (`failure`:
-    the status to report when `found` is False; lanes with `moving` False, stuck or already
-    done, are discarded, so a solver may skip their work). A mass that stops, or a solve that fails, stays put for
-    the remaining entries (fixed shapes for `jit`, `vmap` and `grad`); the swings end as soon as
-    every lane of a `vmap`ped batch has stopped or failed (`kind`: of `early_exit_loop`)."""
+    the status to report when `found` is False; the results of lanes with `moving` False,
+    stuck or already done, are discarded, so a solver may skip their work). A mass that stops,
+    or a solve that fails, stays put for the remaining entries (fixed shapes for `jit`, `vmap`
+    and `grad`); the swings end as soon as every lane of a `vmap`ped batch has stopped or
+    failed (`kind`: of `early_exit_loop`)."""
 
     def cond(carry):
         k, _, _, code, _, _ = carry

@@ -10,10 +10,10 @@ accuracy into a reported failure instead of a wrong answer.
 
 Every loop ends as soon as its work is done for every lane of a `vmap`ped batch: the substeps
 when each lane has found its velocity zero (about two per half-swing), the Newton iterations
-when each has converged, the swings when each has stuck or failed. The substep and swing loops
-are bounded loops (`early_exit_loop`: a scan of conditionals), so the solver runs under `jit`,
-`vmap`, `jax.jacfwd` and reverse-mode `jax.grad` with the same derivatives as a fixed number
-of steps: a skipped step is the identity.
+when each has converged, the swings when each has stuck or failed. Values come from plain
+`lax.while_loop`s; derivatives (`jax.jacfwd`, reverse-mode `jax.grad`) from the same code with
+bounded loops (`early_exit_loop`: a scan of conditionals) through a custom JVP, the same
+derivatives as a fixed number of steps: a skipped step is the identity.
 """
 
 from __future__ import annotations

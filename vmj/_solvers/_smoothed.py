@@ -15,7 +15,6 @@ from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractMode
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
 
-
 if TYPE_CHECKING:  # diffrax is imported where a solve is built, so that `import vmj` stays light
     import diffrax as dfx
 
@@ -30,7 +29,8 @@ class Smoothed(AbstractSolver):
     """The smoothed model: `sign(v)` replaced by `tanh(v/w)`, solved as an ODE with diffrax.
 
     A smoothed model cannot stick: where the exact mass sticks it slows to a creep `|v| ~ w`.
-    Its arrival at `|v| = 20 w` after the last reversal is reported as the last turning point.
+    A swing that ends without reversing (it has not passed `x = 0`) ends where `|v|` falls to
+    `20 w`; that is its turning point.
 
     **Arguments:**
 
@@ -40,7 +40,8 @@ class Smoothed(AbstractSolver):
       non-smooth model and stiffer to integrate.
     - `rtol`: relative tolerance of the step-size controller (default: the model's, 1e-10 for
       the decay models); the absolute tolerance is `rtol` times the motion's length scale.
-    - `max_steps`: diffrax step limit (default: the model's).
+    - `max_steps`: diffrax step limit (default: the model's), per half-swing for the turning
+      points and per saved interval for a trajectory.
     - `ode_solver`: a diffrax solver (default `Tsit5()`, or `Kvaerno5()` for stiff models such
       as stick-slip).
     """
