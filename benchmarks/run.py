@@ -2,7 +2,7 @@
 
 Each prints its times and its ratios against a reference measured in the same run. Used by
 `make bench`. Usage: .venv/bin/python benchmarks/run.py [NAME ...] [-- extra args]
-(NAME: e.g. `sweep` for bench_sweep.py; default: all).
+(NAME: e.g. `exact` for bench_exact.py; default: all).
 """
 
 import glob

@@ -305,10 +305,11 @@ def test_cli_sweep(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
-    # The smoothed solve needs about 27 MB of XLA working memory per point (12 swings): at the
-    # default chunk the 11 x 21 x 7 grid would ask for 22 GB per chunk. Here the machine is
-    # made to look small (600 MB available), so that the default shrinks to what fits in a
-    # quarter of it, and an explicit chunk size that cannot fit at all is refused.
+    # The smoothed solve's working memory per point is what XLA's memory analysis says (a few
+    # kilobytes: its turning points come from events, not from a stored dense solution). Here
+    # the machine is made to look small, a few points' worth of memory, so that the default
+    # chunk shrinks to what fits in a quarter of it, and an explicit chunk size that cannot fit
+    # at all is refused.
     from vmj._sweep import _sweep as sweep_module
 
     seen = []
@@ -320,13 +321,15 @@ def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
 
     real = sweep_module.chunk_bytes
     monkeypatch.setattr(sweep_module, "chunk_bytes", spy)
-    memory = 600e6
-    monkeypatch.setattr(sweep_module, "available_memory", lambda device: memory)
+    memory = [1e12]
+    monkeypatch.setattr(sweep_module, "available_memory", lambda device: memory[0])
     g = vmj.grid(paper_model(), eps=[0.0, 0.5, 1.0, 0.25], mu=[2.0, 9.0])
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
+    per_point = seen[-1]
+    assert 1e2 < per_point < 1e6  # bytes per point: no memory that grows with the steps
+    memory[0] = 2.5 * CORES * per_point / sweep_module.MEMORY_FRACTION
     r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
-    (per_point,) = seen
-    assert 5e6 < per_point < 1e9  # megabytes per point: 16384 points would need tens of GB
-    fits = int(sweep_module.MEMORY_FRACTION * memory / CORES / per_point)
+    fits = int(sweep_module.MEMORY_FRACTION * memory[0] / CORES / seen[-1])
     assert 1 <= fits < 4
     assert r.chunks == n_chunks(8, fits) > CORES
     exact = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS)
@@ -335,7 +338,7 @@ def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
     before_rest = np.arange(N_SWINGS) < exact.values.count[..., None] - 1
     np.testing.assert_allclose(r.values.positions[before_rest],
                                exact.values.positions[before_rest], rtol=0, atol=1e-6 * A0)
-    memory = 150e6  # not even two chunks of 4 points
+    memory[0] = 1.5 * CORES * per_point  # not even two chunks of 4 points
     with pytest.raises(ValueError, match=r"chunk_size=8 needs .* GB of working memory per chunk "
                                          r".* use chunk_size <= \d+, or leave it"):
         vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth", chunk_size=8)

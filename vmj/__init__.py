@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 __version__ = "0.2.0"
 
 if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs as written
-    from ._checks import AbstractParams
+    from ._checks import AbstractParams, assume_valid
     from ._host import retain_host_memory
     from ._integrate import (energy_balance, limit_cycle, linear_simulate, rope_energy_map,
                              simulate, stick_slip_closed_form, stick_slip_cycle,
@@ -68,7 +68,7 @@ __all__ = [
     "RestoringLaw", "LinearRestoring", "PolynomialRestoring", "SineRestoring",
     "DissipationLaw", "ViscousDamping", "CoulombDamping", "QuadraticDamping",
     "LengthProfile", "ConstantSpeed", "Braking", "KGF",
-    "Forcing", "NoForcing", "HarmonicForce", "BaseMotion",
+    "Forcing", "NoForcing", "HarmonicForce", "BaseMotion", "assume_valid",
     # solvers and entry points
     "AbstractSolver", "Exact", "Smoothed", "EnergyBalance", "ClosedForm",
     "turning_points", "simulate", "limit_cycle",

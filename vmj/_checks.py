@@ -8,6 +8,9 @@ message.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import math
 import warnings
 from typing import ClassVar
 from collections.abc import Callable
@@ -17,7 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["AbstractParams", "validated", "check", "check_all", "check_int", "warn_if_float32"]
+__all__ = ["AbstractParams", "validated", "assume_valid", "guard", "check", "check_all",
+           "check_int", "scalar", "warn_if_float32"]
 
 
 def _is_traced(x) -> bool:
@@ -32,10 +36,22 @@ def _float(x) -> jax.Array:
 def check(name: str, value, ok: Callable, allowed: str):
     """Return `value` after checking it is finite and satisfies `ok` elementwise.
 
-    `ok` must work on NumPy and JAX arrays alike. `allowed` is the human description of the
-    range, e.g. `"> 0"` or `"in [0, 1]"`.
+    `ok` must work on Python numbers, NumPy and JAX arrays alike. `allowed` is the human
+    description of the range, e.g. `"> 0"` or `"in [0, 1]"`.
     """
+    if isinstance(value, (float, int)) and not isinstance(value, bool) and \
+            math.isfinite(value) and ok(value):
+        return value  # the common case, without building arrays
     return check_all([(name, value, ok, allowed)])[0]
+
+
+def scalar(value):
+    """A checked scalar argument as an array of JAX's default float type: a NumPy array for
+    concrete values (a compiled entry point takes it without a device round trip or a
+    recompilation for Python floats), traced values unchanged but cast."""
+    if _is_traced(value):
+        return jnp.asarray(value, dtype=jnp.result_type(float))
+    return np.asarray(value, dtype=jnp.result_type(float))
 
 
 def check_all(items) -> list:
@@ -48,6 +64,8 @@ def check_all(items) -> list:
     for i, (name, value, ok, allowed) in enumerate(items):
         message = f"{name} must be finite and {allowed}"
         if _is_traced(value):
+            if _ASSUMED.get():
+                continue
             traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))),
                            message))
             continue
@@ -93,49 +111,112 @@ def warn_if_float32() -> None:
 
 # -- parameterised modules ----------------------------------------------------------------------
 class AbstractParams(eqx.Module):
-    """Base of every model and law: `_limits` maps a field name to `(predicate, allowed range)`.
+    """Base of every model and law: `_limits` maps a field name to `(predicate, allowed range)`;
+    `_relations` maps a field name to `(predicate of the module, allowed range)` for a range
+    that depends on other fields (e.g. a static friction level at least the kinetic one).
 
     Concrete values are checked once, at construction (`ValueError` naming the field and its
     range); the entry points call `validated` on the whole model tree, which guards traced
     values (inside `jit`, `vmap`, `grad`) with one `equinox.error_if` and re-checks concrete
-    values that bypassed construction (`eqx.tree_at`).
+    values that bypassed construction (`eqx.tree_at`, `jax.tree.unflatten`).
     """
 
     _limits: ClassVar[dict] = {}
+    _relations: ClassVar[dict] = {}
 
     def __check_init__(self):
-        check_all([(n, getattr(self, n), ok, allowed) for n, (ok, allowed) in
-                   type(self)._limits.items() if not _is_traced(getattr(self, n))])
+        problems = _problems(self, traced=False)
+        _raise_concrete(problems)
+        if not any(traced for *_, traced in problems):
+            # Checked here, once. The mark lives on this instance only: every other way to make
+            # a module (tree_at, unflatten inside jit/vmap) builds a new instance without it.
+            object.__setattr__(self, _CHECKED, True)
+
+
+#: attribute marking a module whose limited fields were concrete and checked at construction
+_CHECKED = "_vmj_checked"
+_ASSUMED = contextvars.ContextVar("vmj_assume_valid", default=False)
+
+
+@contextlib.contextmanager
+def assume_valid():
+    """Within this block, vmj compiles no runtime checks of traced parameters and arguments.
+
+    Inside `jax.jit`/`jax.vmap` vmj's entry points guard traced values (model parameters,
+    `a0`, ...) with `equinox.error_if`, a host callback: it makes the compiled program
+    synchronous and keeps it out of JAX's persistent compilation cache. Code that keeps its
+    values in range by construction (a fit's transformed parameters, a sweep over arrays that
+    were checked) can trace its solves inside this block instead. Concrete values are still
+    checked; what is traced here is compiled without the guards, also when it runs later.
+
+        with vmj.assume_valid():
+            fitted = jax.jit(residuals)(theta)
+    """
+    token = _ASSUMED.set(True)
+    try:
+        yield
+    finally:
+        _ASSUMED.reset(token)
+
+
+def guard(x, bad, message: str):
+    """`equinox.error_if(x, bad, message)` for a traced check, unless inside `assume_valid`."""
+    return x if _ASSUMED.get() else eqx.error_if(x, bad, message)
+
+
+def _problems(m, traced: bool = True) -> list:
+    """`(message, field value, ok, traced)` of each check of the module `m` itself: `ok` is a
+    boolean array (all True when the check passes); for a traced value only a placeholder
+    unless `traced`."""
+    out = []
+    for n, (ok, allowed) in type(m)._limits.items():
+        value = getattr(m, n)
+        if _is_traced(value):
+            out.append((f"{n} must be finite and {allowed}", value,
+                        jnp.isfinite(value) & ok(value) if traced else None, True))
+        else:
+            arr = np.asarray(value, dtype=float)
+            out.append((f"{n} must be finite and {allowed}", arr,
+                        np.isfinite(arr) & ok(arr), False))
+    for n, (ok, allowed) in type(m)._relations.items():
+        if not traced and any(_is_traced(x) for x in jax.tree.leaves(m)):
+            out.append((f"{n} must be {allowed}", getattr(m, n), None, True))
+            continue
+        flags = ok(m)
+        out.append((f"{n} must be {allowed}", getattr(m, n), flags, _is_traced(flags)))
+    return out
+
+
+def _raise_concrete(problems) -> None:
+    for message, value, ok, traced in problems:
+        if not traced and not np.all(ok):
+            arr = np.asarray(value)
+            raise ValueError(f"{message} (got {arr.item() if arr.ndim == 0 else arr})")
 
 
 def validated(model):
-    """Check every limited field of `model` and of the modules inside it; return the model with
-    one runtime guard over all its traced fields (concrete ones raise `ValueError` now)."""
-    paths, items = [], []
+    """Check every limited field (and relation) of `model` and of the modules inside it; return
+    the model guarded by one `equinox.error_if` over all its traced checks (concrete ones raise
+    `ValueError` now). Modules checked at their construction (and not rebuilt since) are not
+    checked again."""
+    problems = []
 
-    def collect(m, path):
+    def collect(m):
         if isinstance(m, AbstractParams):
-            for n, (ok, allowed) in type(m)._limits.items():
-                paths.append(path + (n,))
-                items.append((n, getattr(m, n), ok, allowed))
-            for n, v in vars(m).items():
-                collect(v, path + (n,))
+            fields = vars(m)
+            if not fields.get(_CHECKED, False):
+                problems.extend(_problems(m))
+            for v in fields.values():
+                collect(v)
         elif isinstance(m, (tuple, list)):  # a tuple of laws
-            for i, v in enumerate(m):
-                collect(v, path + (i,))
+            for v in m:
+                collect(v)
 
-    collect(model, ())
-    if not paths:
+    collect(model)
+    _raise_concrete(problems)
+    traced = [(message, ok) for message, _, ok, is_traced in problems if is_traced]
+    if not traced or _ASSUMED.get():
         return model
-
-    def get(m, path):
-        for n in path:
-            m = m[n] if isinstance(n, int) else getattr(m, n)
-        return m
-
-    checked = check_all(items)
-    traced = [i for i, (_, v, _, _) in enumerate(items) if _is_traced(v)]
-    if not traced:
-        return model
-    return eqx.tree_at(lambda m: [get(m, paths[i]) for i in traced], model,
-                       [checked[i] for i in traced])
+    bad = jnp.stack([jnp.logical_not(jnp.all(ok)) for _, ok in traced])
+    return eqx.branched_error_if(model, jnp.any(bad), jnp.argmax(bad),
+                                 [message for message, _ in traced])

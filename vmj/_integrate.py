@@ -6,12 +6,13 @@ task. The older per-model functions are thin wrappers kept for compatibility."""
 
 from __future__ import annotations
 
+from functools import partial
 from typing import TYPE_CHECKING
 
-import equinox as eqx
+import jax
 
-from ._checks import (_float, _is_traced, anything, check, check_int, positive, validated,
-                      warn_if_float32)
+from ._checks import (_float, _is_traced, anything, check, check_int, guard, positive, scalar,
+                      validated, warn_if_float32)
 from ._models._base import check_horizon, require_scalar_fields
 from ._models._rope import Rope
 from ._models._stick_slip import MAX_REVERSALS, StickSlip, smoothed_states
@@ -60,11 +61,34 @@ def _solver(solver, method, smoothing, max_substeps, default):
                          f"{kind.name!r}")
     if kind is Exact and max_substeps is not None:
         return Exact(max_substeps=check_int("max_substeps", max_substeps, 1))
-    return kind()
+    return _default(kind)
 
+
+def _default(kind):
+    """The default instance of a solver class (made once: equinox modules cost microseconds
+    to build, and these have no arrays)."""
+    if kind not in _DEFAULTS:
+        _DEFAULTS[kind] = kind()
+    return _DEFAULTS[kind]
+
+
+_DEFAULTS: dict = {}
+
+
+def _checked(solver, model, task: str):
+    """`solver.check(validated(model), task)`. (Methods are called through the class in the
+    entry points: an equinox module binds a method into a new module at every access, which
+    costs more than a warm solve.)"""
+    return type(solver).check(solver, validated(model), task)
+
+
+# The compiled entry points: plain `jax.jit` (its dispatch runs in C++; every leaf of a model
+# and a solver is an array, their settings are static fields) with the integer settings
+# static. They hold no host callbacks for concrete inputs, so JAX's persistent compilation
+# cache can store them.
 
 # -- turning points of a free decay ------------------------------------------------------------
-@eqx.filter_jit
+@partial(jax.jit, static_argnums=2)
 def _turning_points(model, a0, n, solver):
     return solver.turning_points(model, a0, n)
 
@@ -97,9 +121,8 @@ def turning_points(model: AbstractDecayModel, a0: ArrayLike, n: int,
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
     n = check_int("n", n, 1)
     require_scalar_fields(model)
-    model = solver.check(validated(model), "turning_points")
-    # an array, not a Python float: filter_jit would treat floats as static and recompile
-    a0 = _float(check("a0", a0, *model.release_range()))
+    model = _checked(solver, model, "turning_points")
+    a0 = scalar(check("a0", a0, *type(model).release_range(model)))
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, a0, 0.0)
     seq = _turning_points(model, a0, n, solver)
@@ -144,7 +167,7 @@ def rope_energy_map(rope: Rope, a0: ArrayLike, n: int, *, throw: bool = False) -
 
 
 # -- trajectories ------------------------------------------------------------------------------
-@eqx.filter_jit
+@partial(jax.jit, static_argnums=4)
 def _simulate(model, x0, v0, t1, n_save, solver):
     return solver.simulate(model, x0, v0, t1, n_save)
 
@@ -174,15 +197,14 @@ def simulate(model: AbstractModel, x0: ArrayLike, v0: ArrayLike, t1: ArrayLike,
     solver = _solver(solver, None, smoothing, None, Smoothed)
     n_save = check_int("n_save", n_save, 2)
     require_scalar_fields(model)
-    model = solver.check(validated(model), "simulate")
+    model = _checked(solver, model, "simulate")
     unit = model.position_unit
-    x0 = _float(check("x0", x0, anything, f"a real number [{unit}]"))
-    v0 = _float(check("v0", v0, anything, f"a real number [{unit}/s]"))
-    t1 = _float(check("t1", t1, positive, "> 0 [s]"))
+    x0 = scalar(check("x0", x0, anything, f"a real number [{unit}]"))
+    v0 = scalar(check("v0", v0, anything, f"a real number [{unit}/s]"))
+    t1 = scalar(check("t1", t1, positive, "> 0 [s]"))
     check_horizon(model, t1)
     if _is_traced(t1) or _is_traced(model.lifetime()):
-        t1 = eqx.error_if(t1, t1 >= model.lifetime(),
-                          f"t1 must be below {model.lifetime_text}")
+        t1 = guard(t1, t1 >= model.lifetime(), f"t1 must be below {model.lifetime_text}")
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, x0, v0)
     traj = _simulate(model, x0, v0, t1, n_save, solver)
@@ -200,7 +222,7 @@ def linear_simulate(osc: LinearOscillator, x0: ArrayLike, v0: ArrayLike, t1: Arr
 
 
 # -- limit cycles ------------------------------------------------------------------------------
-@eqx.filter_jit
+@partial(jax.jit, static_argnums=1)
 def _limit_cycle(model, max_reversals, solver):
     return solver.limit_cycle(model, max_reversals)
 
@@ -227,9 +249,9 @@ def limit_cycle(model: AbstractLimitCycle, solver: AbstractSolver | None = None,
     **Returns:** a [`vmj.StickSlipCycle`][] (dimensionless times; `.physical()` for seconds).
     """
     warn_if_float32()
-    solver = Exact() if solver is None else solver
+    solver = _default(Exact) if solver is None else solver
     max_reversals = check_int("max_reversals", max_reversals, 0)
-    model = solver.check(validated(model), "limit_cycle")
+    model = _checked(solver, model, "limit_cycle")
     if isinstance(solver, Smoothed):
         x0, v0 = model.breakaway()
         cycle = model.smoothed_cycle(max_reversals, solver.with_defaults(model, x0, v0))

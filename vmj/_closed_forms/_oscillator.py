@@ -76,8 +76,8 @@ def _averaged_end(model, x, s, xc, kinetic, drag):
     hi = lax.stop_gradient(0.5 * jnp.abs(xc - x))
     slope = jnp.maximum(s * law.value(xc) + kinetic, 1e-300)
     guess = jnp.clip(fs(jnp.zeros_like(hi)) / lax.stop_gradient(slope), 0.0, hi)
-    delta = bracketed_newton(fs, fp, jnp.zeros_like(hi), hi, guess, NEWTON)
-    delta = implicit_step(f, jax.grad(f), delta)
+    delta = bracketed_newton(lambda d: (fs(d), fp(d)), jnp.zeros_like(hi), hi, guess, NEWTON)
+    delta = implicit_step(lambda d: (f(d), jax.grad(f)(d)), delta)
     return xc - s * delta, fs(hi) <= 0
 
 
@@ -97,12 +97,12 @@ def energy_map_sequence(model, a0, n: int):
         half = jnp.pi / wd
         rho = jnp.exp(-zeta * omega * half)
 
-        def swing(t, x, s):
+        def swing(t, x, s, moving):
             return under, RESULTS.step_limit, t + half, -s * kinetic - rho * (x + s * kinetic)
 
         return decay_scan(model, a0, n, swing)
 
-    def swing(t, x, s):
+    def swing(t, x, s, moving):
         x1, bounded = _dry_turning_point(law, x, s, kinetic)
         found = bounded
         if drag:

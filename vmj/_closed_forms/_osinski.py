@@ -154,7 +154,7 @@ def energy_map_sequence(rope, a0, n: int):
     c = _poly(rope, rope.length.l0)
     static = rope.friction_force()
 
-    def swing(t, x, s):
+    def swing(t, x, s, moving):  # (every lane solved: the root finder is cheap)
         p1 = s * static  # friction potential s A T x during the swing
 
         def g(y):  # (W(x) - W(x + s y)) / y: positive until the next turning point

@@ -309,10 +309,10 @@ def _velocity_zero(model, xi0, s):
     a_ng, Om_ng = lax.stop_gradient(xi0 + s), lax.stop_gradient(model.Omega)
     quarter = 0.5 * jnp.pi * jnp.ones_like(a_ng)
     lo = jnp.where(s > 0, quarter, 0.0)
-    x = bracketed_newton(lambda x: f(x, a_ng, Om_ng), lambda x: fprime(x, a_ng, Om_ng), lo,
+    x = bracketed_newton(lambda x: (f(x, a_ng, Om_ng), fprime(x, a_ng, Om_ng)), lo,
                          lo + quarter, lo + 0.5 * quarter, NEWTON)
     a = xi0 + s
-    x = implicit_step(lambda x: f(x, a, model.Omega), lambda x: fprime(x, a, model.Omega), x)
+    x = implicit_step(lambda x: (f(x, a, model.Omega), fprime(x, a, model.Omega)), x)
     tau = 2.0 * x
     xi, _ = model.slip_phase(xi0, s, tau)
     return tau, xi

@@ -122,14 +122,16 @@ class VariableMass(AbstractEnergyMap):
                 rhs = rhs + s * F
             elif n == 1:
                 rhs = rhs + s * Fd
-            xs.append(-rhs * inv_m / ((n + 2) * (n + 1)))
+            # (a multiplication by the reciprocal: a division here costs as much as the rest)
+            xs.append(rhs * (inv_m * (-1.0 / ((n + 2) * (n + 1)))))
         return xs
 
     def substep(self, t, scale):
         """At most `RHO_OMEGA / (sqrt(c/m) + b/m)` (the local eigenvalues) and `RHO_MASS`
         times the distance `m/|dm/dt|` to the zero-mass singularity."""
         m, md, b, c, *_ = self.coefficients(t)
-        h_omega = RHO_OMEGA / (jnp.sqrt(c / m) + jnp.abs(b) / m)
+        inv_m = 1.0 / m
+        h_omega = RHO_OMEGA / (jnp.sqrt(c * inv_m) + jnp.abs(b) * inv_m)
         amd = jnp.abs(md)
         has_rate = amd > 0
         h_mass = jnp.where(has_rate, RHO_MASS * m / jnp.where(has_rate, amd, 1.0), jnp.inf)

@@ -3,35 +3,56 @@ final Newton step taken with gradients (the implicit-function theorem)."""
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import jax
+import jax.numpy as jnp
+from equinox.internal import unvmap_any
 from jax import lax
 
+#: a lane has converged once a Newton step moved it by less than this fraction of its bracket
+#: (quadratic convergence: the final `implicit_step` then leaves an error far below rounding)
+CONVERGED = 1e-8
 
-def bracketed_newton(f, fprime, lo, hi, x0, iterations: int):
-    """Root of `f` in `[lo, hi]` with `f(lo) > 0 >= f(hi)`: Newton steps from `x0`, falling back
-    to bisection whenever a step leaves the bracket. Not differentiated: pass functions of
-    `lax.stop_gradient`-ed data and finish with `implicit_step`."""
 
-    def step(_, state):  # a loop, not unrolled: keeps the compiled graph small
-        x, lo, hi = state
-        fx, dfx = f(x), fprime(x)
+def bracketed_newton(f, lo, hi, x0, iterations: int):
+    """Root of a function in `[lo, hi]`, positive at `lo` and `<= 0` at `hi`; `f(x)` returns its
+    value and slope `(y, dy/dx)`. Newton steps from `x0`, falling back
+    to bisection whenever a step leaves the bracket. A lane stops (and keeps its value) once a
+    step moved it by at most `CONVERGED` of its initial bracket or hit `f = 0`; the loop ends
+    when every lane of a `vmap`ped batch has stopped, or after `iterations` steps. Not
+    differentiated: pass functions of `lax.stop_gradient`-ed data and finish with
+    `implicit_step`."""
+    tol = CONVERGED * jnp.abs(hi - lo)
+
+    def cond(state):
+        i, _, _, _, done = state
+        return (i < iterations) & unvmap_any(jnp.logical_not(done))
+
+    def step(state):
+        i, x, lo, hi, done = state
+        fx, dfx = f(x)
         ahead = fx > 0
-        lo, hi = jnp.where(ahead, x, lo), jnp.where(ahead, hi, x)
+        lo_new, hi_new = jnp.where(ahead, x, lo), jnp.where(ahead, hi, x)
         newton = x - fx / jnp.where(dfx != 0, dfx, 1.0)
-        ok = (dfx != 0) & (newton >= lo) & (newton <= hi)
-        return jnp.where(ok, newton, 0.5 * (lo + hi)), lo, hi
+        ok = (dfx != 0) & (newton >= lo_new) & (newton <= hi_new)
+        x_new = jnp.where(ok, newton, 0.5 * (lo_new + hi_new))
+        keep = lambda old, new: jnp.where(done, old, new)  # noqa: E731
+        converged = (jnp.abs(x_new - x) <= tol) | (fx == 0)
+        return (i + 1, keep(x, x_new), keep(lo, lo_new), keep(hi, hi_new), done | converged)
 
-    x, _, _ = lax.fori_loop(0, iterations, step, (x0, lo, hi))
+    dtype = jnp.result_type(x0, lo, hi)
+    x0, lo, hi = (jnp.asarray(a, dtype) for a in jnp.broadcast_arrays(x0, lo, hi))
+    done = jnp.zeros(x0.shape, bool)
+    _, x, _, _, _ = lax.while_loop(cond, step, (jnp.array(0), x0, lo, hi, done))
     return x
 
 
-def implicit_step(f, fprime, x):
-    """One Newton step from the converged root `x` with gradients flowing through `f`: its
-    derivative with respect to any parameter is `-(df/dtheta) / (df/dx)`, the implicit one."""
+def implicit_step(f, x):
+    """One Newton step from the converged root `x` with gradients flowing through
+    `f(x) -> (value, slope)`: its derivative with respect to any parameter is
+    `-(df/dtheta) / (df/dx)`, the implicit one."""
     x = lax.stop_gradient(x)
-    slope = fprime(x)
-    return x - f(x) / jnp.where(slope != 0, slope, 1.0)
+    value, slope = f(x)
+    return x - value / jnp.where(slope != 0, slope, 1.0)
 
 
 def expanding_root(f, hi, iterations: int = 60):
@@ -47,5 +68,5 @@ def expanding_root(f, hi, iterations: int = 60):
     bracketed = fs(hi) <= 1e-12 * jnp.abs(fs(0.5 * hi))
     # (the slope of f itself: jax.grad of the stopped fs would be zero, i.e. pure bisection)
     fp = lambda y: lax.stop_gradient(jax.grad(f)(y))  # noqa: E731
-    y = bracketed_newton(fs, fp, jnp.zeros_like(hi), hi, hi, iterations)
-    return implicit_step(f, jax.grad(f), y), bracketed
+    y = bracketed_newton(lambda y: (fs(y), fp(y)), jnp.zeros_like(hi), hi, hi, iterations)
+    return implicit_step(lambda y: (f(y), jax.grad(f)(y)), y), bracketed

@@ -1,39 +1,79 @@
 """The decay scan that every turning-point solver shares: the stick rule at each turning point,
-a model-specific swing to the next one, fixed shapes."""
+a model-specific swing to the next one, fixed shapes; and the loop that it and the exact
+solver's substeps run in."""
 
 from __future__ import annotations
 
+import equinox.internal as eqxi
 import jax.numpy as jnp
 from jax import lax
 
 from .._solution import RESULTS, DecaySequence
 
-__all__ = ["decay_scan"]
+__all__ = ["decay_scan", "early_exit_loop"]
 
 
-def decay_scan(model, a0, n: int, swing) -> DecaySequence:
+def early_exit_loop(cond, body, init, max_steps: int, buffers=None, kind: str = "bounded"):
+    """`lax.while_loop(cond, body, init)` for at most `max_steps` steps. With
+    `kind="bounded"` (equinox's bounded loop: a scan of conditionals, which skip the remaining
+    steps once `cond` is False) both `jax.grad` (reverse mode) and `jax.jacfwd` differentiate
+    it; `kind="lax"` is a plain `lax.while_loop`, faster, forward-mode only.
+
+    `cond` must bound the steps itself (`k < max_steps`) and return one boolean for the whole
+    `vmap`ped batch (`equinox.internal.unvmap_any` of the lanes' own conditions), and `body`
+    must leave lanes that are done unchanged itself: the loop then stops as soon as every lane
+    is done, and no lane's result depends on the others in its batch. `buffers` as in
+    `equinox.internal.while_loop` (arrays written once per index, without copies)."""
+    if kind == "lax":  # (`cond` bounds the steps itself; buffers are updated in place)
+        return lax.while_loop(cond, body, init)
+    base = max_steps if max_steps <= 64 else 16  # one level of conditionals up to 64 steps
+    return eqxi.while_loop(cond, body, init, max_steps=max_steps, buffers=buffers,
+                           kind="bounded", base=max(base, 2))
+
+
+def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence:
     """The first `n` turning points of `model` released from rest at `x = -a0`: at each turning
     point the model's stick rule (`model.rest`) decides whether and when the mass moves on, and
-    `swing(t, x, s) -> (found, failure, t1, x1)` takes it to the next one (`failure`: the status
-    to report when `found` is False). A mass that stops, or a solve that fails, stays put for
-    the remaining entries (fixed shapes for `jit`, `vmap` and `grad`)."""
+    `swing(t, x, s, moving) -> (found, failure, t1, x1)` takes it to the next one (`failure`:
+    the status to report when `found` is False; the results of lanes with `moving` False,
+    stuck or already done, are discarded, so a solver may skip their work). A mass that stops,
+    or a solve that fails, stays put for the remaining entries (fixed shapes for `jit`, `vmap`
+    and `grad`); the swings end as soon as every lane of a `vmap`ped batch has stopped or
+    failed (`kind`: of `early_exit_loop`)."""
 
-    def body(carry, _):
-        t, x, code = carry
+    def cond(carry):
+        k, _, _, code, _, _ = carry
+        return (k < n) & eqxi.unvmap_any(code == RESULTS.successful)
+
+    def body(carry):
+        k, t, x, code, count, (times, positions, crossed) = carry
         active = code == RESULTS.successful
         s, t_go, stuck = model.rest(t, x)
-        found, failure, t1, x1 = swing(t_go, x, s)
+        found, failure, t1, x1 = swing(t_go, x, s, active & jnp.logical_not(stuck))
         new_code = jnp.where(stuck, RESULTS.stopped, jnp.where(found, RESULTS.successful, failure))
         code = jnp.where(active, new_code, code)
         advance = active & (code == RESULTS.successful)
-        crossed = advance & (x1 * x < 0)
+        cross = advance & (x1 * x < 0)
         t = jnp.where(advance, t1, t)
         x = jnp.where(advance, x1, x)
-        return (t, x, code), (t, x, crossed, advance)
+        out = (times.at[k].set(t), positions.at[k].set(x), crossed.at[k].set(cross))
+        return k + 1, t, x, code, count + advance.astype(jnp.int32), out
 
     x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
-    init = (jnp.zeros_like(x0), x0, jnp.array(RESULTS.successful, dtype=jnp.int32))
-    (t, x, code), (times, positions, crossed, advanced) = lax.scan(body, init, None, length=n)
+    t0 = jnp.zeros_like(x0)
+    buffers = (jnp.zeros((n,) + x0.shape, x0.dtype), jnp.zeros((n,) + x0.shape, x0.dtype),
+               jnp.zeros((n,) + x0.shape, bool))
+    zero = jnp.zeros(x0.shape, jnp.int32)
+    init = (jnp.array(0), t0, x0, zero + RESULTS.successful, zero, buffers)
+    # (the count is carried: a sum over the swings afterwards costs more than the loop)
+    k, t, x, code, count, (times, positions, crossed) = early_exit_loop(
+        cond, body, init, n, buffers=lambda carry: carry[5], kind=kind)
+    # swings not run (every lane had stopped or failed) repeat the last turning point
+    run = (jnp.arange(n) < k).reshape((n,) + (1,) * x0.ndim)
+    times = jnp.where(run, times, t)
+    positions = jnp.where(run, positions, x)
+    crossed = crossed & run
     _, _, stuck = model.rest(t, x)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return DecaySequence.from_scan(times, positions, crossed, advanced, code)
+    return DecaySequence(times=times, positions=positions, crossed=crossed, count=count,
+                         stopped=code == RESULTS.stopped, result=code)

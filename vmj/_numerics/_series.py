@@ -6,7 +6,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["horner", "derivative", "cauchy", "cauchy_term"]
+__all__ = ["horner", "horner_and_derivative", "derivative", "cauchy", "cauchy_term"]
 
 
 def horner(cs, tau):
@@ -15,6 +15,15 @@ def horner(cs, tau):
     for c in cs[-2::-1]:
         acc = acc * tau + c
     return acc
+
+
+def horner_and_derivative(cs, tau):
+    """`(p(tau), p'(tau))` of `p = sum_j cs[j] tau^j` in one pass over the coefficients."""
+    value, slope = cs[-1], jnp.zeros_like(cs[-1])
+    for c in cs[-2::-1]:
+        slope = slope * tau + value
+        value = value * tau + c
+    return value, slope
 
 
 def derivative(cs):

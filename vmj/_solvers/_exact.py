@@ -6,9 +6,14 @@ well inside the series' radius of convergence (`model.substep`). The solver adva
 degree-`ORDER` Taylor polynomials, locates the velocity zero on the substep's polynomial by
 bracketed Newton, and makes its time differentiable by one final Newton step taken with
 gradients (the implicit-function theorem). A guard on each series' last terms turns any loss of
-accuracy into a reported failure instead of a wrong answer. A fixed number of substeps per
-half-swing keeps the loop shape static, so the solver runs under `jit`, `vmap` and
-reverse-mode `grad`.
+accuracy into a reported failure instead of a wrong answer.
+
+Every loop ends as soon as its work is done for every lane of a `vmap`ped batch: the substeps
+when each lane has found its velocity zero (about two per half-swing), the Newton iterations
+when each has converged, the swings when each has stuck or failed. Values come from plain
+`lax.while_loop`s; derivatives (`jax.jacfwd`, reverse-mode `jax.grad`) from the same code with
+bounded loops (`early_exit_loop`: a scan of conditionals) through a custom JVP, the same
+derivatives as a fixed number of steps: a skipped step is the identity.
 """
 
 from __future__ import annotations
@@ -18,12 +23,13 @@ from typing import ClassVar
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from equinox.internal import unvmap_any
 from jax import lax
 
 from .._models._base import AbstractDecayModel, AbstractLimitCycle
-from .._numerics._series import derivative, horner
+from .._numerics._series import derivative, horner, horner_and_derivative
 from .._solution import RESULTS
-from .._numerics._scan import decay_scan
+from .._numerics._scan import decay_scan, early_exit_loop
 from ._base import AbstractSolver, unsupported
 from .._numerics._roots import bracketed_newton, implicit_step
 
@@ -70,50 +76,72 @@ class Exact(AbstractSolver):
 
     def turning_points(self, model, a0, n: int):
         steps = model.exact_substeps if self.max_substeps is None else self.max_substeps
-
-        def swing(t0, x0, s):
-            found, limited, t1, x1 = march_to_velocity_zero(model, t0, x0, s, steps)
-            return found, jnp.where(limited, model.exhausted, RESULTS.step_limit), t1, x1
-
-        return decay_scan(model, a0, n, swing)
+        return _decay(model, a0, n=n, max_substeps=steps)
 
     def limit_cycle(self, model, max_reversals: int):
         return model.exact_cycle(max_reversals)
 
 
-def march_to_velocity_zero(model, t0, x0, s, max_substeps: int):
+def _solve_decay(model, a0, n: int, max_substeps: int, kind: str):
+    def swing(t0, x0, s, moving):
+        found, limited, t1, x1 = march_to_velocity_zero(model, t0, x0, s, moving,
+                                                        max_substeps, kind)
+        return found, jnp.where(limited, model.exhausted, RESULTS.step_limit), t1, x1
+
+    return decay_scan(model, a0, n, swing, kind)
+
+
+@eqx.filter_custom_jvp
+def _decay(model, a0, *, n: int, max_substeps: int):
+    """The decay with plain `lax.while_loop`s (the fastest loops, not reverse-differentiable);
+    derivatives, forward or reverse, come from the same code with bounded loops (below)."""
+    return _solve_decay(model, a0, n, max_substeps, "lax")
+
+
+@_decay.def_jvp
+def _decay_jvp(primals, tangents, *, n: int, max_substeps: int):
+    return eqx.filter_jvp(lambda m, a: _solve_decay(m, a, n, max_substeps, "bounded"),
+                          primals, tangents)
+
+
+def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: str):
     """From rest at `(t0, x0)` with friction sign `s`, advance by Taylor substeps to the next
-    velocity zero. Returns `(found, limited, t1, x1)`: `found` is False when no velocity zero
-    occurred within `max_substeps` substeps, or when a series lost accuracy (its last terms not
-    negligible); `limited` tells whether the substeps were limited by the model's lifetime."""
+    velocity zero (lanes with `moving` False take no substep). Returns `(found, limited, t1,
+    x1)`: `found` is False when no velocity zero occurred within `max_substeps` substeps, or
+    when a series lost accuracy (its last terms not negligible); `limited` tells whether the
+    substeps were limited by the model's lifetime. The substeps end as soon as every lane of a
+    `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`)."""
     scale = model.swing_scale(t0, x0)
     zero = jnp.zeros_like(x0)
 
-    def body(carry, _):
-        t, x, v, found, limited, inaccurate, start = carry
+    def cond(carry):
+        k, found = carry[0], carry[4]
+        return (k < max_substeps) & unvmap_any(jnp.logical_not(found))
+
+    def body(carry):
+        k, t, x, v, found, limited, inaccurate, start = carry
         h, end_limited, t_next = model.substep(t, scale)
         cs = model.taylor(t, x, v, s, ORDER)
-        x1 = horner(cs, h)
-        v1 = horner(derivative(cs), h)
+        x1, v1 = horner_and_derivative(cs, h)
         # truncation guard: the last terms of the series must be negligible (a diverging
         # series is off by orders of magnitude; accurate ones stay near 1e-13 or far below)
-        k = len(cs) - 1
-        tail = jnp.abs(cs[-1]) * h**k + jnp.abs(cs[-2]) * h ** (k - 1)
+        n = len(cs) - 1
+        tail = jnp.abs(cs[-1]) * h**n + jnp.abs(cs[-2]) * h ** (n - 1)
         bad = tail > TAIL_TOLERANCE * (jnp.abs(x) + jnp.abs(x1) + jnp.abs(v) * h)
         inaccurate = inaccurate | (bad & jnp.logical_not(found))
         hit = jnp.logical_not(found) & (v1 * s <= 0)
+        # the substep holding the zero: its start, length and series
         start = jax.tree.map(lambda new, old: jnp.where(hit, new, old), (t, x, v, h), start)
         limited = jnp.where(found, limited, end_limited)
         found = found | hit
         t, x, v = (jnp.where(found, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))
-        return (t, x, v, found, limited, inaccurate, start), None
+        return k + 1, t, x, v, found, limited, inaccurate, start
 
     false = jnp.array(False)
-    init = (t0, x0, zero, false, false, false, (t0, x0, zero, zero))
-    (_, _, _, found, limited, inaccurate, start), _ = lax.scan(
-        body, init, None, length=max_substeps
-    )
-    t, x, v, h = start
+    init = (jnp.array(0), t0, x0, zero, jnp.logical_not(moving), false, false,
+            (t0, x0, zero, zero))
+    _, _, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
+        cond, body, init, max_substeps, kind=kind)
     t_guess = t0 + model.half_period(t0, scale)
     t1, x1 = _velocity_zero(model.taylor(t, x, v, s, ORDER), t, h, s, t_guess)
     return found & jnp.logical_not(inaccurate), limited, t1, x1
@@ -123,12 +151,10 @@ def _velocity_zero(cs, t, h, s, t_guess):
     """Velocity zero of the substep polynomial `cs` (Taylor coefficients about `t`, valid on
     `[t, t + h]`, moving with sign `s`): `(time, position)`."""
     dcs = derivative(cs)
-    ddcs = derivative(dcs)
     f_cs = [lax.stop_gradient(c * s) for c in dcs]
-    fp_cs = [lax.stop_gradient(c * s) for c in ddcs]
     hi = lax.stop_gradient(h)
     tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
-    tau = bracketed_newton(lambda x: horner(f_cs, x), lambda x: horner(fp_cs, x),
-                           jnp.zeros_like(hi), hi, tau, NEWTON)
-    tau = implicit_step(lambda x: horner(dcs, x), lambda x: horner(ddcs, x), tau)
+    tau = bracketed_newton(lambda x: horner_and_derivative(f_cs, x), jnp.zeros_like(hi), hi,
+                           tau, NEWTON)
+    tau = implicit_step(lambda x: horner_and_derivative(dcs, x), tau)
     return t + tau, horner(cs, tau)

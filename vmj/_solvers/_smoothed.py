@@ -5,13 +5,12 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, ClassVar
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
+from jax import lax
 from jaxtyping import Array
 
 from .._checks import _float, _is_traced, check, positive
 from .._numerics._ode import ode_solve
-from .._numerics._roots import bracketed_newton, implicit_step
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
@@ -23,15 +22,15 @@ __all__ = ["Smoothed"]
 
 DEFAULT_SMOOTHING = 1e-4  #: default w as a fraction of the model's velocity scale
 CREEP = 20.0  #: |v| below CREEP * w after the last reversal counts as the smoothed model's arrest
-GRID_PER_SWING = 64  #: velocity samples per half-swing searched for reversals
-ROOT_ITERATIONS = 30  #: safeguarded Newton iterations on the dense interpolant
+EVENT_RTOL = 1e-12  #: Newton's tolerance on the time of a turning point (relative to the horizon)
 
 
 class Smoothed(AbstractSolver):
     """The smoothed model: `sign(v)` replaced by `tanh(v/w)`, solved as an ODE with diffrax.
 
     A smoothed model cannot stick: where the exact mass sticks it slows to a creep `|v| ~ w`.
-    Its arrival at `|v| = 20 w` after the last reversal is reported as the last turning point.
+    A swing that ends without reversing (it has not passed `x = 0`) ends where `|v|` falls to
+    `20 w`; that is its turning point.
 
     **Arguments:**
 
@@ -41,7 +40,8 @@ class Smoothed(AbstractSolver):
       non-smooth model and stiffer to integrate.
     - `rtol`: relative tolerance of the step-size controller (default: the model's, 1e-10 for
       the decay models); the absolute tolerance is `rtol` times the motion's length scale.
-    - `max_steps`: diffrax step limit (default: the model's).
+    - `max_steps`: diffrax step limit (default: the model's), per half-swing for the turning
+      points and per saved interval for a trajectory.
     - `ode_solver`: a diffrax solver (default `Tsit5()`, or `Kvaerno5()` for stiff models such
       as stick-slip).
     """
@@ -105,74 +105,121 @@ class Smoothed(AbstractSolver):
         return sol, jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
 
     def simulate(self, model, x0, v0, t1, n_save: int) -> Trajectory:
+        """The solution at `n_save` equally spaced times: one solve continued from each saved
+        time to the next (the solver's and the step-size controller's states carried over).
+        (Saving at `SaveAt(ts=...)` compiles a check on the host, which would keep the program
+        out of JAX's persistent compilation cache.)"""
         import diffrax as dfx
 
+        rtol, steps, ode = self._settings(model)
+        w = self.smoothing
         ts = jnp.linspace(0.0, t1, n_save)
-        sol, code = self.solve(model, x0, v0, t1, dfx.SaveAt(ts=ts))
-        ys = jnp.where(code == RESULTS.successful, sol.ys, jnp.nan)
-        xs, vs = model.observe(ys)
+        y0 = model.initial_state(x0, v0)
+        atol = rtol * model.length_scale(x0, v0)
+        go_on = dfx.SaveAt(t1=True, solver_state=True, controller_state=True, made_jump=True)
+
+        def piece(t_a, t_b, y, resume):
+            sol = ode_solve(lambda t, y, args: model.vector_field(t, y, w), y, t_b, go_on,
+                            rtol=rtol, atol=atol, max_steps=steps, solver=ode, t0=t_a,
+                            resume=resume)
+            resume = (sol.solver_state, sol.controller_state, sol.made_jump)
+            return sol.ys[-1], resume, sol.result == dfx.RESULTS.successful
+
+        def body(carry, interval):
+            y, resume, ok = carry
+            y, resume, okay = piece(*interval, y, resume)
+            return (y, resume, ok & okay), y
+
+        y1, resume, ok = piece(ts[0], ts[1], y0, None)
+        (_, _, ok), ys = lax.scan(body, (y1, resume, ok), (ts[1:-1], ts[2:]))
+        ys = jnp.concatenate([y0[None], y1[None], ys])
+        code = jnp.where(ok, RESULTS.successful, RESULTS.solver_failed).astype(jnp.int32)
+        xs, vs = model.observe(jnp.where(ok, ys, jnp.nan))
         return Trajectory(ts=ts, xs=xs, vs=vs, result=code)
 
     def turning_points(self, model, a0, n: int) -> DecaySequence:
-        """Velocity zeros of the smoothed solution released from rest at `x = -a0`, located on
-        the dense output: reversals (sign changes of `v`) on a grid of `GRID_PER_SWING` samples
-        per half-swing, refined by safeguarded Newton on the interpolant. The arrival at
-        `|v| = CREEP w` after the last reversal is the smoothed model's arrest, and `stopped` is
-        set when the motion is still creeping at the end of the horizon."""
+        """Turning points of the smoothed solution released from rest at `x = -a0`, each
+        located by a diffrax event: swing by swing, the solve stops where the velocity in the
+        swing's direction falls through zero (a reversal), or, for a swing that has not passed
+        `x = 0` (the spring pushes on), where it falls to `CREEP w`: the smoothed model's
+        arrest, which creeps on without reversing where the exact mass stops. Event times come
+        from Newton's method on the last step's dense output; memory does not grow with the
+        number of steps.
+
+        At each turning point the model's stick rule (`model.rest`) decides whether the mass
+        stops for good (`stopped`): a smoothed mass only creeps from there (`|v| < CREEP w`),
+        which is stiff and is not integrated. A decay that runs into the horizon still
+        creeping is `stopped` too."""
         import diffrax as dfx
+        import optimistix as optx
 
+        rtol, steps, ode = self._settings(model)
         w = self.smoothing
-        x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
-        t1 = model.horizon(a0, n)
-        sol, code = self.solve(model, x0, jnp.zeros_like(x0), t1, dfx.SaveAt(dense=True))
-        ts = jnp.linspace(0.0, t1, GRID_PER_SWING * (n + 1) + 1)
-        vs = jax.vmap(lambda t: model.observe(sol.evaluate(t))[1])(ts)
-        # a reversal is a sign change of v; the release at t = 0 (v = 0) is not one
-        reversal = (vs[:-1] * vs[1:] <= 0) & (ts[:-1] > 0) & (vs[:-1] != 0)
-        idx = jnp.nonzero(reversal, size=n, fill_value=-1)[0]
-        n_rev = jnp.sum((idx >= 0).astype(jnp.int32))
-        t_last = jnp.where(n_rev > 0, ts[jnp.maximum(idx[jnp.maximum(n_rev - 1, 0)], 0)], 0.0)
         slow = CREEP * w
-        entry = (jnp.abs(vs[:-1]) > slow) & (jnp.abs(vs[1:]) <= slow) & (ts[:-1] > t_last)
-        arrest = jnp.nonzero(entry, size=1, fill_value=-1)[0][0]
-        add_arrest = (n_rev < n) & (arrest >= 0)
-        idx = jnp.where(jnp.arange(n) == n_rev, jnp.where(add_arrest, arrest, -1), idx)
-        level = jnp.where(jnp.arange(n) == n_rev, slow, 0.0)
-        valid = idx >= 0
-        lo, hi = ts[jnp.maximum(idx, 0)], ts[jnp.maximum(idx, 0) + 1]
+        x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
+        v0 = jnp.zeros_like(x0)
+        t_end = model.horizon(a0, n)
+        atol = rtol * model.length_scale(x0, v0)
+        newton = optx.Newton(rtol=EVENT_RTOL, atol=EVENT_RTOL * t_end)
 
-        def velocity(t):
-            return model.observe(sol.evaluate(t))[1]
+        def field(t, y, args):
+            return model.vector_field(t, y, w)
 
-        def refine(lo, hi, level):
-            sgn = jnp.sign(velocity(lo))
+        scale = model.velocity_scale(a0)  # (event functions in units of it: Newton's test)
 
-            def f(t):  # > 0 before the crossing of the level, <= 0 after it
-                return velocity(t) * sgn - level
+        def swing(t0, y0, s):
+            """From the turning point `(t0, y0)`, moving in direction `s`, to the next one (or
+            to the horizon): `(reached, okay, t, y)`."""
+            def reverses(t, y, args, **kwargs):
+                return s * model.observe(y)[1] / scale
 
-            def fprime(t):
-                return model.observe(sol.derivative(t))[1] * sgn
+            def arrests(t, y, args, **kwargs):
+                x, v = model.observe(y)
+                return jnp.where(s * x < 0, (s * v - slow) / scale, 1.0)
 
-            t = bracketed_newton(f, fprime, lo, hi, 0.5 * (lo + hi), ROOT_ITERATIONS)
-            t = implicit_step(f, fprime, t)
-            return t, model.observe(sol.evaluate(t))[0]
+            event = dfx.Event((reverses, arrests), root_finder=newton, direction=False)
+            sol = ode_solve(field, y0, t_end, dfx.SaveAt(t1=True), rtol=rtol, atol=atol,
+                            max_steps=steps, solver=ode, t0=t0, event=event)
+            reached = sol.result == dfx.RESULTS.event_occurred
+            okay = reached | (sol.result == dfx.RESULTS.successful)
+            return reached, okay, sol.ts[-1], sol.ys[-1]
 
-        times, positions = jax.vmap(refine)(lo, hi, level)
-        count = jnp.sum(valid.astype(jnp.int32))
+        def body(carry, _):
+            t, y, s, moving, stuck, failed = carry  # (t, y): the last turning point
+            reached, okay, t1, y1 = swing(jnp.where(moving, t, t_end), y, s)
+            turned = moving & reached
+            failed = failed | (moving & jnp.logical_not(okay))
+            # where the lane's last swing ended (a turning point, or the horizon)
+            t, y = jnp.where(moving, t1, t), jnp.where(moving, y1, y)
+            s_next, _, stop = model.rest(t, model.observe(y)[0])
+            stuck = stuck | (turned & stop)
+            moving = turned & jnp.logical_not(stop)
+            carry = (t, y, jnp.where(turned, s_next, s), moving, stuck, failed)
+            return carry, (t, model.observe(y)[0], turned)
+
+        y_start = model.initial_state(x0, v0)
+        false = jnp.zeros_like(x0, dtype=bool)
+        init = (jnp.zeros_like(x0), y_start, jnp.ones_like(x0), jnp.logical_not(false), false,
+                false)
+        (_, y_end, _, _, stuck, failed), (times, positions, turned) = lax.scan(
+            body, init, None, length=n)
+        count = jnp.sum(turned.astype(jnp.int32))
+        k = jnp.arange(n)
+        valid = k < count
         last = jnp.maximum(count - 1, 0)
         times = jnp.where(valid, times, jnp.where(count > 0, times[last], 0.0))
         positions = jnp.where(valid, positions, jnp.where(count > 0, positions[last], x0))
         previous = jnp.concatenate([x0[None], positions[:-1]])
         crossed = valid & (positions * previous < 0)
-        creeping = (n_rev < n) & (jnp.abs(vs[-1]) <= slow)
-        incomplete = (count < n) & jnp.logical_not(creeping)
-        exhausted = incomplete & (t1 >= 0.998 * model.lifetime())
+        creeping = (count < n) & (jnp.abs(model.observe(y_end)[1]) <= slow)
+        stopped = stuck | creeping
+        incomplete = (count < n) & jnp.logical_not(stopped)
+        exhausted = incomplete & (t_end >= 0.998 * model.lifetime())
         code = jnp.where(
-            code != RESULTS.successful,
-            code,
+            failed, RESULTS.solver_failed,
             jnp.where(exhausted, model.exhausted,
                       jnp.where(incomplete, RESULTS.step_limit,
-                                jnp.where(creeping, RESULTS.stopped, code))),
-        )
+                                jnp.where(stopped, RESULTS.stopped, RESULTS.successful))))
+        code = code.astype(jnp.int32)
         return DecaySequence(times=times, positions=positions, crossed=crossed, count=count,
                              stopped=code == RESULTS.stopped, result=code)

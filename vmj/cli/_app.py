@@ -161,7 +161,7 @@ def _set_up_jax(args) -> None:
             path = None
     if path is not None:
         jax.config.update("jax_compilation_cache_dir", path)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # every program: a loaded one beats even a 0.1 s compile
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     from .._host import retain_host_memory
 

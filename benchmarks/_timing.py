@@ -1,0 +1,80 @@
+"""Timing helpers shared by the benchmarks: repeated measurements summarised as a median with
+the range, ratios of medians, whole-process runs, and a line describing the machine."""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+REPEAT = 5  #: repetitions on each side of a comparison (at least)
+
+
+class Timing:
+    """Repeated wall times of one measurement [s]."""
+
+    def __init__(self, times):
+        self.times = np.asarray(times, dtype=float)
+
+    @property
+    def median(self) -> float:
+        return float(np.median(self.times))
+
+    def __str__(self) -> str:
+        return f"{_fmt(self.median)} (min {_fmt(self.times.min())}, max {_fmt(self.times.max())})"
+
+    def per(self, count: int) -> Timing:
+        return Timing(self.times / count)
+
+
+def _fmt(seconds: float) -> str:
+    if seconds >= 1.0:
+        return f"{seconds:.2f} s"
+    if seconds >= 1e-3:
+        return f"{seconds * 1e3:.1f} ms"
+    return f"{seconds * 1e6:.1f} us"
+
+
+def repeat(fn, times: int = REPEAT, number: int = 1, block=None) -> Timing:
+    """Wall time of `number` calls of `fn`, `times` times, per call (`block(out)` waits for an
+    asynchronous result)."""
+    out = []
+    for _ in range(times):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            result = fn()
+            if block is not None:
+                block(result)
+        out.append((time.perf_counter() - t0) / number)
+        del result
+    return Timing(out)
+
+
+def run_process(argv, env=None, cwd=None) -> tuple[float, str]:
+    """Wall time of a whole process [s] and its standard output (raises if it fails)."""
+    t0 = time.perf_counter()
+    done = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=cwd)
+    elapsed = time.perf_counter() - t0
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(argv)} failed:\n{done.stderr}")
+    return elapsed, done.stdout
+
+
+def ratio(label: str, numerator: Timing, denominator: Timing, goal: str = "") -> float:
+    """Print and return the ratio of two medians."""
+    r = numerator.median / denominator.median
+    print(f"  {label}: {r:.3g}" + (f"  (goal {goal})" if goal else ""))
+    return r
+
+
+def machine() -> str:
+    import jax
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return (f"{platform.processor() or platform.machine()}, {cores} cores, load average "
+            f"{os.getloadavg()[0]:.1f}; python {sys.version.split()[0]}, jax {jax.__version__}, "
+            f"{jax.devices()[0].platform}; medians of {REPEAT} or more runs (min, max)")

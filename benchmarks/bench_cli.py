@@ -1,0 +1,82 @@
+"""The `vmj` command as a user meets it: whole processes, wall time.
+
+- `vmj --help` (goal <= 0.3 s) and `vmj table 1`, cold (a fresh compilation cache) and
+  repeated (the cache filled), against `python -c "import jax"` (goal: the repeat <= 1.5 x);
+- `vmj fit examples/data/table1_mu9_eps0.csv --model variable-mass --fit FT,mu
+  --set m0=5,c=4900,delta=3,eps=0 --loss cauchy --json`, first run in a fresh cache (goal
+  <= 10 s) and repeated (goal <= 1.5 x), against a whole SciPy script doing the same fit
+  (benchmarks/scipy_fit.py: least_squares over an event-driven solve_ivp model), whose answer
+  must agree to 1e-4.
+
+Run: .venv/bin/python benchmarks/bench_cli.py [--quick]
+"""
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _timing import REPEAT, Timing, machine, ratio, run_process  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+VMJ = os.path.join(os.path.dirname(sys.executable), "vmj")
+FIT = ["fit", os.path.join(ROOT, "examples", "data", "table1_mu9_eps0.csv"), "--model",
+       "variable-mass", "--fit", "FT,mu", "--set", "m0=5,c=4900,delta=3,eps=0", "--loss",
+       "cauchy", "--json"]
+
+
+def timed(argv, times, cache=None, fresh=False):
+    """`times` runs of a process; with `fresh`, each in a new empty compilation cache."""
+    out, text = [], ""
+    for _ in range(times):
+        with tempfile.TemporaryDirectory() as empty:
+            env = dict(os.environ)
+            env["VMJ_CACHE_DIR"] = empty if fresh else (cache or empty)
+            t, text = run_process(argv, env=env, cwd=ROOT)
+            out.append(t)
+    return Timing(out), text
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="fewer repetitions (a smoke run)")
+    args = ap.parse_args()
+    import jax  # (for the machine line only; the timed processes are separate)
+
+    del jax
+    print(machine())
+    times = 2 if args.quick else REPEAT
+    t_jax, _ = timed([sys.executable, "-c", "import jax"], times)
+    t_help, _ = timed([VMJ, "--help"], times)
+    with tempfile.TemporaryDirectory() as cache:
+        t_table_cold, _ = timed([VMJ, "table", "1"], times, fresh=True)
+        timed([VMJ, "table", "1"], 1, cache=cache)
+        t_table, _ = timed([VMJ, "table", "1"], times, cache=cache)
+    print("whole processes, wall time")
+    print(f"  python -c 'import jax':   {t_jax}")
+    print(f"  vmj --help:               {t_help}  (goal <= 0.3 s)")
+    print(f"  vmj table 1, cold cache:  {t_table_cold}")
+    print(f"  vmj table 1, repeated:    {t_table}")
+    ratio("table 1 repeated / import jax", t_table, t_jax, "<= 1.5")
+
+    with tempfile.TemporaryDirectory() as cache:
+        t_fit_cold, _ = timed([VMJ, *FIT], times, fresh=True)
+        timed([VMJ, *FIT], 1, cache=cache)
+        t_fit, text = timed([VMJ, *FIT], times, cache=cache)
+    vmj_fit = json.loads(text)["params"]
+    t_scipy, text = timed([sys.executable, os.path.join(ROOT, "benchmarks", "scipy_fit.py")],
+                          times)
+    scipy_fit = json.loads(text)["params"]
+    worst = max(abs(vmj_fit[k] / scipy_fit[k] - 1) for k in ("FT", "mu"))
+    print(f"  vmj fit, fresh cache:     {t_fit_cold}  (goal <= 10 s)")
+    print(f"  vmj fit, repeated:        {t_fit}")
+    print(f"  SciPy script, same fit:   {t_scipy}")
+    print(f"  answers: vmj FT = {vmj_fit['FT']:.5f} N, mu = {vmj_fit['mu']:.5f} kg/s; SciPy "
+          f"FT = {scipy_fit['FT']:.5f} N, mu = {scipy_fit['mu']:.5f} kg/s (agree to {worst:.0e})")
+    ratio("vmj fit repeated / SciPy", t_fit, t_scipy, "<= 1.5")
+
+
+if __name__ == "__main__":
+    main()

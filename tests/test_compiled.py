@@ -1,0 +1,123 @@
+"""The compiled entry points as JAX's persistent compilation cache sees them, and the checks that
+run before them.
+
+- For concrete inputs the compiled program holds no host callback (`equinox.error_if` is one):
+  the inputs were checked on the host, and `throw=True` raises on the host, so the cache can
+  store every entry point. Inside the user's own `jit`/`vmap` the guards stay.
+- A model is checked once, at construction; one rebuilt without its constructor
+  (`eqx.tree_at`, `jax.tree.unflatten`) is checked again by the entry points.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from test_conformance import LIMIT_CYCLE, MODELS, SIMULATE, SOLVERS, TURNING_POINTS, _a0
+
+import vmj
+import vmj._integrate as entry
+
+
+def compiled_program(monkeypatch, name, call):
+    """The StableHLO text of the compiled function `name` of vmj/_integrate.py as `call` runs
+    it (the arguments recorded on the way in)."""
+    seen = []
+    compiled = getattr(entry, name)
+    monkeypatch.setattr(entry, name, lambda *args: seen.append(args) or compiled(*args))
+    call()
+    assert seen, f"{name} was not called"
+    return compiled.lower(*seen[-1]).as_text()
+
+
+def has_callback(text: str) -> bool:
+    return "callback" in text.lower()
+
+
+@pytest.mark.parametrize("model,solver", sorted(TURNING_POINTS))
+def test_turning_points_compile_without_host_callbacks(monkeypatch, model, solver):
+    m, s = MODELS[model](), SOLVERS[solver]()
+    text = compiled_program(monkeypatch, "_turning_points",
+                            lambda: vmj.turning_points(m, _a0(model), 6, s, throw=True))
+    assert not has_callback(text)
+
+
+@pytest.mark.parametrize("model,solver", sorted(SIMULATE))
+def test_simulate_compiles_without_host_callbacks(monkeypatch, model, solver):
+    m, s = MODELS[model](), SOLVERS[solver]()
+    x0, v0 = (-5.5, -1.0) if model == "stick-slip" else (-_a0(model), 0.0)
+    text = compiled_program(monkeypatch, "_simulate",
+                            lambda: vmj.simulate(m, x0, v0, 0.5, s, n_save=11, throw=True))
+    assert not has_callback(text)
+
+
+@pytest.mark.parametrize("solver", sorted(s for _, s in LIMIT_CYCLE if s != "smoothed"))
+def test_limit_cycle_compiles_without_host_callbacks(monkeypatch, solver):
+    m, s = MODELS["stick-slip"](), SOLVERS[solver]()
+    text = compiled_program(monkeypatch, "_limit_cycle",
+                            lambda: vmj.limit_cycle(m, s, throw=True))
+    assert not has_callback(text)
+
+
+def test_guards_stay_inside_the_users_own_jit():
+    """Traced parameters cannot be checked on the host: the guard is compiled in (and fires)."""
+    def positions(mu):
+        model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(14.7))
+        return vmj.turning_points(model, 0.06, 4).positions
+
+    assert has_callback(jax.jit(positions).lower(2.0).as_text())
+    with pytest.raises(Exception, match="mu must be finite and >= 0"):
+        jax.jit(positions)(-1.0).block_until_ready()
+
+
+def test_assume_valid_compiles_no_guards():
+    """Code that keeps its values in range itself traces its solves inside
+    `vmj.assume_valid()`: no host callback, the same answer; concrete values are still checked
+    there."""
+    def positions(mu, a0):
+        model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(14.7))
+        return vmj.turning_points(model, a0, 4).positions
+
+    with vmj.assume_valid():
+        text = jax.jit(positions).lower(2.0, 0.06).as_text()
+        vouched = jax.jit(positions)(2.0, 0.06)
+        with pytest.raises(ValueError, match="^a0 must be finite and > 0"):
+            positions(2.0, -0.06)
+    assert not has_callback(text)
+    # (a new function: JAX would reuse the trace of `positions` made in the block)
+    assert has_callback(jax.jit(lambda mu, a0: positions(mu, a0)).lower(2.0, 0.06).as_text())
+    np.testing.assert_array_equal(vouched, positions(2.0, 0.06))
+
+
+def test_models_rebuilt_without_their_constructor_are_checked_again():
+    model = MODELS["variable-mass"]()
+    vmj.turning_points(model, 0.06, 4)
+    bad = eqx.tree_at(lambda m: m.mu, model, jnp.asarray(-1.0))
+    with pytest.raises(ValueError, match="^mu must be finite and >= 0"):
+        vmj.turning_points(bad, 0.06, 4)
+    leaves, treedef = jax.tree.flatten(model)
+    leaves = [jnp.asarray(np.nan) if i == 1 else x for i, x in enumerate(leaves)]  # c
+    with pytest.raises(ValueError, match="^c must be finite and > 0"):
+        vmj.turning_points(jax.tree.unflatten(treedef, leaves), 0.06, 4)
+    friction = eqx.tree_at(lambda m: m.friction.F, model, jnp.asarray(-2.0))
+    with pytest.raises(ValueError, match="^F must be finite and >= 0"):
+        vmj.simulate(friction, -0.06, 0.0, 0.5)
+    # a good value put in the same way passes, and gives the constructor's answer
+    good = eqx.tree_at(lambda m: m.mu, model, jnp.asarray(2.5))
+    direct = vmj.VariableMass(5.0, 4900.0, 3.0, 0.5, 2.5, vmj.Coulomb(14.7))
+    np.testing.assert_array_equal(vmj.turning_points(good, 0.06, 4).positions,
+                                  vmj.turning_points(direct, 0.06, 4).positions)
+
+
+def test_scalar_arguments_are_checked_on_the_host():
+    model = MODELS["variable-mass"]()
+    for a0 in (0.0, -1.0, float("nan"), np.float64(-1.0), jnp.asarray(float("inf"))):
+        with pytest.raises(ValueError, match="^a0 must be finite and > 0"):
+            vmj.turning_points(model, a0, 4)
+    # Python, NumPy and JAX scalars give one compiled program and the same answer
+    seqs = [vmj.turning_points(model, 0.06, 5)]
+    compiled = entry._turning_points._cache_size()
+    seqs += [vmj.turning_points(model, a0, 5) for a0 in (np.float64(0.06), jnp.asarray(0.06), 6e-2)]
+    assert entry._turning_points._cache_size() == compiled
+    for seq in seqs[1:]:
+        np.testing.assert_array_equal(seq.positions, seqs[0].positions)
