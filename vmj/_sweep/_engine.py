@@ -164,6 +164,9 @@ def worker_memory(client) -> int | None:
 
 
 # -- running -----------------------------------------------------------------------------------
+LOST_RETRIES = 3  #: resubmissions of a chunk whose result died with its worker
+
+
 class Interrupted(RuntimeError):
     """A run stopped before every chunk was done (its client closed, its tasks cancelled)."""
 
@@ -229,12 +232,17 @@ def _run_dask(job, todo, sink, fail, progress, client):
     client.register_plugin(_float64_plugin(bool(jax.config.jax_enable_x64)))
     shared = client.scatter(job, broadcast=True, hash=False)
     run = uuid.uuid4().hex[:8]  # task keys of this run only
-    futures = {client.submit(_run_on_worker, shared, c, key=f"vmj-{job.token[:12]}-{run}-{c}",
-                             pure=False): c for c in todo}
+    tries = dict.fromkeys(todo, 0)
+
+    def submit(c):
+        return client.submit(_run_on_worker, shared, c, pure=False,
+                             key=f"vmj-{job.token[:12]}-{run}-{c}-{tries[c]}")
+
+    futures = {submit(c): c for c in todo}
     try:
         # results are fetched in the client's event loop as tasks finish, side by side
-        for f, value in distributed.as_completed(list(futures), with_results=True,
-                                                 raise_errors=False):
+        done = distributed.as_completed(list(futures), with_results=True, raise_errors=False)
+        for f, value in done:
             c = futures.pop(f)
             if f.status == "finished":
                 sink(c, value)
@@ -243,6 +251,13 @@ def _run_dask(job, todo, sink, fail, progress, client):
                 if fail is None:
                     raise exc
                 fail(c, exc)
+            elif f.status == "lost" and tries[c] < LOST_RETRIES:
+                # the chunk finished on a worker that died before its result was fetched
+                tries[c] += 1
+                again = submit(c)
+                futures[again] = c
+                done.add(again)
+                continue
             else:  # cancelled: the client or the cluster went away
                 raise Interrupted(f"the run was interrupted (chunk {c} {f.status})")
             f.release()
