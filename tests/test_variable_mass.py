@@ -187,6 +187,20 @@ def test_mass_exhaustion_is_reported_not_nan():
             vmj.turning_points(m, A0, 40, method=method, throw=True)
 
 
+@pytest.mark.parametrize("delta", [1e3, 1e6])
+def test_runaway_growing_mass_has_no_turning_point(delta):
+    # m x'' - (delta (1 - 2 eps) - 2 mu)/2 x' + c x = ...: with delta = 1e3 kg/s and m0 = 5 kg
+    # the motion runs away without oscillating (real characteristic roots): no turning point,
+    # reported as such by both solvers; never "mass reaches zero" (the mass grows), never the
+    # averaged map's growing swings or its NaN
+    m = vmj.VariableMass(5.0, 4900.0, delta, 0.0, 2.0, vmj.Coulomb(14.7))
+    for solver in (vmj.Exact(), vmj.EnergyBalance()):
+        seq = vmj.turning_points(m, 0.06, 12, solver)
+        assert int(seq.result) == vmj.RESULTS.step_limit, solver
+        assert int(seq.count) == 0
+        assert np.all(np.asarray(seq.positions) == -0.06)
+
+
 def test_release_when_friction_falls_with_the_mass():
     """f-law with shrinking mass: a stuck mass moves on once f g m(t) < c |x|, as in SciPy."""
     p = dict(m0=5.0, c=C, delta=-3.0, eps=0.0, mu=60.0, f=0.3)

@@ -64,16 +64,22 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
         E, phi = _exp_and_phi(exponent_root_mass / root_m, root_m * inverse_exponent_root_mass)
         F_k = friction.force(m + 0.5 * delta * half)  # friction work over the half-swing
         a_next = a * E - (2 * F_k / c) * phi  # < 0: the swing did not pass x = 0
-        advance = moves & (m_next > 0)
+        # the averaged map needs an oscillation: with |lam| >= 4 sqrt(m c) the half-swing is
+        # over-damped (or runs away) and has no turning point, as the exact solver finds
+        oscillates = lam * lam < 16 * m * c
+        advance = moves & (m_next > 0) & oscillates
         t_out = jnp.where(advance, t + half, t_in)
         p_out = jnp.where(advance, -jnp.sign(p) * a_next, p)
-        flags = (advance & (a_next > 0), advance)  # crossed x = 0; advanced
+        # crossed x = 0; advanced; no turning point (over-damped)
+        flags = (advance & (a_next > 0), advance, moves & jnp.logical_not(oscillates))
         return (t_out, jnp.where(advance, m_next, m_in), p_out), (t_out, p_out) + flags
 
     init = (jnp.zeros_like(m0), m0, -a0 * jnp.ones_like(m0))
-    (_, m, p), (times, positions, crossed, advanced) = lax.scan(swing, init, None, length=n)
+    (_, m, p), (times, positions, crossed, advanced, over) = lax.scan(swing, init, None,
+                                                                      length=n)
     stuck = (c * jnp.abs(p) <= friction.force(m)) & jnp.logical_not(falls)
-    exhausted = jnp.logical_not(advanced[-1]) & jnp.logical_not(stuck)
+    ended = jnp.logical_not(advanced[-1]) & jnp.logical_not(stuck)
     code = jnp.where(stuck, RESULTS.stopped,
-                     jnp.where(exhausted, RESULTS.mass_exhausted, RESULTS.successful))
+                     jnp.where(ended & over[-1], RESULTS.step_limit,
+                               jnp.where(ended, RESULTS.mass_exhausted, RESULTS.successful)))
     return DecaySequence.from_scan(times, positions, crossed, advanced, code)

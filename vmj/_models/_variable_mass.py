@@ -136,7 +136,9 @@ class VariableMass(AbstractEnergyMap):
         has_rate = amd > 0
         h_mass = jnp.where(has_rate, RHO_MASS * m / jnp.where(has_rate, amd, 1.0), jnp.inf)
         h = jnp.minimum(h_omega, h_mass)
-        return h, h_mass < h_omega, t + h
+        # limited by the approach of the zero-mass time only while the mass falls: a growing
+        # mass that runs out of steps has not been exhausted (it is reported as the step limit)
+        return h, (h_mass < h_omega) & (md < 0), t + h
 
     def half_period(self, t, scale):
         """Damped half-period with the mass at mid-swing [s]."""
