@@ -75,6 +75,8 @@ def machine() -> str:
     import jax
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return (f"{platform.processor() or platform.machine()}, {cores} cores, load average "
-            f"{os.getloadavg()[0]:.1f}; python {sys.version.split()[0]}, jax {jax.__version__}, "
-            f"{jax.devices()[0].platform}; medians of {REPEAT} or more runs (min, max)")
+    return (
+        f"{platform.processor() or platform.machine()}, {cores} cores, load average "
+        f"{os.getloadavg()[0]:.1f}; python {sys.version.split()[0]}, jax {jax.__version__}, "
+        f"{jax.devices()[0].platform}; medians of {REPEAT} or more runs (min, max)"
+    )

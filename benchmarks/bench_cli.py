@@ -22,9 +22,19 @@ from _timing import REPEAT, Timing, machine, ratio, run_process  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VMJ = os.path.join(os.path.dirname(sys.executable), "vmj")
-FIT = ["fit", os.path.join(ROOT, "examples", "data", "table1_mu9_eps0.csv"), "--model",
-       "variable-mass", "--fit", "FT,mu", "--set", "m0=5,c=4900,delta=3,eps=0", "--loss",
-       "cauchy", "--json"]
+FIT = [
+    "fit",
+    os.path.join(ROOT, "examples", "data", "table1_mu9_eps0.csv"),
+    "--model",
+    "variable-mass",
+    "--fit",
+    "FT,mu",
+    "--set",
+    "m0=5,c=4900,delta=3,eps=0",
+    "--loss",
+    "cauchy",
+    "--json",
+]
 
 
 def timed(argv, times, cache=None, fresh=False):
@@ -66,15 +76,16 @@ def main():
         timed([VMJ, *FIT], 1, cache=cache)
         t_fit, text = timed([VMJ, *FIT], times, cache=cache)
     vmj_fit = json.loads(text)["params"]
-    t_scipy, text = timed([sys.executable, os.path.join(ROOT, "benchmarks", "scipy_fit.py")],
-                          times)
+    t_scipy, text = timed([sys.executable, os.path.join(ROOT, "benchmarks", "scipy_fit.py")], times)
     scipy_fit = json.loads(text)["params"]
     worst = max(abs(vmj_fit[k] / scipy_fit[k] - 1) for k in ("FT", "mu"))
     print(f"  vmj fit, fresh cache:     {t_fit_cold}  (goal <= 10 s)")
     print(f"  vmj fit, repeated:        {t_fit}")
     print(f"  SciPy script, same fit:   {t_scipy}")
-    print(f"  answers: vmj FT = {vmj_fit['FT']:.5f} N, mu = {vmj_fit['mu']:.5f} kg/s; SciPy "
-          f"FT = {scipy_fit['FT']:.5f} N, mu = {scipy_fit['mu']:.5f} kg/s (agree to {worst:.0e})")
+    print(
+        f"  answers: vmj FT = {vmj_fit['FT']:.5f} N, mu = {vmj_fit['mu']:.5f} kg/s; SciPy "
+        f"FT = {scipy_fit['FT']:.5f} N, mu = {scipy_fit['mu']:.5f} kg/s (agree to {worst:.0e})"
+    )
     ratio("vmj fit repeated / SciPy", t_fit, t_scipy, "<= 1.5")
 
 

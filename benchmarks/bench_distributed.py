@@ -38,8 +38,14 @@ M0, C, A0, N = 5.0, 4900.0, 0.06, 12
 
 def points(n, seed=0):
     rng = np.random.default_rng(seed)
-    return vmj.VariableMass(M0, C, rng.uniform(-3, 3, n), rng.uniform(0, 1, n),
-                            rng.uniform(0, 10, n), vmj.Coulomb(rng.uniform(5, 20, n)))
+    return vmj.VariableMass(
+        M0,
+        C,
+        rng.uniform(-3, 3, n),
+        rng.uniform(0, 1, n),
+        rng.uniform(0, 10, n),
+        vmj.Coulomb(rng.uniform(5, 20, n)),
+    )
 
 
 def timed(fn):
@@ -53,8 +59,10 @@ def stats(times):
 
 
 def same_bits(a, b):
-    return all(np.asarray(x).tobytes() == np.asarray(y).tobytes()
-               for x, y in zip(jax.tree.leaves(a.values), jax.tree.leaves(b.values)))
+    return all(
+        np.asarray(x).tobytes() == np.asarray(y).tobytes()
+        for x, y in zip(jax.tree.leaves(a.values), jax.tree.leaves(b.values))
+    )
 
 
 def result_bytes(r):
@@ -71,20 +79,34 @@ def main() -> int:
     vmj.retain_host_memory()
     n, rep = args.points, args.repeat
     model = points(n)
-    print(f"{n} points x {N} swings, exact solver, float64; {CORES} cores; in-process: "
-          f"{CORES} threads; cluster: LocalCluster of {CORES} single-threaded worker processes")
-    cluster = distributed.LocalCluster(n_workers=CORES, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None)
+    print(
+        f"{n} points x {N} swings, exact solver, float64; {CORES} cores; in-process: "
+        f"{CORES} threads; cluster: LocalCluster of {CORES} single-threaded worker processes"
+    )
+    cluster = distributed.LocalCluster(
+        n_workers=CORES,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+    )
     client = distributed.Client(cluster)
     try:
-        here = lambda **kw: vmj.sweep(vmj.turning_points, model, a0=A0, n=N, **kw)  # noqa
-        there = lambda **kw: vmj.sweep(vmj.turning_points, model, a0=A0, n=N,  # noqa
-                                       client=client, **kw)
+
+        def here(**kw):
+            return vmj.sweep(vmj.turning_points, model, a0=A0, n=N, **kw)
+
+        def there(**kw):
+            return vmj.sweep(vmj.turning_points, model, a0=A0, n=N, client=client, **kw)
+
         t_first_here, ref = timed(here)
         t_first_there, got = timed(there)
-        print(f"first runs (compilation included): in-process {t_first_here:.2f} s, cluster "
-              f"{t_first_there:.2f} s; {ref.chunks} chunks; equal to the last bit: "
-              f"{same_bits(ref, got)}")
+        print(
+            f"first runs (compilation included): in-process {t_first_here:.2f} s, cluster "
+            f"{t_first_there:.2f} s; {ref.chunks} chunks; equal to the last bit: "
+            f"{same_bits(ref, got)}"
+        )
+
         def worker_cpu():
             return sum(client.run(time.process_time).values())
 
@@ -100,20 +122,27 @@ def main() -> int:
         big_overhead = (np.median(tc) - np.median(th)) * CORES / ref.chunks
         print(f"in-process: {stats(th)}  ({n / np.median(th):.3g} points/s)")
         print(f"cluster:    {stats(tc)}  ({n / np.median(tc):.3g} points/s)")
-        print(f"cluster / in-process (medians): {ratio:.3f}  (goal <= 1.3); the difference is "
-              f"{big_overhead * 1e3:.1f} ms per chunk of {-(-n // ref.chunks)} points and "
-              f"worker")
-        print(f"CPU time of all processes (client and scheduler, workers): in-process "
-              f"{stats(ch)}, cluster {stats(cc)}: ratio of medians "
-              f"{np.median(cc) / np.median(ch):.3f}")
+        print(
+            f"cluster / in-process (medians): {ratio:.3f}  (goal <= 1.3); the difference is "
+            f"{big_overhead * 1e3:.1f} ms per chunk of {-(-n // ref.chunks)} points and "
+            f"worker"
+        )
+        print(
+            f"CPU time of all processes (client and scheduler, workers): in-process "
+            f"{stats(ch)}, cluster {stats(cc)}: ratio of medians "
+            f"{np.median(cc) / np.median(ch):.3f}"
+        )
 
         # 2. the cost of a chunk
         small = points(4096, seed=1)
         tiny = 16
-        k_here = lambda: vmj.sweep(vmj.turning_points, small, a0=A0, n=N,  # noqa
-                                   chunk_size=tiny)
-        k_there = lambda: vmj.sweep(vmj.turning_points, small, a0=A0, n=N,  # noqa
-                                    chunk_size=tiny, client=client)
+
+        def k_here():
+            return vmj.sweep(vmj.turning_points, small, a0=A0, n=N, chunk_size=tiny)
+
+        def k_there():
+            return vmj.sweep(vmj.turning_points, small, a0=A0, n=N, chunk_size=tiny, client=client)
+
         k_here(), k_there()
         sh, sc = [], []
         for _ in range(rep):
@@ -124,10 +153,12 @@ def main() -> int:
         per_there = np.median(sc) * CORES / chunks
         overhead = per_there - per_here
         print(f"{chunks} chunks of {tiny} points: in-process {stats(sh)}, cluster {stats(sc)}")
-        print(f"per chunk and worker: in-process {per_here * 1e3:.2f} ms, cluster "
-              f"{per_there * 1e3:.2f} ms: Dask overhead {overhead * 1e3:.2f} ms per chunk "
-              f"({overhead / (np.median(ch) / ref.chunks) * 100:.2f} % of the CPU time of a "
-              f"default chunk of {-(-n // ref.chunks)} points)")
+        print(
+            f"per chunk and worker: in-process {per_here * 1e3:.2f} ms, cluster "
+            f"{per_there * 1e3:.2f} ms: Dask overhead {overhead * 1e3:.2f} ms per chunk "
+            f"({overhead / (np.median(ch) / ref.chunks) * 100:.2f} % of the CPU time of a "
+            f"default chunk of {-(-n // ref.chunks)} points)"
+        )
 
         # the scheduler's rate: tasks per second for empty tasks through the same cluster
         client.gather(client.map(abs, range(2000), pure=False))  # warm-up
@@ -158,12 +189,16 @@ def main() -> int:
                 copy = os.path.join(tmp, f"w{i}.zarr")
                 tw.append(timed(lambda: write_only(copy, ref))[0])
             write_rate = nbytes / np.median(tw)
-            print(f"cluster with store=: {stats(ts)} ({nbytes / 1e6:.0f} MB of results; store on "
-                  f"disk {du(os.path.join(tmp, 's0.zarr')) / 1e6:.0f} MB)")
-            print(f"the client receives {receive_rate / 1e6:.0f} MB/s from a worker (32 MB "
-                  f"blocks, median) and writes a sweep's store at about "
-                  f"{write_rate / 1e6:.0f} MB/s (the same result written chunk by chunk: "
-                  f"{stats(tw)})")
+            print(
+                f"cluster with store=: {stats(ts)} ({nbytes / 1e6:.0f} MB of results; store on "
+                f"disk {du(os.path.join(tmp, 's0.zarr')) / 1e6:.0f} MB)"
+            )
+            print(
+                f"the client receives {receive_rate / 1e6:.0f} MB/s from a worker (32 MB "
+                f"blocks, median) and writes a sweep's store at about "
+                f"{write_rate / 1e6:.0f} MB/s (the same result written chunk by chunk: "
+                f"{stats(tw)})"
+            )
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     finally:
@@ -178,21 +213,25 @@ def main() -> int:
     per_chunk = max(overhead, big_overhead, 0.0)
     per_point_bytes = result_bytes(ref) / n
     per_byte = 1 / receive_rate + 1 / write_rate  # the client receives, then writes
-    print(f"paper estimate, 10^9 points on {workers} single-threaded workers like these: "
-          f"arithmetic {compute:.0f} s ({core_per_point * 1e6:.2f} us CPU per point)")
+    print(
+        f"paper estimate, 10^9 points on {workers} single-threaded workers like these: "
+        f"arithmetic {compute:.0f} s ({core_per_point * 1e6:.2f} us CPU per point)"
+    )
     for chunk in (16384, 65536):
         chunks = -(-big // chunk)
         over = chunks * per_chunk / workers
         sched = chunks * per_task
         whole = big * per_point_bytes * per_byte
         one = big * 8 * per_byte
-        print(f"  chunks of {chunk} ({chunks}): Dask overhead {over:.1f} s "
-              f"({per_chunk * 1e3:.1f} ms per chunk), the scheduler {sched:.0f} s (overlapping "
-              f"the work), the client {whole:.0f} s for the whole DecaySequence "
-              f"({per_point_bytes:.0f} bytes per point, {big * per_point_bytes / 1e9:.0f} GB) "
-              f"or {one:.0f} s for one 8-byte field: wall about "
-              f"{max(compute + over, sched, whole):.0f} s, or {max(compute + over, sched, one):.0f}"
-              f" s for one field (plus one compilation per worker, in parallel)")
+        print(
+            f"  chunks of {chunk} ({chunks}): Dask overhead {over:.1f} s "
+            f"({per_chunk * 1e3:.1f} ms per chunk), the scheduler {sched:.0f} s (overlapping "
+            f"the work), the client {whole:.0f} s for the whole DecaySequence "
+            f"({per_point_bytes:.0f} bytes per point, {big * per_point_bytes / 1e9:.0f} GB) "
+            f"or {one:.0f} s for one 8-byte field: wall about "
+            f"{max(compute + over, sched, whole):.0f} s, or {max(compute + over, sched, one):.0f}"
+            f" s for one field (plus one compilation per worker, in parallel)"
+        )
     return 0
 
 
@@ -206,12 +245,18 @@ def write_only(path, r):
     leaves = [np.asarray(x) for x in jax.tree.leaves(r.values)]
     names, kdims, kcoords = export_names(r.values, 1, {"point"})
     chunk = -(-n // r.chunks)
-    st = ChunkStore.create(path, kind="sweep", definition={"copy": path}, described={},
-                           plan={"n": n, "chunk": chunk, "n_chunks": r.chunks})
-    st.create_sweep_arrays([(nm, x.dtype, x.shape[1:], kd)
-                            for nm, x, kd in zip(names, leaves, kdims)], {}, {}, kcoords)
+    st = ChunkStore.create(
+        path,
+        kind="sweep",
+        definition={"copy": path},
+        described={},
+        plan={"n": n, "chunk": chunk, "n_chunks": r.chunks},
+    )
+    st.create_sweep_arrays(
+        [(nm, x.dtype, x.shape[1:], kd) for nm, x, kd in zip(names, leaves, kdims)], {}, {}, kcoords
+    )
     for c in range(r.chunks):
-        st.write(c, [x[c * chunk:(c + 1) * chunk] for x in leaves], names)
+        st.write(c, [x[c * chunk : (c + 1) * chunk] for x in leaves], names)
 
 
 def du(path):

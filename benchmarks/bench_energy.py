@@ -105,8 +105,10 @@ def main():
     t_numpy = repeat(lambda: numpy_in_place(eps, mu, delta), times=times)
     x = jnp.asarray(rng.uniform(1, 2, P))
     t_limit = repeat(lambda: limit(x), times=times, block=jax.block_until_ready)
-    print(f"energy balance, {P} points x {N} half-swings, amplitudes into a ({P}, {N}) float64 "
-          f"array (compile + first call {first.median:.1f} s)")
+    print(
+        f"energy balance, {P} points x {N} half-swings, amplitudes into a ({P}, {N}) float64 "
+        f"array (compile + first call {first.median:.1f} s)"
+    )
     print(f"  vmj.sweep:                 {t_vmj}")
     print(f"  NumPy, in place (1 core):  {t_numpy}   (agrees with vmj to {agree:.0e} of a0)")
     print(f"  elementwise limit (XLA):   {t_limit}")

@@ -31,8 +31,8 @@ import numpy as np  # noqa: E402
 from jax import lax  # noqa: E402
 
 import vmj  # noqa: E402
-from vmj._numerics._series import derivative, horner, horner_and_derivative  # noqa: E402
 from vmj._numerics._roots import CONVERGED  # noqa: E402
+from vmj._numerics._series import derivative, horner, horner_and_derivative  # noqa: E402
 from vmj._solvers import _exact  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -45,8 +45,27 @@ M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
 MAX_SUBSTEPS = 8  #: vmj.Exact()'s default for the variable-mass model
 
 #: arithmetic primitives counted as operations (comparisons and selects are not)
-ARITHMETIC = {"add", "sub", "mul", "div", "neg", "abs", "sqrt", "rsqrt", "exp", "log", "max",
-              "min", "sign", "integer_pow", "pow", "expm1", "log1p", "tanh", "square"}
+ARITHMETIC = {
+    "add",
+    "sub",
+    "mul",
+    "div",
+    "neg",
+    "abs",
+    "sqrt",
+    "rsqrt",
+    "exp",
+    "log",
+    "max",
+    "min",
+    "sign",
+    "integer_pow",
+    "pow",
+    "expm1",
+    "log1p",
+    "tanh",
+    "square",
+}
 
 
 def points(n, seed=0):
@@ -71,7 +90,7 @@ def _ops(jaxpr, loops):
         if name in ARITHMETIC:
             count += int(np.prod(eqn.outvars[0].aval.shape, dtype=int)) or 1
         for value in eqn.params.values():
-            for sub in (value if isinstance(value, (tuple, list)) else (value,)):
+            for sub in value if isinstance(value, (tuple, list)) else (value,):
                 inner = getattr(sub, "jaxpr", None)
                 if inner is not None and hasattr(inner, "eqns"):
                     count += _ops(inner, loops)
@@ -86,16 +105,20 @@ def operation_counts():
     its loop test)."""
     model = model_of(0.5, 2.0, 1.0)
     jaxpr = jax.make_jaxpr(lambda m, a0: _exact._solve_decay(m, a0, N, MAX_SUBSTEPS, "lax"))(
-        model, jnp.asarray(A0)).jaxpr
+        model, jnp.asarray(A0)
+    ).jaxpr
     top = []
     outside = _ops(jaxpr, top)
-    (swing_cond, swing_body), = top
+    ((swing_cond, swing_body),) = top
     inner = []
     per_swing = _ops(swing_body, inner) + _ops(swing_cond, [])
     (sub_cond, sub_body), (newton_cond, newton_body) = inner
-    return {"outside": outside, "swing": per_swing,
-            "substep": _ops(sub_body, []) + _ops(sub_cond, []),
-            "newton": _ops(newton_body, []) + _ops(newton_cond, [])}
+    return {
+        "outside": outside,
+        "swing": per_swing,
+        "substep": _ops(sub_body, []) + _ops(sub_cond, []),
+        "newton": _ops(newton_body, []) + _ops(newton_cond, []),
+    }
 
 
 # -- the loops, replayed step by step with their iterations counted -----------------------------
@@ -136,13 +159,19 @@ def _replay_swing(model, t, x, active):
     fx, dfx = horner_and_derivative(derivative(cs), tau)
     tau = tau - fx / jnp.where(dfx != 0, dfx, 1.0)
     t1, x1 = t0 + tau, horner(cs, tau)
-    return (jnp.where(moving, t1, t), jnp.where(moving, x1, x), moving,
-            jnp.where(moving, substeps, 0), jnp.where(moving, newton, 0))
+    return (
+        jnp.where(moving, t1, t),
+        jnp.where(moving, x1, x),
+        moving,
+        jnp.where(moving, substeps, 0),
+        jnp.where(moving, newton, 0),
+    )
 
 
 def replay(eps, mu, delta):
     """Per lane and half-swing: turning points, whether it moved, substeps and Newton
     iterations."""
+
     def one(e, m, d):
         model = model_of(e, m, d)
 
@@ -151,8 +180,9 @@ def replay(eps, mu, delta):
             t1, x1, moving, k, it = _replay_swing(model, t, x, active)
             return (t1, x1, moving), (t1, x1, moving, k, it)
 
-        return lax.scan(body, (jnp.zeros(()), -A0 * jnp.ones(()), jnp.ones((), bool)), None,
-                        length=N)[1]
+        return lax.scan(
+            body, (jnp.zeros(()), -A0 * jnp.ones(()), jnp.ones((), bool)), None, length=N
+        )[1]
 
     return [np.asarray(a) for a in jax.jit(jax.vmap(one))(eps, mu, delta)]
 
@@ -161,23 +191,27 @@ def replay(eps, mu, delta):
 def multiply_add_rate(lanes=4096, chain=25, steps=400):
     """Operations per second of dependent multiply-add chains (`x = x a + b`) over `lanes`
     elements, one thread per core as the sweeps run (two operations per multiply-add)."""
+
     @jax.jit
     def kernel(x, a, b):
         def body(_, x):
             for _ in range(chain):
                 x = x * a + b
             return x
+
         return lax.fori_loop(0, steps, body, x)
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    args = [jnp.asarray(np.random.default_rng(i).uniform(0.5, 0.9, (3, lanes))) for i in
-            range(cores)]
+    args = [
+        jnp.asarray(np.random.default_rng(i).uniform(0.5, 0.9, (3, lanes))) for i in range(cores)
+    ]
     for a in args:
         kernel(*a).block_until_ready()
 
     def all_cores():
-        threads = [threading.Thread(target=lambda a=a: kernel(*a).block_until_ready())
-                   for a in args]
+        threads = [
+            threading.Thread(target=lambda a=a: kernel(*a).block_until_ready()) for a in args
+        ]
         for th in threads:
             th.start()
         for th in threads:
@@ -224,16 +258,27 @@ def main():
         mismatched += int(res.values.count[i]) != k
         if k:
             big = np.abs(x_ref) > 0.01 * A0
-            err_x = max(err_x, float(np.max(np.abs(res.values.positions[i, :k] - x_ref)[big]
-                                            / np.abs(x_ref[big]), initial=0.0)))
+            err_x = max(
+                err_x,
+                float(
+                    np.max(
+                        np.abs(res.values.positions[i, :k] - x_ref)[big] / np.abs(x_ref[big]),
+                        initial=0.0,
+                    )
+                ),
+            )
             err_t = max(err_t, float(np.max(np.abs(res.values.times[i, :k] - t_ref) / t_ref)))
-    print(f"exact turning points, {N} half-swings, {P} random points, float64 "
-          f"({res.chunks} chunk(s); compile + first call {first.median:.1f} s)")
+    print(
+        f"exact turning points, {N} half-swings, {P} random points, float64 "
+        f"({res.chunks} chunk(s); compile + first call {first.median:.1f} s)"
+    )
     print(f"  vmj.sweep:         {t_sweep} per point")
     print(f"  SciPy event loop:  {t_scipy} per point ({len(idx)} of the same points)")
     ratio("SciPy / vmj, per point", t_scipy, t_sweep, ">= 5000")
-    print(f"  accuracy on those points: amplitudes (> 1 % of a0) {err_x:.1e} relative, times "
-          f"{err_t:.1e} relative, turning point counts differing: {mismatched}")
+    print(
+        f"  accuracy on those points: amplitudes (> 1 % of a0) {err_x:.1e} relative, times "
+        f"{err_t:.1e} relative, turning point counts differing: {mismatched}"
+    )
 
     # 2. the arithmetic
     ops = operation_counts()
@@ -246,31 +291,53 @@ def main():
         return ops["outside"] + swings * ops["swing"] + k * ops["substep"] + it * ops["newton"]
 
     lane = total(moving.sum(1), substeps.sum(1), newton.sum(1))  # what each lane needs
-    run = np.concatenate([np.full(b.stop - b.start, total(
-        int(moving[b].any(0).sum()), int(substeps[b].max(0).sum()), int(newton[b].max(0).sum())))
-        for b in batches])  # what each lane's batch runs
+    run = np.concatenate(
+        [
+            np.full(
+                b.stop - b.start,
+                total(
+                    int(moving[b].any(0).sum()),
+                    int(substeps[b].max(0).sum()),
+                    int(newton[b].max(0).sum()),
+                ),
+            )
+            for b in batches
+        ]
+    )  # what each lane's batch runs
     fixed = total(N, N * MAX_SUBSTEPS, N * _exact.NEWTON)
     rate, cores = multiply_add_rate()
     floor = lane.sum() / rate / P
-    print(f"  operations: {ops['substep']} per substep, {ops['newton']} per Newton iteration, "
-          f"{ops['swing']} per half-swing besides, {ops['outside']} once")
-    print(f"  iterations per point: {moving.sum(1).mean():.2f} half-swings, "
-          f"{substeps.sum(1).mean():.2f} substeps, {newton.sum(1).mean():.2f} Newton iterations "
-          f"needed; the batches run {np.mean([moving[b].any(0).sum() for b in batches]):.2f}, "
-          f"{np.mean([substeps[b].max(0).sum() for b in batches]):.2f}, "
-          f"{np.mean([newton[b].max(0).sum() for b in batches]):.2f} (replay of the loops "
-          f"reproduces the turning points to {replay_error:.0e} m)")
-    print(f"  operations per point: {lane.mean():.0f} needed, {run.mean():.0f} run (batches), "
-          f"{fixed} with fixed loops (8 substeps, 8 Newton iterations, {N} half-swings)")
-    print(f"  multiply-adds on {cores} cores: {rate / 1e9:.1f} G operations/s -> counted-flop "
-          f"floor {floor * 1e9:.0f} ns per point")
+    print(
+        f"  operations: {ops['substep']} per substep, {ops['newton']} per Newton iteration, "
+        f"{ops['swing']} per half-swing besides, {ops['outside']} once"
+    )
+    print(
+        f"  iterations per point: {moving.sum(1).mean():.2f} half-swings, "
+        f"{substeps.sum(1).mean():.2f} substeps, {newton.sum(1).mean():.2f} Newton iterations "
+        f"needed; the batches run {np.mean([moving[b].any(0).sum() for b in batches]):.2f}, "
+        f"{np.mean([substeps[b].max(0).sum() for b in batches]):.2f}, "
+        f"{np.mean([newton[b].max(0).sum() for b in batches]):.2f} (replay of the loops "
+        f"reproduces the turning points to {replay_error:.0e} m)"
+    )
+    print(
+        f"  operations per point: {lane.mean():.0f} needed, {run.mean():.0f} run (batches), "
+        f"{fixed} with fixed loops (8 substeps, 8 Newton iterations, {N} half-swings)"
+    )
+    print(
+        f"  multiply-adds on {cores} cores: {rate / 1e9:.1f} G operations/s -> counted-flop "
+        f"floor {floor * 1e9:.0f} ns per point"
+    )
     ratio("sweep / floor", t_sweep, Timing([floor]), "<= 3")
 
     # 3. one warm call
     one = model_of(0.0, 2.0, 3.0)
     jax.block_until_ready(vmj.turning_points(one, A0, N))
-    t_one = repeat(lambda: vmj.turning_points(one, A0, N), times=max(REPEAT, 7), number=1000,
-                   block=jax.block_until_ready)
+    t_one = repeat(
+        lambda: vmj.turning_points(one, A0, N),
+        times=max(REPEAT, 7),
+        number=1000,
+        block=jax.block_until_ready,
+    )
     print(f"  one warm vmj.turning_points(model, {A0}, {N}) call: {t_one}  (goal <= 100 us)")
 
 

@@ -41,8 +41,9 @@ def scipy_fit(rec, start):
     data = rec.positions[1:]
 
     def residual(p):
-        _, x, _ = variable_mass_turning_points(M0, C, DELTA, EPS, p[1], A0, len(data), F=p[0],
-                                               rtol=1e-10)
+        _, x, _ = variable_mass_turning_points(
+            M0, C, DELTA, EPS, p[1], A0, len(data), F=p[0], rtol=1e-10
+        )
         x = np.concatenate([x, np.repeat(x[-1] if x.size else -A0, len(data) - x.size)])
         return x - data
 
@@ -71,11 +72,15 @@ def main():
     sp = scipy_fit(rec, start)
     t_scipy = time.perf_counter() - t
     print(f"single fit (FT, mu; {len(rec)} turning points, exact model):")
-    print(f"  vmj/fits first call (with compilation): {t_first:8.3f} s  "
-          f"FT={first.params['FT']:.4f} mu={first.params['mu']:.4f}")
+    print(
+        f"  vmj/fits first call (with compilation): {t_first:8.3f} s  "
+        f"FT={first.params['FT']:.4f} mu={first.params['mu']:.4f}"
+    )
     print(f"  vmj/fits warm (median of 5):            {t_warm:8.3f} s")
-    print(f"  SciPy least_squares + solve_ivp events: {t_scipy:8.3f} s  "
-          f"FT={sp.x[0]:.4f} mu={sp.x[1]:.4f} ({sp.nfev} model evaluations)")
+    print(
+        f"  SciPy least_squares + solve_ivp events: {t_scipy:8.3f} s  "
+        f"FT={sp.x[0]:.4f} mu={sp.x[1]:.4f} ({sp.nfev} model evaluations)"
+    )
     print(f"  ratio SciPy / vmj warm:  {t_scipy / t_warm:8.2f}")
     print(f"  ratio SciPy / vmj first: {t_scipy / t_first:8.2f}")
     recs = [record(100 + i) for i in range(args.records)]
@@ -86,12 +91,16 @@ def main():
     fits.fit_batch(recs, "variable-mass", ("FT", "mu"), GIVEN, compare=False)
     t_batch_warm = time.perf_counter() - t
     ft = np.array([r.params["FT"] for r in out])
-    print(f"batched fit of {args.records} records (jax.vmap): first {t_batch:.2f} s, "
-          f"warm {t_batch_warm:.2f} s = {1e3 * t_batch_warm / args.records:.2f} ms/record; "
-          f"FT mean {ft.mean():.4f} sd {ft.std():.4f}; converged "
-          f"{sum(r.converged for r in out)}/{len(out)}")
-    print(f"  ratio SciPy single / vmj batched per record: "
-          f"{t_scipy / (t_batch_warm / args.records):.1f}")
+    print(
+        f"batched fit of {args.records} records (jax.vmap): first {t_batch:.2f} s, "
+        f"warm {t_batch_warm:.2f} s = {1e3 * t_batch_warm / args.records:.2f} ms/record; "
+        f"FT mean {ft.mean():.4f} sd {ft.std():.4f}; converged "
+        f"{sum(r.converged for r in out)}/{len(out)}"
+    )
+    print(
+        f"  ratio SciPy single / vmj batched per record: "
+        f"{t_scipy / (t_batch_warm / args.records):.1f}"
+    )
 
 
 if __name__ == "__main__":

@@ -32,14 +32,16 @@ def main():
     vmj.retain_host_memory()  # as the vmj command does
     print(machine())
     sizes = (3, 3, 3) if args.quick else (11, 21, 7)
-    grid = vmj.grid(vmj.VariableMass(5.0, 4900.0, 0.0, 0.0, 0.0, vmj.Coulomb(14.7)),
-                    eps=np.linspace(0, 1, sizes[0]), mu=np.linspace(0, 10, sizes[1]),
-                    delta=np.linspace(-3, 3, sizes[2]))
+    grid = vmj.grid(
+        vmj.VariableMass(5.0, 4900.0, 0.0, 0.0, 0.0, vmj.Coulomb(14.7)),
+        eps=np.linspace(0, 1, sizes[0]),
+        mu=np.linspace(0, 10, sizes[1]),
+        delta=np.linspace(-3, 3, sizes[2]),
+    )
     P = int(np.prod(sizes))
 
     def run(solver):
-        return vmj.sweep(vmj.turning_points, grid, a0=A0, n=N, solver=solver,
-                         progress=False).values
+        return vmj.sweep(vmj.turning_points, grid, a0=A0, n=N, solver=solver, progress=False).values
 
     first = {}
     for name, solver in (("exact", vmj.Exact()), ("smoothed", vmj.Smoothed())):
@@ -51,14 +53,20 @@ def main():
     k = np.arange(N) < np.asarray(exact.count)[..., None]
     rel = np.abs(np.asarray(smooth.amplitudes) / np.asarray(exact.amplitudes) - 1)
     rel = rel[k & same[..., None] & (np.asarray(exact.amplitudes) > 0.01 * A0)]
-    print(f"smoothed turning points over the {' x '.join(map(str, sizes))} grid ({P} points, "
-          f"{N} turning points, defaults)")
+    print(
+        f"smoothed turning points over the {' x '.join(map(str, sizes))} grid ({P} points, "
+        f"{N} turning points, defaults)"
+    )
     print(f"  exact sweep:     {t_exact}  (compile + first call {first['exact'].median:.1f} s)")
-    print(f"  smoothed sweep:  {t_smooth}  (compile + first call "
-          f"{first['smoothed'].median:.1f} s; results okay: "
-          f"{int(np.sum(vmj.RESULTS.okay(np.asarray(smooth.result))))}/{P})")
-    print(f"  same number of turning points: {int(same.sum())}/{P}; amplitudes above 1 % of a0 "
-          f"agree to {np.median(rel):.1e} (median), {np.max(rel):.1e} (max) relative")
+    print(
+        f"  smoothed sweep:  {t_smooth}  (compile + first call "
+        f"{first['smoothed'].median:.1f} s; results okay: "
+        f"{int(np.sum(vmj.RESULTS.okay(np.asarray(smooth.result))))}/{P})"
+    )
+    print(
+        f"  same number of turning points: {int(same.sum())}/{P}; amplitudes above 1 % of a0 "
+        f"agree to {np.median(rel):.1e} (median), {np.max(rel):.1e} (max) relative"
+    )
     ratio("smoothed / exact", t_smooth, t_exact, "<= 20")
 
 

@@ -55,14 +55,20 @@ def main():
     vmj.stick_slip_cycle(model, method="smooth", smoothing=1e-5)
     smooth_warm = time.perf_counter() - t
 
-    print(f"exact, vmap over {e.size} cycles: first call {first:.2f} s (incl. compilation), "
-          f"warm {warm:.3f} s = {1e6 * per_jax:.2f} us/cycle")
-    print(f"SciPy event integration: {1e3 * per_scipy:.2f} ms/cycle "
-          f"({args.scipy_points} points); max relative period difference {err:.1e}")
+    print(
+        f"exact, vmap over {e.size} cycles: first call {first:.2f} s (incl. compilation), "
+        f"warm {warm:.3f} s = {1e6 * per_jax:.2f} us/cycle"
+    )
+    print(
+        f"SciPy event integration: {1e3 * per_scipy:.2f} ms/cycle "
+        f"({args.scipy_points} points); max relative period difference {err:.1e}"
+    )
     print(f"ratio SciPy / vmj exact (per cycle, warm): {per_scipy / per_jax:.0f}x")
-    print(f"smoothed diffrax cycle (3.3 periods): first {smooth_first:.1f} s, warm "
-          f"{smooth_warm:.2f} s; ratio smoothed / exact single cycle: "
-          f"{smooth_warm / per_jax:.0f}x")
+    print(
+        f"smoothed diffrax cycle (3.3 periods): first {smooth_first:.1f} s, warm "
+        f"{smooth_warm:.2f} s; ratio smoothed / exact single cycle: "
+        f"{smooth_warm / per_jax:.0f}x"
+    )
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ def main() -> int:
     extra = []
     if "--" in args:
         k = args.index("--")
-        args, extra = args[:k], args[k + 1:]
+        args, extra = args[:k], args[k + 1 :]
     scripts = sorted(glob.glob(os.path.join(here, "bench_*.py")))
     if args:
         wanted = {f"bench_{a}.py" for a in args}

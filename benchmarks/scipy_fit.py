@@ -41,14 +41,16 @@ def read(path):
 
 
 def main():
-    path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(HERE, "..", "examples", "data",
-                                                               "table1_mu9_eps0.csv")
+    path = (
+        sys.argv[1]
+        if len(sys.argv) > 1
+        else os.path.join(HERE, "..", "examples", "data", "table1_mu9_eps0.csv")
+    )
     a0, data = read(path)
     n = len(data)
 
     def residual(p):
-        _, x, _ = variable_mass_turning_points(M0, C, DELTA, EPS, p[1], a0, n, F=p[0],
-                                               rtol=1e-10)
+        _, x, _ = variable_mass_turning_points(M0, C, DELTA, EPS, p[1], a0, n, F=p[0], rtol=1e-10)
         x = np.concatenate([x, np.repeat(x[-1] if x.size else -a0, n - x.size)])
         return x - data
 
@@ -57,9 +59,15 @@ def main():
     p = np.array([C * np.median(steps) / 2, 1.0])
     weights = np.ones(n)
     for _ in range(11):  # a plain fit, then ten with the Cauchy weights of its residuals
-        fit = least_squares(lambda q: np.sqrt(weights) * residual(q), p,
-                            bounds=([0, 0], [np.inf, np.inf]), x_scale="jac",
-                            xtol=1e-10, ftol=1e-10, gtol=1e-10)
+        fit = least_squares(
+            lambda q: np.sqrt(weights) * residual(q),
+            p,
+            bounds=([0, 0], [np.inf, np.inf]),
+            x_scale="jac",
+            xtol=1e-10,
+            ftol=1e-10,
+            gtol=1e-10,
+        )
         p = fit.x
         r = np.concatenate([[0.0], residual(p)])  # (the release: no residual)
         scale = max(1.4826 * np.median(np.abs(r - np.median(r))), 1e-6 * a0)

@@ -45,8 +45,9 @@ KG_CM2 = vmj.KGF * 1e4
 def _exact(u, T, a0):
     def one(u, T, a0):
         rope = vmj.Rope.paper(l0=10.0)
-        rope = vmj.Rope(rope.m, rope.A, rope.e, rope.b, rope.d, T * KG_CM2,
-                        vmj.ConstantSpeed(10.0, u))
+        rope = vmj.Rope(
+            rope.m, rope.A, rope.e, rope.b, rope.d, T * KG_CM2, vmj.ConstantSpeed(10.0, u)
+        )
         seq = vmj.turning_points(rope, a0, N, max_substeps=10)
         return seq.times, seq.positions, seq.count, seq.result
 
@@ -75,8 +76,12 @@ def laws(u, T, a0, ts):
     n = len(ts)
     padded = jnp.asarray(np.concatenate([ts, np.zeros(PAD - n)]))
     a0 = jnp.asarray(a0)
-    out = (vmj.kbm_amplitude(rope, a0, padded), vmj.action_amplitude(rope, a0, padded),
-           vmj.kbm_frequency(rope, a0, padded), vmj.action_frequency(rope, a0, padded))
+    out = (
+        vmj.kbm_amplitude(rope, a0, padded),
+        vmj.action_amplitude(rope, a0, padded),
+        vmj.kbm_frequency(rope, a0, padded),
+        vmj.action_frequency(rope, a0, padded),
+    )
     return tuple(np.asarray(o)[:n] for o in out)
 
 
@@ -150,7 +155,7 @@ def balance_T(u, a0):
 def first_order_balance_T(u, a0):
     """First order: da/dt = 0 at t = 0 when D sqrt(l0) = -a0 u/(4 l0)."""
     r = vmj.Rope.paper()
-    D = -a0 * u / (4 * 10.0 ** 1.5)
+    D = -a0 * u / (4 * 10.0**1.5)
     return float(np.pi * np.sqrt(r.e * r.m / r.A) * D / 2 / KG_CM2)
 
 
@@ -163,9 +168,12 @@ def fig5(plt):
         cases = [(-3.0, Tb, a0), (-3.0, 4.0, a0)]
         amplitude_panel(ax, cases, exact(cases), False)
         ax.axhline(100 * a0, color="k", lw=0.6, ls=":")
-        ax.set_title(f"fig. 5: u = -3 m/s, a0 = {100 * a0:g} cm: exact balance at T = {Tb:.3f} "
-                     f"kG/cm^2\n(first order, da/dt = 0 at t = 0: "
-                     f"{first_order_balance_T(-3.0, a0):.3f})", fontsize=8)
+        ax.set_title(
+            f"fig. 5: u = -3 m/s, a0 = {100 * a0:g} cm: exact balance at T = {Tb:.3f} "
+            f"kG/cm^2\n(first order, da/dt = 0 at t = 0: "
+            f"{first_order_balance_T(-3.0, a0):.3f})",
+            fontsize=8,
+        )
         ax.set_ylabel("amplitude [cm]")
     save(fig, f"{OUT}/rope_fig5.png")
     plt.close(fig)
@@ -184,8 +192,11 @@ def fig67(plt):
             ax.plot(t[1:-1][::3], om[::3], ".", ms=2.5, color=color)
             ax.plot(GRID, af, "-", lw=1.2, color=color, label=f"u={u:g} m/s, T={T:g} kG/cm^2")
             ax.plot(GRID, kf, "--", lw=0.9, color=color)
-        ax.set_title(f"fig. {number}: frequency, a0 = {100 * a0:g} cm (dots exact, solid action "
-                     "law, dashed first order)", fontsize=9)
+        ax.set_title(
+            f"fig. {number}: frequency, a0 = {100 * a0:g} cm (dots exact, solid action "
+            "law, dashed first order)",
+            fontsize=9,
+        )
         ax.set_xlabel("t [s]")
         ax.set_ylabel("angular frequency [rad/s]")
         ax.grid(alpha=0.3)
@@ -201,8 +212,9 @@ def error_table():
     for (u, T, a0), (t, a) in zip(cases, exact(cases)):
         keep = a > 0.1 * a0
         k, act, _, _ = laws(u, T, a0, t[keep])
-        rows.append((u, T, np.max(np.abs(k - a[keep]) / a[keep]),
-                     np.max(np.abs(act - a[keep]) / a[keep])))
+        rows.append(
+            (u, T, np.max(np.abs(k - a[keep]) / a[keep]), np.max(np.abs(act - a[keep]) / a[keep]))
+        )
     return rows
 
 
@@ -214,8 +226,10 @@ if __name__ == "__main__":
     fig67(plt)
     print("balance (constant amplitude over 2 s), u = -3 m/s:")
     for a0, Tb in found.items():
-        print(f"  a0 = {100 * a0:g} cm: exact T = {Tb:.4f} kG/cm^2; first order (da/dt = 0 at "
-              f"t = 0): {first_order_balance_T(-3.0, a0):.4f} kG/cm^2")
+        print(
+            f"  a0 = {100 * a0:g} cm: exact T = {Tb:.4f} kG/cm^2; first order (da/dt = 0 at "
+            f"t = 0): {first_order_balance_T(-3.0, a0):.4f} kG/cm^2"
+        )
     print("a0 = 4 cm, largest relative amplitude error over 2 s (amplitude > 10 % a0):")
     print("  u [m/s]  T [kG/cm^2]  first order  action law")
     for u, T, ek, ea in error_table():

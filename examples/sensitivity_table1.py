@@ -17,8 +17,8 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 import vmj  # noqa: E402
-from vmj.plot import pyplot as _pyplot, save  # noqa: E402
 from vmj._sweep._sensitivity import central_difference  # noqa: E402
+from vmj.plot import pyplot as _pyplot, save  # noqa: E402
 
 A0, N = 0.06, 12
 WRT = ("F", "mu", "eps", "delta")
@@ -44,8 +44,10 @@ steps = {"F": 1e-5, "mu": 1e-6, "eps": 1e-7, "delta": 1e-6}
 for name in ad:
     fd = central_difference(amplitudes, inner, name, steps[name], a0=A0, n=N)
     rel = np.max(np.abs(np.asarray(ad[name]) - fd)) / np.max(np.abs(fd))
-    print(f"d a_k/d {name:5s} (mu=2, eps=0.5): forward mode vs central differences, "
-          f"max relative difference {rel:.1e}")
+    print(
+        f"d a_k/d {name:5s} (mu=2, eps=0.5): forward mode vs central differences, "
+        f"max relative difference {rel:.1e}"
+    )
 
 plt = _pyplot()
 fig, axes = plt.subplots(1, 4, figsize=(16, 3.6), constrained_layout=True)
@@ -55,16 +57,18 @@ for ax, name in zip(axes, WRT):
         for j, eps in enumerate(result.coords["eps"]):
             count = int(values.count[i, j])
             d = 100 * np.asarray(result.values[name][i, j])  # m -> cm
-            line, = ax.plot(k[:count], d[:count], "o-", ms=3,
-                            label=f"mu={mu:g}, eps={eps:g}")
-            ax.plot(k[count - 1:], d[count - 1:], ":", color=line.get_color())
+            (line,) = ax.plot(k[:count], d[:count], "o-", ms=3, label=f"mu={mu:g}, eps={eps:g}")
+            ax.plot(k[count - 1 :], d[count - 1 :], ":", color=line.get_color())
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("swing k")
     ax.set_title(f"d a_k / d {name}  [{UNITS[name]}]", fontsize=10)
     ax.grid(alpha=0.3)
 axes[0].legend(fontsize=8)
-fig.suptitle("Table 1 (delta = +3 kg/s, F_T = 14.7 N): sensitivities of the exact amplitudes "
-             "(dotted: after the mass sticks)", fontsize=10)
+fig.suptitle(
+    "Table 1 (delta = +3 kg/s, F_T = 14.7 N): sensitivities of the exact amplitudes "
+    "(dotted: after the mass sticks)",
+    fontsize=10,
+)
 path = sys.argv[1] if len(sys.argv) > 1 else os.path.join("out", "sensitivity_table1.png")
 os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
 save(fig, path)

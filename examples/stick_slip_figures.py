@@ -25,8 +25,13 @@ OUT = sys.argv[1] if len(sys.argv) > 1 else "out"
 os.makedirs(OUT, exist_ok=True)
 
 # (figure pair, reversals, eps, Omega)
-CASES = [((6, 7), 1, 4.0, 1.0), ((8, 9), 2, 6.0, 1.0), ((10, 11), 3, 8.0, 1.0),
-         ((12, 13), 4, 10.0, 1.0), ((14, 15), 4, 10.5, 0.3)]
+CASES = [
+    ((6, 7), 1, 4.0, 1.0),
+    ((8, 9), 2, 6.0, 1.0),
+    ((10, 11), 3, 8.0, 1.0),
+    ((12, 13), 4, 10.0, 1.0),
+    ((14, 15), 4, 10.5, 0.3),
+]
 
 
 def figures():
@@ -40,13 +45,21 @@ def figures():
         ts, xi, dxi = (np.asarray(a) for a in (tr.ts, tr.xs, tr.vs))
         ax_v.plot(ts, dxi, lw=1.2)
         ax_v.axhline(-Omega, color="k", lw=0.6, ls=":")
-        ax_v.set_title(f"fig. {pair[0]}: {k} reversal{'s' if k > 1 else ''} "
-                       f"(eps={eps:g}, Omega={Omega:g})", fontsize=9)
+        ax_v.set_title(
+            f"fig. {pair[0]}: {k} reversal{'s' if k > 1 else ''} (eps={eps:g}, Omega={Omega:g})",
+            fontsize=9,
+        )
         ax_v.set_xlabel("tau")
         ax_v.set_ylabel("dxi/dtau (rest at -Omega)")
         ax_p.plot(xi, dxi, lw=1.2)
-        ax_p.plot(np.asarray(cyc.positions[: int(cyc.count)]), np.full(int(cyc.count), -Omega),
-                  "o", ms=4, mfc="none", label="velocity zeros xi_k")
+        ax_p.plot(
+            np.asarray(cyc.positions[: int(cyc.count)]),
+            np.full(int(cyc.count), -Omega),
+            "o",
+            ms=4,
+            mfc="none",
+            label="velocity zeros xi_k",
+        )
         ax_p.set_title(f"fig. {pair[1]}: phase plane", fontsize=9)
         ax_p.set_xlabel("xi")
         ax_p.set_ylabel("dxi/dtau")
@@ -89,5 +102,7 @@ def cycle_map(n=241):
 if __name__ == "__main__":
     figures()
     kstar, period = cycle_map()
-    print(f"figures written to {OUT}/stick_slip_figures_6_15.png and {OUT}/stick_slip_map.png; "
-          f"k* ranges {kstar.min()}..{kstar.max()}, period {period.min():.3f}..{period.max():.1f}")
+    print(
+        f"figures written to {OUT}/stick_slip_figures_6_15.png and {OUT}/stick_slip_map.png; "
+        f"k* ranges {kstar.min()}..{kstar.max()}, period {period.min():.3f}..{period.max():.1f}"
+    )

@@ -47,11 +47,20 @@ def main():
                 continue
             err = float(sm.period / exact.period - 1)
             errs.append(abs(err))
-            rows.append((eps, Omega, w, int(sm.reversals), err,
-                         float(sm.slip_time / exact.slip_time - 1),
-                         float(sm.stick_time / exact.stick_time - 1)))
-        axes[1].loglog(WS, errs, "o-", label=f"eps={eps:g}, Omega={Omega:g} "
-                                            f"(k*={int(exact.reversals)})")
+            rows.append(
+                (
+                    eps,
+                    Omega,
+                    w,
+                    int(sm.reversals),
+                    err,
+                    float(sm.slip_time / exact.slip_time - 1),
+                    float(sm.stick_time / exact.stick_time - 1),
+                )
+            )
+        axes[1].loglog(
+            WS, errs, "o-", label=f"eps={eps:g}, Omega={Omega:g} (k*={int(exact.reversals)})"
+        )
     # trajectories of one case
     eps, Omega = CASES[-1]
     model = vmj.StickSlip(eps, Omega)
@@ -86,8 +95,10 @@ def main():
         if r[3] is None:
             print(f"| {r[0]:g} | {r[1]:g} | {r[2]:g} | - | {r[4]} | | |")
         else:
-            print(f"| {r[0]:g} | {r[1]:g} | {r[2]:g} | {r[3]} | {r[4]:+.2e} | {r[5]:+.2e} | "
-                  f"{r[6]:+.2e} |")
+            print(
+                f"| {r[0]:g} | {r[1]:g} | {r[2]:g} | {r[3]} | {r[4]:+.2e} | {r[5]:+.2e} | "
+                f"{r[6]:+.2e} |"
+            )
 
 
 if __name__ == "__main__":

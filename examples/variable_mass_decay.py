@@ -15,8 +15,9 @@ import vmj  # noqa: E402
 from vmj.plot import pyplot, save  # noqa: E402
 
 # Table 4 of the paper: shrinking mass, friction proportional to the weight
-model = vmj.VariableMass(m0=5.0, c=4900.0, delta=-3.0, eps=1.0, mu=5.0,
-                         friction=vmj.MassProportional(f=0.3))
+model = vmj.VariableMass(
+    m0=5.0, c=4900.0, delta=-3.0, eps=1.0, mu=5.0, friction=vmj.MassProportional(f=0.3)
+)
 a0, n = 0.06, 12
 exact = vmj.turning_points(model, a0, n)
 energy = vmj.energy_balance(model, a0, n)
@@ -25,10 +26,12 @@ print("exact amplitudes [cm]:", jnp.round(exact.amplitudes * 100, 4))
 print("energy balance   [cm]:", jnp.round(energy.amplitudes * 100, 4))
 print("status:", exact.message)
 
+
 # derivative of the 12th amplitude with respect to the friction coefficient f
 def last_amplitude(f):
     m = vmj.VariableMass(5.0, 4900.0, -3.0, 1.0, 5.0, vmj.MassProportional(f))
     return vmj.turning_points(m, a0, n).amplitudes[-1]
+
 
 print("d a_12 / d f =", float(jax.grad(last_amplitude)(0.3)), "m")
 

@@ -16,11 +16,12 @@ from scipy.integrate import solve_ivp
 
 def restoring(kind: str, b2=0.0, b3=0.0):
     base = {"linear": lambda x: x, "sine": np.sin}[kind]
-    return lambda x: base(x) + b2 * x * x + b3 * x ** 3
+    return lambda x: base(x) + b2 * x * x + b3 * x**3
 
 
-def oscillator_turning_points(omega, a0, n, kind="linear", zeta=0.0, xF=0.0, xS=None, cq=0.0,
-                              b2=0.0, b3=0.0, rtol=1e-12):
+def oscillator_turning_points(
+    omega, a0, n, kind="linear", zeta=0.0, xF=0.0, xS=None, cq=0.0, b2=0.0, b3=0.0, rtol=1e-12
+):
     """(times, positions) of the first `n` turning points (fewer if the mass sticks)."""
     xS = xF if xS is None else xS
     r = restoring(kind, b2, b3)
@@ -33,15 +34,23 @@ def oscillator_turning_points(omega, a0, n, kind="linear", zeta=0.0, xF=0.0, xS=
 
         def rhs(_, y, s=s):
             v = y[1]
-            return [v, -2 * zeta * omega * v - cq * v * abs(v) - omega ** 2 * (r(y[0]) + xF * s)]
+            return [v, -2 * zeta * omega * v - cq * v * abs(v) - omega**2 * (r(y[0]) + xF * s)]
 
         def vel_zero(_, y, s=s):
             return y[1] * s
 
         vel_zero.terminal, vel_zero.direction = True, -1
         period = 2 * np.pi / omega
-        sol = solve_ivp(rhs, (t, t + 20 * period), [x, 0.0], method="DOP853", rtol=rtol,
-                        atol=1e-15 * a0, events=vel_zero, first_step=1e-6 * period)
+        sol = solve_ivp(
+            rhs,
+            (t, t + 20 * period),
+            [x, 0.0],
+            method="DOP853",
+            rtol=rtol,
+            atol=1e-15 * a0,
+            events=vel_zero,
+            first_step=1e-6 * period,
+        )
         if not sol.t_events[0].size:
             break
         t, x = sol.t_events[0][0], sol.y_events[0][0][0]

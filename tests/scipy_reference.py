@@ -41,8 +41,16 @@ def variable_mass_turning_points(m0, c, delta, eps, mu, a0, n, F=None, f=None, g
         horizon = min(t + 20 * period, t + 0.999 * (t_end - t))
         # the start has v = 0 exactly: nudge past it so the event does not fire at t0
         y0 = [x, 0.0]
-        sol = solve_ivp(rhs, (t, horizon), y0, method="DOP853", rtol=rtol, atol=1e-14 * a0,
-                        events=vel_zero, first_step=1e-6 * period)
+        sol = solve_ivp(
+            rhs,
+            (t, horizon),
+            y0,
+            method="DOP853",
+            rtol=rtol,
+            atol=1e-14 * a0,
+            events=vel_zero,
+            first_step=1e-6 * period,
+        )
         if not sol.t_events[0].size:
             break
         t, x_new = sol.t_events[0][0], sol.y_events[0][0][0]

@@ -37,8 +37,16 @@ def rope_turning_points(m, A, e, b, d, T, l0, u, a0, n, rtol=1e-12):
         k = A * (e + 3 * d * (x / l) ** 2) / l
         period = 2 * np.pi * np.sqrt(m / k)
         horizon = t + 5 * period
-        sol = solve_ivp(rhs, (t, horizon), [x, 0.0], method="DOP853", rtol=rtol,
-                        atol=1e-15 * a0, events=vel_zero, first_step=1e-6 * period)
+        sol = solve_ivp(
+            rhs,
+            (t, horizon),
+            [x, 0.0],
+            method="DOP853",
+            rtol=rtol,
+            atol=1e-15 * a0,
+            events=vel_zero,
+            first_step=1e-6 * period,
+        )
         if not sol.t_events[0].size:
             break
         t, x = sol.t_events[0][0], sol.y_events[0][0][0]

@@ -20,6 +20,7 @@ def stick_slip_cycle(eps, Omega, margin=2e-5, max_phases=64, rtol=1e-13):
     xi, s = -eps, 1.0
     intervals = []
     for _ in range(max_phases):
+
         def rhs(t, y, s=s):
             return [y[1], -y[0] - s]
 
@@ -28,8 +29,17 @@ def stick_slip_cycle(eps, Omega, margin=2e-5, max_phases=64, rtol=1e-13):
 
         stop.terminal, stop.direction = True, -1
         # the phase starts at u = 0: step a little first so the event does not fire at t = 0
-        sol = solve_ivp(rhs, (0.0, 4 * np.pi), [xi, -Omega], method="DOP853", rtol=rtol,
-                        atol=1e-15 * eps, events=stop, first_step=1e-6, max_step=0.02)
+        sol = solve_ivp(
+            rhs,
+            (0.0, 4 * np.pi),
+            [xi, -Omega],
+            method="DOP853",
+            rtol=rtol,
+            atol=1e-15 * eps,
+            events=stop,
+            first_step=1e-6,
+            max_step=0.02,
+        )
         if not sol.t_events[0].size:
             raise RuntimeError("no velocity zero within two periods")
         tau, xi = sol.t_events[0][0], sol.y_events[0][0][0]

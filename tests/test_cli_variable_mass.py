@@ -10,8 +10,22 @@ import pytest
 import vmj
 from vmj.cli import main
 
-BASE = ["decay", "variable-mass", "--m0", "5", "--c", "4900", "--delta", "3", "--eps", "0",
-        "--mu", "2", "--a0", "0.06"]
+BASE = [
+    "decay",
+    "variable-mass",
+    "--m0",
+    "5",
+    "--c",
+    "4900",
+    "--delta",
+    "3",
+    "--eps",
+    "0",
+    "--mu",
+    "2",
+    "--a0",
+    "0.06",
+]
 ARGS = BASE + ["--FT", "14.7"]
 
 
@@ -55,10 +69,17 @@ def test_decay_text_table(capsys):
     assert "crossed" in out and "status:" in out and len(out.splitlines()) == 5
 
 
-@pytest.mark.parametrize("flag,value,name", [
-    ("--m0", "0", "--m0"), ("--c", "-1", "--c"), ("--eps", "2", "--eps"), ("--mu", "-1", "--mu"),
-    ("--FT", "-3", "--FT"), ("--a0", "0", "--a0"),
-])
+@pytest.mark.parametrize(
+    "flag,value,name",
+    [
+        ("--m0", "0", "--m0"),
+        ("--c", "-1", "--c"),
+        ("--eps", "2", "--eps"),
+        ("--mu", "-1", "--mu"),
+        ("--FT", "-3", "--FT"),
+        ("--a0", "0", "--a0"),
+    ],
+)
 def test_decay_bad_input_exits_2_with_one_line(capsys, flag, value, name):
     code, out, err = run(capsys, with_value(ARGS, flag, value))
     assert code == 2 and out == ""
@@ -76,8 +97,17 @@ def test_table_json(capsys):
     code, out, _ = run(capsys, ["table", "3", "--json"])
     data = json.loads(out)
     assert code == 0 and data["table"] == 3
-    keys = {"k", "mu", "eps", "delta", "paper_energy_cm", "paper_monograph_cm", "energy_cm",
-            "exact_cm", "exact_crossed"}
+    keys = {
+        "k",
+        "mu",
+        "eps",
+        "delta",
+        "paper_energy_cm",
+        "paper_monograph_cm",
+        "energy_cm",
+        "exact_cm",
+        "exact_crossed",
+    }
     assert all(set(r) == keys for r in data["rows"]) and len(data["rows"]) == 30
     worst = max(abs(r["exact_cm"] - r["paper_monograph_cm"]) for r in data["rows"])
     assert worst < 0.002
@@ -92,10 +122,12 @@ def test_table_text_and_figure(capsys, tmp_path):
 
 def test_console_script_runs_in_float64():
     """The installed entry point enables float64 itself (no configuration by the user)."""
-    code = ("import sys; from vmj.cli import main; import jax; sys.argv=['vmj']; "
-            "main(['decay','variable-mass','--m0','5','--c','4900','--delta','0','--eps','0',"
-            "'--mu','0','--FT','14.7','--a0','0.06','--n','2','--json']); "
-            "print(jax.config.jax_enable_x64)")
+    code = (
+        "import sys; from vmj.cli import main; import jax; sys.argv=['vmj']; "
+        "main(['decay','variable-mass','--m0','5','--c','4900','--delta','0','--eps','0',"
+        "'--mu','0','--FT','14.7','--a0','0.06','--n','2','--json']); "
+        "print(jax.config.jax_enable_x64)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     data, flag = out.stdout.strip().splitlines()
     assert flag == "True"
@@ -103,13 +135,40 @@ def test_console_script_runs_in_float64():
     assert amps[0] - amps[1] == pytest.approx(2 * 14.7 / 4900, rel=1e-12)
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["stick-slip", "--eps", "1e9", "--Omega", "1"], "--eps 1e+09 means"),
-    (["fit", "fits/data/table1_mu9_eps0.csv", "--fit", "FT,mu", "--set",
-      "m0=5,m0=4,c=4900,delta=3,eps=0"], "--set gives m0 twice"),
-    (["sweep", "variable-mass", "--eps", "0:1:1", "--mu", "0", "--delta", "0", "--set",
-      "m0=5,c=4900,FT=14.7,a0=0.06", "--out", "unused.csv"], "count must be"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["stick-slip", "--eps", "1e9", "--Omega", "1"], "--eps 1e+09 means"),
+        (
+            [
+                "fit",
+                "fits/data/table1_mu9_eps0.csv",
+                "--fit",
+                "FT,mu",
+                "--set",
+                "m0=5,m0=4,c=4900,delta=3,eps=0",
+            ],
+            "--set gives m0 twice",
+        ),
+        (
+            [
+                "sweep",
+                "variable-mass",
+                "--eps",
+                "0:1:1",
+                "--mu",
+                "0",
+                "--delta",
+                "0",
+                "--set",
+                "m0=5,c=4900,FT=14.7,a0=0.06",
+                "--out",
+                "unused.csv",
+            ],
+            "count must be",
+        ),
+    ],
+)
 def test_other_commands_refuse_bad_input(capsys, argv, message):
     code, out, err = run(capsys, argv)
     assert code == 2 and out == "" and message in err

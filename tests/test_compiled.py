@@ -37,8 +37,9 @@ def has_callback(text: str) -> bool:
 @pytest.mark.parametrize("model,solver", sorted(TURNING_POINTS))
 def test_turning_points_compile_without_host_callbacks(monkeypatch, model, solver):
     m, s = MODELS[model](), SOLVERS[solver]()
-    text = compiled_program(monkeypatch, "_turning_points",
-                            lambda: vmj.turning_points(m, _a0(model), 6, s, throw=True))
+    text = compiled_program(
+        monkeypatch, "_turning_points", lambda: vmj.turning_points(m, _a0(model), 6, s, throw=True)
+    )
     assert not has_callback(text)
 
 
@@ -46,21 +47,22 @@ def test_turning_points_compile_without_host_callbacks(monkeypatch, model, solve
 def test_simulate_compiles_without_host_callbacks(monkeypatch, model, solver):
     m, s = MODELS[model](), SOLVERS[solver]()
     x0, v0 = (-5.5, -1.0) if model == "stick-slip" else (-_a0(model), 0.0)
-    text = compiled_program(monkeypatch, "_simulate",
-                            lambda: vmj.simulate(m, x0, v0, 0.5, s, n_save=11, throw=True))
+    text = compiled_program(
+        monkeypatch, "_simulate", lambda: vmj.simulate(m, x0, v0, 0.5, s, n_save=11, throw=True)
+    )
     assert not has_callback(text)
 
 
 @pytest.mark.parametrize("solver", sorted(s for _, s in LIMIT_CYCLE if s != "smoothed"))
 def test_limit_cycle_compiles_without_host_callbacks(monkeypatch, solver):
     m, s = MODELS["stick-slip"](), SOLVERS[solver]()
-    text = compiled_program(monkeypatch, "_limit_cycle",
-                            lambda: vmj.limit_cycle(m, s, throw=True))
+    text = compiled_program(monkeypatch, "_limit_cycle", lambda: vmj.limit_cycle(m, s, throw=True))
     assert not has_callback(text)
 
 
 def test_guards_stay_inside_the_users_own_jit():
     """Traced parameters cannot be checked on the host: the guard is compiled in (and fires)."""
+
     def positions(mu):
         model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(14.7))
         return vmj.turning_points(model, 0.06, 4).positions
@@ -74,6 +76,7 @@ def test_assume_valid_compiles_no_guards():
     """Code that keeps its values in range itself traces its solves inside
     `vmj.assume_valid()`: no host callback, the same answer; concrete values are still checked
     there."""
+
     def positions(mu, a0):
         model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(14.7))
         return vmj.turning_points(model, a0, 4).positions
@@ -105,8 +108,9 @@ def test_models_rebuilt_without_their_constructor_are_checked_again():
     # a good value put in the same way passes, and gives the constructor's answer
     good = eqx.tree_at(lambda m: m.mu, model, jnp.asarray(2.5))
     direct = vmj.VariableMass(5.0, 4900.0, 3.0, 0.5, 2.5, vmj.Coulomb(14.7))
-    np.testing.assert_array_equal(vmj.turning_points(good, 0.06, 4).positions,
-                                  vmj.turning_points(direct, 0.06, 4).positions)
+    np.testing.assert_array_equal(
+        vmj.turning_points(good, 0.06, 4).positions, vmj.turning_points(direct, 0.06, 4).positions
+    )
 
 
 def test_scalar_arguments_are_checked_on_the_host():

@@ -10,8 +10,9 @@ import vmj
 
 MODELS = {
     "variable-mass": lambda: vmj.VariableMass(5.0, 4900.0, 3.0, 0.5, 2.0, vmj.Coulomb(14.7)),
-    "variable-mass-f": lambda: vmj.VariableMass(5.0, 4900.0, -0.2, 0.5, 1.0,
-                                                vmj.MassProportional(0.3)),
+    "variable-mass-f": lambda: vmj.VariableMass(
+        5.0, 4900.0, -0.2, 0.5, 1.0, vmj.MassProportional(0.3)
+    ),
     "rope": lambda: vmj.Rope.paper(u=0.0, T=40.0),
     "rope-hoisting": lambda: vmj.Rope.paper(u=1.0, T=40.0),
     "linear": lambda: vmj.LinearOscillator(1.0, 0.2, 100.0),
@@ -27,12 +28,19 @@ SOLVERS = {
     "closed": vmj.ClosedForm,
 }
 #: (model, solver) pairs that apply, per task
-TURNING_POINTS = {("variable-mass", "exact"), ("variable-mass", "smoothed"),
-                  ("variable-mass", "energy"), ("variable-mass-f", "exact"),
-                  ("variable-mass-f", "smoothed"), ("variable-mass-f", "energy"),
-                  ("rope", "exact"), ("rope", "smoothed"), ("rope", "energy"),
-                  ("rope-hoisting", "exact"), ("rope-hoisting", "smoothed")} | {
-    (m, s) for m in ("oscillator", "pendulum") for s in ("exact", "smoothed", "energy")}
+TURNING_POINTS = {
+    ("variable-mass", "exact"),
+    ("variable-mass", "smoothed"),
+    ("variable-mass", "energy"),
+    ("variable-mass-f", "exact"),
+    ("variable-mass-f", "smoothed"),
+    ("variable-mass-f", "energy"),
+    ("rope", "exact"),
+    ("rope", "smoothed"),
+    ("rope", "energy"),
+    ("rope-hoisting", "exact"),
+    ("rope-hoisting", "smoothed"),
+} | {(m, s) for m in ("oscillator", "pendulum") for s in ("exact", "smoothed", "energy")}
 SIMULATE = {(m, "smoothed") for m in MODELS} | {("linear", "closed"), ("linear-forced", "closed")}
 LIMIT_CYCLE = {("stick-slip", s) for s in ("exact", "smoothed", "closed")}
 
@@ -113,8 +121,9 @@ def test_results_enumeration():
     assert vmj.RESULTS.okay(vmj.RESULTS.stopped) and not vmj.RESULTS.failed(vmj.RESULTS.stopped)
     assert all(vmj.RESULTS.failed(r) for r in vmj.RESULTS if r > vmj.RESULTS.stopped)
     assert all(r.message for r in vmj.RESULTS)
-    np.testing.assert_array_equal(vmj.RESULTS.failed(jnp.array([0, 1, 2, 5])),
-                                  [False, False, True, True])
+    np.testing.assert_array_equal(
+        vmj.RESULTS.failed(jnp.array([0, 1, 2, 5])), [False, False, True, True]
+    )
 
 
 def test_throw_raises_solver_error_with_the_message():

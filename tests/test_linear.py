@@ -8,8 +8,7 @@ import math
 import jax
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 import vmj
 from vmj.cli import main as cli_main
@@ -28,11 +27,19 @@ CASES = {
     "free-over": (vmj.LinearOscillator(1.0, 20.0, 14.5), 0.02, -0.1, 5.0),
     "free-undamped": (vmj.LinearOscillator(1.0, 0.0, 9.0), 0.01, 0.3, 10.0),
     "force": (vmj.LinearOscillator(1.0, 1.0, 14.5, vmj.HarmonicForce(4.0, 15.0)), 0.0, 0.1, 20.0),
-    "force-resonant": (vmj.LinearOscillator(1.0, 0.2, 16.0, vmj.HarmonicForce(1.0, 4.0)), 0.0, 0.0,
-                       20.0),
+    "force-resonant": (
+        vmj.LinearOscillator(1.0, 0.2, 16.0, vmj.HarmonicForce(1.0, 4.0)),
+        0.0,
+        0.0,
+        20.0,
+    ),
     "base": (vmj.LinearOscillator(3.0, 2.0, 40.0, vmj.BaseMotion(0.01, 2.5)), 0.02, 0.0, 15.0),
-    "force-undamped-resonance": (vmj.LinearOscillator(1.0, 0.0, 16.0, vmj.HarmonicForce(1.0, 4.0)),
-                                 0.01, 0.0, 20.0),
+    "force-undamped-resonance": (
+        vmj.LinearOscillator(1.0, 0.0, 16.0, vmj.HarmonicForce(1.0, 4.0)),
+        0.01,
+        0.0,
+        20.0,
+    ),
 }
 
 
@@ -47,9 +54,15 @@ def test_simulation_matches_analytic_response(name):
 
 
 @settings(max_examples=10)
-@given(m=st.floats(0.1, 100.0), k=st.floats(1.0, 1e5), eta=st.floats(0.0, 3.0),
-       r=st.floats(0.1, 5.0), F0=st.floats(-10.0, 10.0), x0=st.floats(0.1, 1.0),
-       v0=st.floats(-1.0, 1.0))
+@given(
+    m=st.floats(0.1, 100.0),
+    k=st.floats(1.0, 1e5),
+    eta=st.floats(0.0, 3.0),
+    r=st.floats(0.1, 5.0),
+    F0=st.floats(-10.0, 10.0),
+    x0=st.floats(0.1, 1.0),
+    v0=st.floats(-1.0, 1.0),
+)
 def test_simulation_matches_analytic_property(m, k, eta, r, F0, x0, v0):
     wc = math.sqrt(k / m)
     osc = vmj.LinearOscillator(m, 2 * eta * math.sqrt(k * m), k, vmj.HarmonicForce(F0, r * wc))
@@ -96,7 +109,8 @@ def test_amplification_and_phase():
     x, _ = und.response(np.array([10.0, 10.0 + np.pi / 2]), 0.0, 0.0)
     assert np.all(np.isfinite(x))
     assert float(und.response(2 * np.pi * 10, 0.0, 0.0)[0]) == pytest.approx(
-        -1.0 / (2 * 4.0) * 2 * np.pi * 10, rel=1e-10)
+        -1.0 / (2 * 4.0) * 2 * np.pi * 10, rel=1e-10
+    )
     # the peak of the amplification curve is at r = sqrt(1 - 2 eta^2)
     r = np.linspace(0.9, 1.05, 30001)
     amp = np.asarray(osc.amplification(r * 5.0))
@@ -106,7 +120,8 @@ def test_amplification_and_phase():
     Db, _ = base.forced_response()
     rb = 7.0 / 5.0
     assert float(Db) / 0.01 == pytest.approx(
-        np.sqrt(1 + (2 * eta * rb) ** 2) * float(base.amplification()), rel=1e-13)
+        np.sqrt(1 + (2 * eta * rb) ** 2) * float(base.amplification()), rel=1e-13
+    )
 
 
 def test_problem_book_example_4_1_2_2():
@@ -122,8 +137,9 @@ def test_problem_book_example_4_1_2_2():
     _printed(osc.natural_frequency, 64.6, 1)
     _printed(osc.damping_ratio, 0.38, 2)
     # the book multiplies its rounded 64.6 and 0.38: 64.6 sqrt(1 - 0.38^2) = 59.75 -> 59.8
-    _printed(osc.natural_frequency * math.sqrt(1 - round(float(osc.damping_ratio), 2) ** 2),
-             59.8, 1)
+    _printed(
+        osc.natural_frequency * math.sqrt(1 - round(float(osc.damping_ratio), 2) ** 2), 59.8, 1
+    )
     assert float(osc.damped_frequency) == pytest.approx(59.8, abs=0.06)
     A, _ = osc.free_amplitude(-2e-3, 0.7)
     _printed(A * 1e3, 11.0, 0)  # A = 11e-3 m
@@ -141,39 +157,49 @@ def test_lagrange_paper_example_and_erratum():
     _printed(math.tan(float(beta)), -0.071, 3)
     # the paper takes beta = arctan(-0.071) (principal branch); its transient A and settling time
     beta_paper = math.atan(math.tan(float(beta)))
-    A_paper, alpha_paper = osc.free_amplitude(-float(D) * math.sin(-beta_paper),
-                                              0.1 - float(D) * 15 * math.cos(-beta_paper))
+    A_paper, alpha_paper = osc.free_amplitude(
+        -float(D) * math.sin(-beta_paper), 0.1 - float(D) * 15 * math.cos(-beta_paper)
+    )
     _printed(A_paper, 0.049, 3)
     _printed(math.log(100 * float(A_paper) / float(D)) / 0.5, 11.1, 1)
+
     # erratum: the printed law (23) violates phi(0) = 0 ...
-    law23 = lambda t: (0.049 * np.exp(-0.5 * t) * np.sin(3.78 * t + 0.028)  # noqa: E731
-                       + 0.019 * np.sin(15 * t + 0.071))
+    def law23(t):
+        return 0.049 * np.exp(-0.5 * t) * np.sin(3.78 * t + 0.028) + 0.019 * np.sin(15 * t + 0.071)
+
     assert abs(law23(0.0)) > 2e-3
     # ... and the lag is beta = pi - 0.071 (p > k), so the forced term is -0.019 sin(15t + 0.071)
     assert float(beta) == pytest.approx(np.pi - 0.0712, abs=1e-3)
     A, alpha = osc.transient(0.0, 0.1)
     assert float(A) == pytest.approx(0.1018, abs=1e-4)
     assert float(alpha) == pytest.approx(0.0132, abs=1e-4)
-    corrected = lambda t: (0.1018 * np.exp(-0.5 * t) * np.sin(3.775 * t + 0.0132)  # noqa: E731
-                           - 0.018954 * np.sin(15 * t + 0.0712))
+
+    def corrected(t):
+        return 0.1018 * np.exp(-0.5 * t) * np.sin(3.775 * t + 0.0132) - 0.018954 * np.sin(
+            15 * t + 0.0712
+        )
+
     tr = vmj.linear_simulate(osc, 0.0, 0.1, 12.0, n_save=801)
     assert np.max(np.abs(corrected(np.asarray(tr.ts)) - tr.xs)) < 2e-4
     assert np.max(np.abs(law23(np.asarray(tr.ts)) - tr.xs)) > 0.02
     assert float(osc.settling_time(0.0, 0.1)) == pytest.approx(12.57, abs=0.01)
 
 
-@pytest.mark.parametrize("make,name", [
-    (lambda: vmj.LinearOscillator(0.0, 1.0, 1.0), "m"),
-    (lambda: vmj.LinearOscillator(-1.0, 1.0, 1.0), "m"),
-    (lambda: vmj.LinearOscillator(1.0, -0.1, 1.0), "c"),
-    (lambda: vmj.LinearOscillator(1.0, 1.0, 0.0), "k"),
-    (lambda: vmj.LinearOscillator(float("nan"), 1.0, 1.0), "m"),
-    (lambda: vmj.HarmonicForce(1.0, 0.0), "p"),
-    (lambda: vmj.HarmonicForce(float("nan"), 1.0), "F0"),
-    (lambda: vmj.BaseMotion(0.01, -2.0), "p"),
-    (lambda: vmj.LinearOscillator(1.0, 1.0, 1.0, forcing=3.0), "forcing"),
-    (lambda: vmj.linear_simulate(vmj.LinearOscillator(1.0, 1.0, 1.0), 0.0, 1.0, 0.0), "t1"),
-])
+@pytest.mark.parametrize(
+    "make,name",
+    [
+        (lambda: vmj.LinearOscillator(0.0, 1.0, 1.0), "m"),
+        (lambda: vmj.LinearOscillator(-1.0, 1.0, 1.0), "m"),
+        (lambda: vmj.LinearOscillator(1.0, -0.1, 1.0), "c"),
+        (lambda: vmj.LinearOscillator(1.0, 1.0, 0.0), "k"),
+        (lambda: vmj.LinearOscillator(float("nan"), 1.0, 1.0), "m"),
+        (lambda: vmj.HarmonicForce(1.0, 0.0), "p"),
+        (lambda: vmj.HarmonicForce(float("nan"), 1.0), "F0"),
+        (lambda: vmj.BaseMotion(0.01, -2.0), "p"),
+        (lambda: vmj.LinearOscillator(1.0, 1.0, 1.0, forcing=3.0), "forcing"),
+        (lambda: vmj.linear_simulate(vmj.LinearOscillator(1.0, 1.0, 1.0), 0.0, 1.0, 0.0), "t1"),
+    ],
+)
 def test_bad_input(make, name):
     with pytest.raises(ValueError, match=name):
         make()
@@ -189,18 +215,57 @@ def _cli_json(capsys, argv):
     return json.loads(capsys.readouterr().out)
 
 
-KEYS = ["natural_frequency", "damped_frequency", "damping_ratio", "log_decrement",
-        "free_amplitude", "free_phase", "forced_amplitude", "forced_phase"]
+KEYS = [
+    "natural_frequency",
+    "damped_frequency",
+    "damping_ratio",
+    "log_decrement",
+    "free_amplitude",
+    "free_phase",
+    "forced_amplitude",
+    "forced_phase",
+]
 
 
 def test_cli_json(capsys):
-    out = _cli_json(capsys, ["linear", "--m", "100", "--c", "5.49e3", "--k", "4.7e5",
-                             "--x0=-2e-3", "--v0", "0.7", "--json"])
+    out = _cli_json(
+        capsys,
+        [
+            "linear",
+            "--m",
+            "100",
+            "--c",
+            "5.49e3",
+            "--k",
+            "4.7e5",
+            "--x0=-2e-3",
+            "--v0",
+            "0.7",
+            "--json",
+        ],
+    )
     assert list(out) == KEYS
     assert out["free_amplitude"] == pytest.approx(10.46e-3, abs=1e-5)
     assert out["forced_amplitude"] is None and out["forced_phase"] is None
-    out = _cli_json(capsys, ["linear", "--m", "1", "--c", "1", "--k", "14.5", "--v0", "0.1",
-                             "--F0", "4", "--p", "15", "--json"])
+    out = _cli_json(
+        capsys,
+        [
+            "linear",
+            "--m",
+            "1",
+            "--c",
+            "1",
+            "--k",
+            "14.5",
+            "--v0",
+            "0.1",
+            "--F0",
+            "4",
+            "--p",
+            "15",
+            "--json",
+        ],
+    )
     assert list(out) == KEYS
     assert out["forced_amplitude"] == pytest.approx(0.018954, abs=1e-6)
     assert out["forced_phase"] == pytest.approx(np.pi - 0.0712, abs=1e-3)
@@ -208,9 +273,14 @@ def test_cli_json(capsys):
     assert out["damped_frequency"] is None and out["log_decrement"] is None
 
 
-@pytest.mark.parametrize("argv", [["--m", "0", "--c", "1", "--k", "1"],
-                                  ["--m", "1", "--c", "-1", "--k", "1"],
-                                  ["--m", "1", "--c", "1", "--k", "1", "--F0", "1"]])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--m", "0", "--c", "1", "--k", "1"],
+        ["--m", "1", "--c", "-1", "--k", "1"],
+        ["--m", "1", "--c", "1", "--k", "1", "--F0", "1"],
+    ],
+)
 def test_cli_bad_input_exit_2(capsys, argv):
     assert cli_main(["linear", *argv]) == 2
     assert capsys.readouterr().err.startswith("vmj: error:")

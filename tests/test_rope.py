@@ -7,13 +7,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from scipy_rope import rope_turning_points
 
 import vmj
-from vmj.cli import main
 from vmj._closed_forms._osinski import _kbm_printed
+from vmj.cli import main
 
 KG_CM2 = vmj.KGF * 1e4
 E, D = 0.8e6 * KG_CM2, 0.8e11 * KG_CM2
@@ -138,14 +137,14 @@ def test_linear_frictionless_ratio_independent_of_a0(exact):
         np.testing.assert_allclose(ts, t, rtol=1e-9)
 
 
-@pytest.mark.parametrize("key", [("action", 3.0, 4.0), ("map", "quadratic"),
-                                 ("action", -3.0, 0.0)])
+@pytest.mark.parametrize("key", [("action", 3.0, 4.0), ("map", "quadratic"), ("action", -3.0, 0.0)])
 def test_exact_matches_scipy(exact, key):
     """Exact solver vs an event-driven SciPy DOP853 integration: 1e-7 on the first 40 peaks."""
     b, d, T, u, a0 = CASES[key]
     r = rope(b, d, T, u)
-    tr, xr = rope_turning_points(float(r.m), float(r.A), float(r.e), float(r.b), float(r.d),
-                                 float(r.T), L0, u, a0, 40)
+    tr, xr = rope_turning_points(
+        float(r.m), float(r.A), float(r.e), float(r.b), float(r.d), float(r.T), L0, u, a0, 40
+    )
     t, x, _ = exact[key]
     assert len(tr) == 40
     np.testing.assert_allclose(x[:40], xr, rtol=1e-7)
@@ -203,13 +202,13 @@ def test_braking_drum_dynamic_force():
     tau; from rest relative to the rope, the load overshoots by u/omega (rectangular pulse:
     (2 u/(omega tau)) sin(omega tau/2)), so the dynamic rope stress is e x_max / l."""
     u, tau, l0 = -0.2094, 2e-3, 1.0
-    A, e, m = np.pi * 0.01 ** 2, 2e11, 1000.0
+    A, e, m = np.pi * 0.01**2, 2e11, 1000.0
     r = vmj.Rope(m, A, e, 0.0, 0.0, 0.0, vmj.Braking(l0, u, 0.01, 0.01 + tau))
     traj = vmj.simulate(r, 1e-8, 0.0, 0.1, n_save=4001, smoothing=1e-6)
     assert traj.message == "reached every requested turning point"
     l_end = float(r.length.length(1.0))  # length after the stop
     omega = np.sqrt(A * e / (m * l_end))
-    expected = 2 * abs(u) / (omega ** 2 * tau) * np.sin(omega * tau / 2)
+    expected = 2 * abs(u) / (omega**2 * tau) * np.sin(omega * tau / 2)
     assert abs(float(jnp.max(jnp.abs(traj.xs))) / expected - 1) < 2e-3
     # exact solver: with friction the load sticks until the drum starts braking, is pushed off
     # by the inertial force m l'' at t_brake, and then decays by 2 A T / k per half-swing
@@ -232,10 +231,18 @@ def test_braking_drum_dynamic_force():
     np.testing.assert_allclose(-np.diff(np.abs(x)), 2 * static / k, rtol=1e-6)
 
 
-@pytest.mark.parametrize("bad, name", [
-    (dict(A=0.0), "A"), (dict(e=-1.0), "e"), (dict(m=0.0), "m"), (dict(l0=0.0), "l0"),
-    (dict(T=-1.0), "T"), (dict(e=float("nan")), "e"), (dict(d=-1.0), "d"),
-])
+@pytest.mark.parametrize(
+    "bad, name",
+    [
+        (dict(A=0.0), "A"),
+        (dict(e=-1.0), "e"),
+        (dict(m=0.0), "m"),
+        (dict(l0=0.0), "l0"),
+        (dict(T=-1.0), "T"),
+        (dict(e=float("nan")), "e"),
+        (dict(d=-1.0), "d"),
+    ],
+)
 def test_bad_parameters_raise(bad, name):
     p = dict(m=M, A=AREA, e=E, b=0.0, d=D, T=1e5, l0=L0)
     p.update(bad)
@@ -255,8 +262,24 @@ def test_horizon_beyond_zero_length_raises():
         vmj.kbm_amplitude(r, float("nan"), 1.0)
 
 
-CLI = ["decay", "rope", "--m", "2", "--A", "1.74", "--e", "0.8e6", "--d", "0.8e11", "--T", "4",
-       "--l0", "10", "--units", "technical"]
+CLI = [
+    "decay",
+    "rope",
+    "--m",
+    "2",
+    "--A",
+    "1.74",
+    "--e",
+    "0.8e6",
+    "--d",
+    "0.8e11",
+    "--T",
+    "4",
+    "--l0",
+    "10",
+    "--units",
+    "technical",
+]
 
 
 def test_cli_json_shape(capsys):
@@ -272,9 +295,14 @@ def test_cli_json_shape(capsys):
     assert out["method"] == "exact" and max(out["times"]) <= 0.06 and len(out["times"]) == 5
 
 
-@pytest.mark.parametrize("extra", [["--u", "3", "--a0", "1", "--t1", "4"],
-                                   ["--u", "3", "--a0", "-1", "--t1", "1"],
-                                   ["--u", "3", "--a0", "1", "--t1", "1", "--T", "-2"]])
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--u", "3", "--a0", "1", "--t1", "4"],
+        ["--u", "3", "--a0", "-1", "--t1", "1"],
+        ["--u", "3", "--a0", "1", "--t1", "1", "--T", "-2"],
+    ],
+)
 def test_cli_bad_input_exit_2(capsys, extra):
     assert main(CLI + extra + ["--method", "kbm"]) == 2
     err = capsys.readouterr().err

@@ -72,8 +72,10 @@ def test_vmappable_and_sweepable():
         return vmj.sensitivity(energy_amplitudes, model_at(eps=e), ("mu", "F"), a0=A0, n=6)
 
     batched = jax.vmap(at)(eps)
-    swept = vmj.sweep(lambda m: vmj.sensitivity(energy_amplitudes, m, ("mu", "F"), a0=A0, n=6),
-                      vmj.grid(model_at(), eps=eps))
+    swept = vmj.sweep(
+        lambda m: vmj.sensitivity(energy_amplitudes, m, ("mu", "F"), a0=A0, n=6),
+        vmj.grid(model_at(), eps=eps),
+    )
     for i, e in enumerate(eps):
         one = at(e)
         for name in ("mu", "F"):
@@ -89,8 +91,7 @@ def test_bad_input():
     with pytest.raises(ValueError, match="mode must be"):
         vmj.sensitivity(energy_amplitudes, m, ("mu",), a0=A0, n=3, mode="central")
     with pytest.raises(ValueError, match="float arrays only"):
-        vmj.sensitivity(lambda m, a0, n: vmj.energy_balance(m, a0, n).count, m, ("mu",),
-                        a0=A0, n=3)
+        vmj.sensitivity(lambda m, a0, n: vmj.energy_balance(m, a0, n).count, m, ("mu",), a0=A0, n=3)
     with pytest.raises(ValueError, match="at least one"):
         vmj.sensitivity(energy_amplitudes, m, (), a0=A0, n=3)
 

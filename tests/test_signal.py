@@ -9,8 +9,7 @@ import os
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 import fits
 from fits._io import _noise
@@ -21,8 +20,20 @@ RATE = 259.37  #: synthetic sampling rate [Hz], near the pendulum records'
 
 
 # -- synthetic records ---------------------------------------------------------------------------
-def arrival_stamps(n, rate, seed, *, drop_rows=(), lost_packets=(), quantum=1e-3, t_start=1000.0,
-                   jitter=0.3e-3, wander=1e-3, read=6e-4, busy=()):
+def arrival_stamps(
+    n,
+    rate,
+    seed,
+    *,
+    drop_rows=(),
+    lost_packets=(),
+    quantum=1e-3,
+    t_start=1000.0,
+    jitter=0.3e-3,
+    wander=1e-3,
+    read=6e-4,
+    busy=(),
+):
     """A uniform sampler at `rate` whose rows reach the computer in packets (13-21 rows, now and
     then 1-2): the last row of a packet arrives 2 ms + an exponential latency (scale `jitter`)
     + a slow wander after it was sampled, the earlier rows were read `read` apart before it;
@@ -103,8 +114,9 @@ def test_a_busy_computer_is_no_dropped_sample(seed):
     """The computer stutters three times for 0.6 s (most packets held up by 5-50 ms) while the
     latency wanders by +-4 ms (a period): those bursts lie far above the envelope for a while
     and must not look like dropped samples."""
-    s, stamps, _ = arrival_stamps(8000, RATE, seed, wander=4e-3,
-                                  busy=((5.0, 0.6), (15.0, 0.6), (25.0, 0.6)))
+    s, stamps, _ = arrival_stamps(
+        8000, RATE, seed, wander=4e-3, busy=((5.0, 0.6), (15.0, 0.6), (25.0, 0.6))
+    )
     t, report = fits.recover_clock(stamps)
     assert report["dropped"] == 0
     assert abs(report["rate_hz"] / RATE - 1) < 1e-4
@@ -114,8 +126,9 @@ def test_a_busy_computer_is_no_dropped_sample(seed):
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_dropped_samples_and_a_lost_packet(seed):
-    s, stamps, packet = arrival_stamps(8000, RATE, seed, drop_rows=(1000, 5000, 5001),
-                                       lost_packets=(200,))
+    s, stamps, packet = arrival_stamps(
+        8000, RATE, seed, drop_rows=(1000, 5000, 5001), lost_packets=(200,)
+    )
     n_true = int(round((s[-1] - s[0]) * RATE)) + 1
     t, report = fits.recover_clock(stamps)
     assert report["dropped"] == n_true - s.size
@@ -135,8 +148,9 @@ def test_recovered_rate_property(rate, seed):
     """Any rate, any seed: the rate within 1e-4 and every sample time within a quarter period,
     for stamps whose resolution and latency scatter are a tenth of a period and rows read at 6
     times the sampling rate (8000 samples, about 470 packets)."""
-    s, stamps, _ = arrival_stamps(8000, rate, seed, quantum=0.1 / rate, jitter=0.1 / rate,
-                                  wander=0.0, read=1 / (6 * rate))
+    s, stamps, _ = arrival_stamps(
+        8000, rate, seed, quantum=0.1 / rate, jitter=0.1 / rate, wander=0.0, read=1 / (6 * rate)
+    )
     t, report = fits.recover_clock(stamps)
     assert report["method"] == "envelope"
     assert abs(report["rate_hz"] / rate - 1) < 1e-4
@@ -184,12 +198,15 @@ def test_given_rate_on_arrival_stamps():
     assert np.max(np.abs(err)) < 0.25 / RATE
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"clock": "wall"}, "clock must be one of"),
-    ({"rate": -3.0}, "rate must be a positive number"),
-    ({"rate": "fast"}, "rate must be a positive number"),
-    ({"clock": "stamps", "rate": 100.0}, "cannot be combined"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"clock": "wall"}, "clock must be one of"),
+        ({"rate": -3.0}, "rate must be a positive number"),
+        ({"rate": "fast"}, "rate must be a positive number"),
+        ({"clock": "stamps", "rate": 100.0}, "cannot be combined"),
+    ],
+)
 def test_clock_argument_errors(kwargs, message):
     with pytest.raises(ValueError, match=message):
         fits.recover_clock(np.arange(10.0), **kwargs)
@@ -264,8 +281,7 @@ def test_turning_points_on_the_recovered_clock(tmp_path):
     assert abs(rec.centre - 1.5) < 0.02
     stamped = fits.read_record(path, series=True, clock="stamps")
     m = min(len(stamped), n)
-    assert np.sqrt(np.mean((stamped.times[:m] - truth_t[:m]) ** 2)) > 10 * np.sqrt(
-        np.mean(dt**2))
+    assert np.sqrt(np.mean((stamped.times[:m] - truth_t[:m]) ** 2)) > 10 * np.sqrt(np.mean(dt**2))
 
 
 def test_noise_estimate_on_an_oversampled_signal():
@@ -413,11 +429,13 @@ def test_missing_file_and_directory(tmp_path):
 def test_encodings_and_line_ends_are_read(tmp_path):
     text = "time (s),angle\n0,1\n0.1,2.5\n0.2,-1\n"
     plain = fits.read_signal(_write(tmp_path, text, "plain.csv"))
-    for name, data in [("bom.csv", b"\xef\xbb\xbf" + text.encode()),
-                       ("crlf.csv", text.replace("\n", "\r\n").encode()),
-                       ("cr.csv", text.replace("\n", "\r").encode()),
-                       ("utf16.csv", text.encode("utf-16")),
-                       ("latin1.csv", text.replace("angle", "angle (\xb0)").encode("cp1252"))]:
+    for name, data in [
+        ("bom.csv", b"\xef\xbb\xbf" + text.encode()),
+        ("crlf.csv", text.replace("\n", "\r\n").encode()),
+        ("cr.csv", text.replace("\n", "\r").encode()),
+        ("utf16.csv", text.encode("utf-16")),
+        ("latin1.csv", text.replace("angle", "angle (\xb0)").encode("cp1252")),
+    ]:
         sig = fits.read_signal(_write(tmp_path, data, name))
         np.testing.assert_array_equal(sig.y, plain.y)
         np.testing.assert_array_equal(sig.t, plain.t)
@@ -464,10 +482,12 @@ def test_row_limit(tmp_path):
     rows = 30_000
     t = np.arange(rows) / 1000.0
     path = tmp_path / "long.csv"
-    np.savetxt(path, np.column_stack([t, np.sin(20 * t)]), delimiter=",", header="t,y",
-               comments="")
-    with pytest.raises(ValueError, match=r"about 3\d,\d{3} rows .*more than the limit of "
-                                         r"10,000 rows: pass a larger max_rows"):
+    np.savetxt(path, np.column_stack([t, np.sin(20 * t)]), delimiter=",", header="t,y", comments="")
+    with pytest.raises(
+        ValueError,
+        match=r"about 3\d,\d{3} rows .*more than the limit of "
+        r"10,000 rows: pass a larger max_rows",
+    ):
         fits.read_signal(str(path), max_rows=10_000)  # estimated from the size, not read
     with pytest.raises(ValueError, match=r"30,000 rows, more than the limit of 29,000"):
         fits.read_signal(str(path), max_rows=29_000)  # within the estimate's margin: counted

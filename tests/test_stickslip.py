@@ -7,12 +7,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
+from scipy_stickslip import stick_slip_cycle as scipy_cycle
 
 import vmj
 from vmj.cli import main as cli_main
-from scipy_stickslip import stick_slip_cycle as scipy_cycle
 
 REL = 1e-8
 
@@ -47,15 +46,33 @@ def test_exact_matches_closed_form_property(eps, Omega):
 
 
 # the k* boundaries eps = 3, 5, 7, ... (and the paper's 1e-5 margin) on both sides
-@pytest.mark.parametrize("eps", [3.0, 5.0, 7.0, 9.0, 13.0, 3.0 + 1e-9, 5.0 - 1e-9, 7.0 + 1e-4,
-                                 3.00001, 3.00003, 2.0, 1.1, 15.0])
+@pytest.mark.parametrize(
+    "eps",
+    [
+        3.0,
+        5.0,
+        7.0,
+        9.0,
+        13.0,
+        3.0 + 1e-9,
+        5.0 - 1e-9,
+        7.0 + 1e-4,
+        3.00001,
+        3.00003,
+        2.0,
+        1.1,
+        15.0,
+    ],
+)
 @pytest.mark.parametrize("Omega", [0.05, 1.0, 5.0])
 def test_exact_matches_closed_form_at_boundaries(eps, Omega):
     _agree(eps, Omega)
 
 
-@pytest.mark.parametrize("eps,Omega", [(1.1, 0.05), (2.5, 1.0), (4.0, 0.3), (6.0, 5.0),
-                                       (8.5, 0.7), (10.0, 2.0), (15.0, 0.05)])
+@pytest.mark.parametrize(
+    "eps,Omega",
+    [(1.1, 0.05), (2.5, 1.0), (4.0, 0.3), (6.0, 5.0), (8.5, 0.7), (10.0, 2.0), (15.0, 0.05)],
+)
 def test_exact_matches_scipy_event_integration(eps, Omega):
     k, taus, slip, stick, period = scipy_cycle(eps, Omega)
     a = exact_jit(eps, Omega)
@@ -125,24 +142,39 @@ def test_from_physical_units():
     assert float(tr.vs[-1]) == pytest.approx(0.0, abs=1e-12)
     # slip and stick in seconds: rest fraction of the samples
     assert np.mean(np.abs(np.asarray(tr.vs)) < 1e-12) == pytest.approx(
-        float(phys["stick_time"] / phys["period"]), abs=1e-3)
+        float(phys["stick_time"] / phys["period"]), abs=1e-3
+    )
 
 
-@pytest.mark.parametrize("kwargs,name", [
-    (dict(eps=1.0, Omega=1.0), "eps"), (dict(eps=0.5, Omega=1.0), "eps"),
-    (dict(eps=4.0, Omega=0.0), "Omega"), (dict(eps=4.0, Omega=-1.0), "Omega"),
-    (dict(eps=float("nan"), Omega=1.0), "eps"), (dict(eps=4.0, Omega=float("nan")), "Omega"),
-])
+@pytest.mark.parametrize(
+    "kwargs,name",
+    [
+        (dict(eps=1.0, Omega=1.0), "eps"),
+        (dict(eps=0.5, Omega=1.0), "eps"),
+        (dict(eps=4.0, Omega=0.0), "Omega"),
+        (dict(eps=4.0, Omega=-1.0), "Omega"),
+        (dict(eps=float("nan"), Omega=1.0), "eps"),
+        (dict(eps=4.0, Omega=float("nan")), "Omega"),
+    ],
+)
 def test_bad_model_input(kwargs, name):
     with pytest.raises(ValueError, match=name):
         vmj.StickSlip(**kwargs)
 
 
-@pytest.mark.parametrize("args,name", [
-    ((0.0, 1, 1, 1, 2), "I"), ((-1.0, 1, 1, 1, 2), "I"), ((1, 0.0, 1, 1, 2), "c"),
-    ((1, 1, 0.0, 1, 2), "omega"), ((1, 1, 1, 0.0, 2), "M0"), ((1, 1, 1, 1, 0.5), "M1"),
-    ((1, 1, 1, 1, 1.0), "M1"), ((float("nan"), 1, 1, 1, 2), "I"),
-])
+@pytest.mark.parametrize(
+    "args,name",
+    [
+        ((0.0, 1, 1, 1, 2), "I"),
+        ((-1.0, 1, 1, 1, 2), "I"),
+        ((1, 0.0, 1, 1, 2), "c"),
+        ((1, 1, 0.0, 1, 2), "omega"),
+        ((1, 1, 1, 0.0, 2), "M0"),
+        ((1, 1, 1, 1, 0.5), "M1"),
+        ((1, 1, 1, 1, 1.0), "M1"),
+        ((float("nan"), 1, 1, 1, 2), "I"),
+    ],
+)
 def test_bad_physical_input(args, name):
     with pytest.raises(ValueError, match=name):
         vmj.StickSlip.from_physical(*args)
@@ -167,8 +199,9 @@ def _cli_json(capsys, argv):
 
 @pytest.mark.parametrize("method", ["exact", "closed"])
 def test_cli_json_shape(capsys, method):
-    out = _cli_json(capsys, ["stick-slip", "--eps", "6.3", "--Omega", "0.7", "--method", method,
-                             "--json"])
+    out = _cli_json(
+        capsys, ["stick-slip", "--eps", "6.3", "--Omega", "0.7", "--method", method, "--json"]
+    )
     assert list(out) == ["reversals", "slip_intervals", "slip_time", "stick_time", "period"]
     assert isinstance(out["reversals"], int) and out["reversals"] == 2
     assert len(out["slip_intervals"]) == 3
@@ -177,8 +210,14 @@ def test_cli_json_shape(capsys, method):
     assert out["period"] == pytest.approx(ref[4], rel=REL)
 
 
-@pytest.mark.parametrize("argv", [["--eps", "1", "--Omega", "1"], ["--eps", "4", "--Omega", "0"],
-                                  ["--eps", "4", "--Omega", "-2"]])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--eps", "1", "--Omega", "1"],
+        ["--eps", "4", "--Omega", "0"],
+        ["--eps", "4", "--Omega", "-2"],
+    ],
+)
 def test_cli_bad_input_exit_2(capsys, argv):
     assert cli_main(["stick-slip", *argv]) == 2
     err = capsys.readouterr().err

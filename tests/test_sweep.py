@@ -11,15 +11,16 @@ import textwrap
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy_reference import variable_mass_turning_points
 
 import vmj
-from scipy_reference import variable_mass_turning_points
 from vmj._sweep._engine import CORES
 from vmj._sweep._sweep import chunk_plan
 
 
 def n_chunks(n, chunk_size, lanes=CORES):
     return -(-n // chunk_plan(n, chunk_size, lanes))
+
 
 A0 = 0.06
 N_SWINGS = 12
@@ -53,19 +54,22 @@ def test_sweep_equals_point_by_point(exact_grid):
         for j, m in enumerate(MU):
             for k, d in enumerate(DELTA):
                 one = vmj.turning_points(paper_model(d, e, m), A0, N_SWINGS)
-                np.testing.assert_allclose(r.values.positions[i, j, k], one.positions,
-                                           rtol=0, atol=1e-12 * A0)
+                np.testing.assert_allclose(
+                    r.values.positions[i, j, k], one.positions, rtol=0, atol=1e-12 * A0
+                )
                 np.testing.assert_allclose(r.values.times[i, j, k], one.times, rtol=1e-12)
                 for name in ("crossed", "count", "stopped", "result"):
-                    np.testing.assert_array_equal(getattr(r.values, name)[i, j, k],
-                                                  getattr(one, name))
+                    np.testing.assert_array_equal(
+                        getattr(r.values, name)[i, j, k], getattr(one, name)
+                    )
 
 
 @pytest.mark.parametrize("idx", [(0, 0, 1), (1, 1, 0), (2, 2, 1), (2, 0, 0)])
 def test_sweep_matches_scipy(exact_grid, idx):
     i, j, k = idx
-    t_ref, x_ref, c_ref = variable_mass_turning_points(5.0, 4900.0, DELTA[k], EPS[i], MU[j], A0,
-                                                       N_SWINGS, F=14.7)
+    t_ref, x_ref, c_ref = variable_mass_turning_points(
+        5.0, 4900.0, DELTA[k], EPS[i], MU[j], A0, N_SWINGS, F=14.7
+    )
     seq = exact_grid.values
     count = int(seq.count[idx])
     assert count == len(x_ref)
@@ -128,14 +132,17 @@ def test_one_point_and_size_one_axes():
     g = vmj.grid(paper_model(), eps=[0.5], mu=[1.0, 2.0], delta=[3.0])
     r = vmj.sweep(vmj.energy_balance, g, a0=A0, n=4)
     assert r.shape == (1, 2, 1)
-    np.testing.assert_allclose(r.values.positions[0, 1, 0],
-                               vmj.energy_balance(paper_model(eps=0.5, mu=2.0), A0, 4).positions,
-                               atol=1e-12 * A0)
+    np.testing.assert_allclose(
+        r.values.positions[0, 1, 0],
+        vmj.energy_balance(paper_model(eps=0.5, mu=2.0), A0, 4).positions,
+        atol=1e-12 * A0,
+    )
 
 
 def test_small_sweeps_use_every_core():
-    r = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=np.linspace(0, 1, 10)),
-                  a0=A0, n=4)
+    r = vmj.sweep(
+        vmj.energy_balance, vmj.grid(paper_model(), eps=np.linspace(0, 1, 10)), a0=A0, n=4
+    )
     assert r.chunks == min(CORES, 10)
 
 
@@ -143,11 +150,11 @@ def test_chunking_gives_identical_results_and_reports_progress(capsys):
     # chunks of 2500 (on two cores) against chunks of at most 480, the last overlapping
     rng = np.random.default_rng(1)
     n = 5000
-    model = paper_model(delta=rng.uniform(-3, 3, n), eps=rng.uniform(0, 1, n),
-                        mu=rng.uniform(0, 10, n))
+    model = paper_model(
+        delta=rng.uniform(-3, 3, n), eps=rng.uniform(0, 1, n), mu=rng.uniform(0, 10, n)
+    )
     whole = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=n)
-    parts = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=480,
-                      progress=True)
+    parts = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=480, progress=True)
     k = n_chunks(n, 480)
     assert whole.chunks == n_chunks(n, n) and parts.chunks == k >= 11
     for a, b in zip(whole.values.__dict__.values(), parts.values.__dict__.values()):
@@ -158,9 +165,14 @@ def test_chunking_gives_identical_results_and_reports_progress(capsys):
 
 def _run(code: str, env_extra: dict | None = None) -> dict:
     env = {**os.environ, **(env_extra or {})}
-    out = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
-                         text=True, env=env, timeout=300,
-                         cwd=os.path.dirname(os.path.dirname(__file__)))
+    out = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        cwd=os.path.dirname(os.path.dirname(__file__)),
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -200,7 +212,8 @@ def test_retain_host_memory_checks_its_limit():
 
 
 def test_sharded_over_four_devices_equals_one_device():
-    got = _run("""
+    got = _run(
+        """
         import json
         import jax
         jax.config.update("jax_enable_x64", True)
@@ -220,7 +233,9 @@ def test_sharded_over_four_devices_equals_one_device():
                    for a, b in zip(jax.tree.leaves(x.values), jax.tree.leaves(y.values)))
         print(json.dumps({"devices": [four.devices, one.devices], "diff": diff,
                           "chunks": four.chunks, "small": list(four_small.values.positions.shape)}))
-    """, {"XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"})
+    """,
+        {"XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"},
+    )
     assert got["devices"] == [4, 1] and got["chunks"] == 3 and got["small"] == [5, 12]
     assert got["diff"] <= 1e-15
 
@@ -285,9 +300,24 @@ def test_cli_sweep(tmp_path, capsys):
     from vmj.cli import main
 
     out, fig = tmp_path / "s.csv", tmp_path / "s.png"
-    argv = ["sweep", "variable-mass", "--eps", "0:1:3", "--mu", "0:10:3", "--delta", "-3:3:2",
-            "--set", "m0=5,c=4900,FT=14.7,a0=0.06", "--method", "energy", "--out", str(out),
-            "--plot", str(fig)]
+    argv = [
+        "sweep",
+        "variable-mass",
+        "--eps",
+        "0:1:3",
+        "--mu",
+        "0:10:3",
+        "--delta",
+        "-3:3:2",
+        "--set",
+        "m0=5,c=4900,FT=14.7,a0=0.06",
+        "--method",
+        "energy",
+        "--out",
+        str(out),
+        "--plot",
+        str(fig),
+    ]
     assert main(argv) == 0
     assert "18 points (eps 3 x mu 3 x delta 2)" in capsys.readouterr().out
     back = vmj.SweepResult.read_csv(str(out))
@@ -336,9 +366,13 @@ def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
     np.testing.assert_array_equal(r.values.count, exact.values.count)
     # the turning points before the last (where the smoothed model creeps to its rest)
     before_rest = np.arange(N_SWINGS) < exact.values.count[..., None] - 1
-    np.testing.assert_allclose(r.values.positions[before_rest],
-                               exact.values.positions[before_rest], rtol=0, atol=1e-6 * A0)
+    np.testing.assert_allclose(
+        r.values.positions[before_rest], exact.values.positions[before_rest], rtol=0, atol=1e-6 * A0
+    )
     memory[0] = 1.5 * CORES * per_point  # not even two chunks of 4 points
-    with pytest.raises(ValueError, match=r"chunk_size=8 needs .* GB of working memory per chunk "
-                                         r".* use chunk_size <= \d+, or leave it"):
+    with pytest.raises(
+        ValueError,
+        match=r"chunk_size=8 needs .* GB of working memory per chunk "
+        r".* use chunk_size <= \d+, or leave it",
+    ):
         vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth", chunk_size=8)

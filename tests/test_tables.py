@@ -52,13 +52,17 @@ def test_the_noted_cells_are_the_known_discrepancies(rows):
     assert set(noted) == set(KNOWN) | {(1, 9.0, 0.0, 8)}
     for key, expected in KNOWN.items():
         r = noted[key]
-        print(f"table {key[0]} mu={key[1]:g} eps={key[2]:g} k={key[3]}: printed "
-              f"{r['paper_monograph_cm']:.3f}, vmj exact {r['exact_cm']:.4f}")
+        print(
+            f"table {key[0]} mu={key[1]:g} eps={key[2]:g} k={key[3]}: printed "
+            f"{r['paper_monograph_cm']:.3f}, vmj exact {r['exact_cm']:.4f}"
+        )
         assert abs(r["exact_cm"] - r["paper_monograph_cm"]) > 0.005  # a real discrepancy
         assert abs(r["exact_cm"] - expected) < 0.001
     r = noted[(1, 9.0, 0.0, 8)]  # the energy-balance star erratum; the monograph cell is fine
-    print(f"table 1 mu=9 eps=0 k=8: monograph {r['paper_monograph_cm']:.3f}*, "
-          f"vmj exact {r['exact_cm']:.4f}{'' if r['exact_crossed'] else '*'}")
+    print(
+        f"table 1 mu=9 eps=0 k=8: monograph {r['paper_monograph_cm']:.3f}*, "
+        f"vmj exact {r['exact_cm']:.4f}{'' if r['exact_crossed'] else '*'}"
+    )
     assert abs(r["exact_cm"] - r["paper_monograph_cm"]) < 0.002
 
 

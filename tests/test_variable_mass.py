@@ -8,8 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 from scipy_reference import variable_mass_turning_points
 
 import vmj
@@ -68,12 +67,15 @@ def test_exact_matches_scipy_event_integration():
         x = np.asarray(seq.positions[i, :k])
         big = np.abs(x_ref) > 0.01 * A0
         worst = max(worst, np.max(np.abs(x - x_ref)[big] / np.abs(x_ref[big]), initial=0.0))
-        worst_t = max(worst_t, np.max(np.abs(np.asarray(seq.times[i, :k]) - t_ref) / t_ref,
-                                      initial=0.0))
+        worst_t = max(
+            worst_t, np.max(np.abs(np.asarray(seq.times[i, :k]) - t_ref) / t_ref, initial=0.0)
+        )
         np.testing.assert_array_equal(np.asarray(seq.crossed[i, :k]), c_ref)
         compared += k
-    print(f"compared {compared} turning points: worst relative amplitude error {worst:.2e}, "
-          f"time error {worst_t:.2e}")
+    print(
+        f"compared {compared} turning points: worst relative amplitude error {worst:.2e}, "
+        f"time error {worst_t:.2e}"
+    )
     assert compared > 100
     assert worst < 1e-7
     assert worst_t < 1e-9
@@ -89,8 +91,11 @@ def test_constant_mass_coulomb_decrement_is_exactly_2F_over_c():
         np.testing.assert_allclose(-np.diff(a)[crossed], 2 * FT / C, rtol=1e-9, atol=0)
     seq = vmj.turning_points(m, A0, 12)
     # constant mass: every half-swing lasts exactly pi sqrt(m/c)
-    np.testing.assert_allclose(np.diff(np.concatenate([[0], np.asarray(seq.times)[:9]])),
-                               np.pi * np.sqrt(M0 / C), rtol=1e-12)
+    np.testing.assert_allclose(
+        np.diff(np.concatenate([[0], np.asarray(seq.times)[:9]])),
+        np.pi * np.sqrt(M0 / C),
+        rtol=1e-12,
+    )
 
 
 @pytest.mark.parametrize("eps,delta", [(0.0, 3.0), (0.75, -4.0), (1.0, -3.0)])
@@ -167,7 +172,9 @@ def test_gradients_match_central_differences(law, theta):
     values = jax.jit(jax.vmap(_positions, in_axes=(0, None)), static_argnums=1)(theta + steps, law)
     fd = ((values[:4] - values[4:]) / (2 * h[:, None])).T
     scale = jnp.max(jnp.abs(fd), axis=0)
-    print(f"max |reverse - central difference| / scale: {float(jnp.max(jnp.abs(rev - fd) / scale)):.1e}")
+    print(
+        f"max |reverse - central difference| / scale: {float(jnp.max(jnp.abs(rev - fd) / scale)):.1e}"
+    )
     np.testing.assert_allclose(rev / scale, fd / scale, atol=1e-7)
     if law == "F":  # forward mode gives the same Jacobian
         fwd = jax.jit(jax.jacfwd(_positions), static_argnums=1)(theta, law)
@@ -204,8 +211,9 @@ def test_runaway_growing_mass_has_no_turning_point(delta):
 def test_release_when_friction_falls_with_the_mass():
     """f-law with shrinking mass: a stuck mass moves on once f g m(t) < c |x|, as in SciPy."""
     p = dict(m0=5.0, c=C, delta=-3.0, eps=0.0, mu=60.0, f=0.3)
-    seq = vmj.turning_points(vmj.VariableMass(5.0, C, -3.0, 0.0, 60.0,
-                                              vmj.MassProportional(0.3)), A0, 12)
+    seq = vmj.turning_points(
+        vmj.VariableMass(5.0, C, -3.0, 0.0, 60.0, vmj.MassProportional(0.3)), A0, 12
+    )
     t_ref, x_ref, _ = variable_mass_turning_points(a0=A0, n=12, **p)
     k = len(t_ref)
     assert int(seq.count) == k
@@ -215,8 +223,14 @@ def test_release_when_friction_falls_with_the_mass():
 
 # -- invariants (hypothesis) --------------------------------------------------------------------
 @given(
-    m0=st.floats(0.5, 20), c=st.floats(100, 2e4), delta=st.floats(-3, 3), eps=st.floats(0, 1),
-    mu=st.floats(0, 20), F=st.floats(0, 30), f=st.floats(0, 0.5), use_f=st.booleans(),
+    m0=st.floats(0.5, 20),
+    c=st.floats(100, 2e4),
+    delta=st.floats(-3, 3),
+    eps=st.floats(0, 1),
+    mu=st.floats(0, 20),
+    F=st.floats(0, 30),
+    f=st.floats(0, 0.5),
+    use_f=st.booleans(),
 )
 def test_decay_sequence_invariants(m0, c, delta, eps, mu, F, f, use_f):
     args = [jnp.full(16, v) for v in (m0, c, delta, eps, mu, F, f, use_f)]
@@ -281,11 +295,18 @@ def energy_balance_reference(m0, c, delta, eps, mu, F, f, use_f, a0, n):
 
 
 @given(
-    m0=st.floats(0.05, 10), delta=st.floats(-30, 30), eps=st.floats(0, 1), mu=st.floats(0, 10),
-    F=st.floats(0, 30), f=st.floats(0, 0.5), use_f=st.booleans(), a0=st.floats(1e-3, 0.1),
+    m0=st.floats(0.05, 10),
+    delta=st.floats(-30, 30),
+    eps=st.floats(0, 1),
+    mu=st.floats(0, 10),
+    F=st.floats(0, 30),
+    f=st.floats(0, 0.5),
+    use_f=st.booleans(),
+    a0=st.floats(1e-3, 0.1),
 )
-def test_energy_balance_matches_a_plain_swing_by_swing_reference(m0, delta, eps, mu, F, f,
-                                                                  use_f, a0):
+def test_energy_balance_matches_a_plain_swing_by_swing_reference(
+    m0, delta, eps, mu, F, f, use_f, a0
+):
     """vmj's vectorised energy balance (absorbing state, flags and status read off the states)
     against the recurrences written out: the same count, crossings and status, positions to
     1e-12 of a0 and times to 1e-12 relative."""
@@ -300,11 +321,21 @@ def test_energy_balance_matches_a_plain_swing_by_swing_reference(m0, delta, eps,
 
 
 # -- bad input ----------------------------------------------------------------------------------
-@pytest.mark.parametrize("kwargs,name", [
-    (dict(m0=0.0), "m0"), (dict(m0=-1.0), "m0"), (dict(c=0.0), "c"), (dict(c=-5.0), "c"),
-    (dict(mu=-1.0), "mu"), (dict(eps=-0.1), "eps"), (dict(eps=1.5), "eps"),
-    (dict(delta=float("nan")), "delta"), (dict(m0=float("inf")), "m0"), (dict(mu=float("nan")), "mu"),
-])
+@pytest.mark.parametrize(
+    "kwargs,name",
+    [
+        (dict(m0=0.0), "m0"),
+        (dict(m0=-1.0), "m0"),
+        (dict(c=0.0), "c"),
+        (dict(c=-5.0), "c"),
+        (dict(mu=-1.0), "mu"),
+        (dict(eps=-0.1), "eps"),
+        (dict(eps=1.5), "eps"),
+        (dict(delta=float("nan")), "delta"),
+        (dict(m0=float("inf")), "m0"),
+        (dict(mu=float("nan")), "mu"),
+    ],
+)
 def test_bad_model_parameters_raise_value_error(kwargs, name):
     p = dict(m0=M0, c=C, delta=3.0, eps=0.0, mu=2.0)
     p.update(kwargs)
@@ -312,29 +343,37 @@ def test_bad_model_parameters_raise_value_error(kwargs, name):
         vmj.VariableMass(friction=vmj.Coulomb(FT), **p)
 
 
-@pytest.mark.parametrize("make,name", [
-    (lambda: vmj.Coulomb(-1.0), "F"), (lambda: vmj.Coulomb(float("nan")), "F"),
-    (lambda: vmj.MassProportional(-0.1), "f"), (lambda: vmj.MassProportional(0.3, g=0.0), "g"),
-])
+@pytest.mark.parametrize(
+    "make,name",
+    [
+        (lambda: vmj.Coulomb(-1.0), "F"),
+        (lambda: vmj.Coulomb(float("nan")), "F"),
+        (lambda: vmj.MassProportional(-0.1), "f"),
+        (lambda: vmj.MassProportional(0.3, g=0.0), "g"),
+    ],
+)
 def test_bad_friction_raises_value_error(make, name):
     with pytest.raises(ValueError, match=rf"^{name} must be"):
         make()
 
 
-@pytest.mark.parametrize("call,name", [
-    (lambda m: vmj.turning_points(m, 0.0, 5), "a0"),
-    (lambda m: vmj.turning_points(m, -0.01, 5), "a0"),
-    (lambda m: vmj.turning_points(m, float("nan"), 5), "a0"),
-    (lambda m: vmj.turning_points(m, A0, 0), "n"),
-    (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=0.0), "smoothing"),
-    (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=-1.0), "smoothing"),
-    (lambda m: vmj.energy_balance(m, -1.0, 5), "a0"),
-    (lambda m: vmj.turning_points(m, A0, 5, method="rk4"), "method"),
-    (lambda m: vmj.simulate(m, -A0, 0.0, 0.0), "t1"),
-    (lambda m: vmj.simulate(m, -A0, 0.0, 1.0, smoothing=0.0), "smoothing"),
-    (lambda m: vmj.simulate(m, float("inf"), 0.0, 1.0), "x0"),
-    (lambda m: vmj.simulate(m, 0.0, 0.0, 1.0), "smoothing"),  # no velocity scale for a default
-])
+@pytest.mark.parametrize(
+    "call,name",
+    [
+        (lambda m: vmj.turning_points(m, 0.0, 5), "a0"),
+        (lambda m: vmj.turning_points(m, -0.01, 5), "a0"),
+        (lambda m: vmj.turning_points(m, float("nan"), 5), "a0"),
+        (lambda m: vmj.turning_points(m, A0, 0), "n"),
+        (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=0.0), "smoothing"),
+        (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=-1.0), "smoothing"),
+        (lambda m: vmj.energy_balance(m, -1.0, 5), "a0"),
+        (lambda m: vmj.turning_points(m, A0, 5, method="rk4"), "method"),
+        (lambda m: vmj.simulate(m, -A0, 0.0, 0.0), "t1"),
+        (lambda m: vmj.simulate(m, -A0, 0.0, 1.0, smoothing=0.0), "smoothing"),
+        (lambda m: vmj.simulate(m, float("inf"), 0.0, 1.0), "x0"),
+        (lambda m: vmj.simulate(m, 0.0, 0.0, 1.0), "smoothing"),  # no velocity scale for a default
+    ],
+)
 def test_bad_solver_arguments_raise_value_error(call, name):
     with pytest.raises(ValueError, match=rf"^{name} must be"):
         call(model())

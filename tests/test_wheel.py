@@ -24,10 +24,18 @@ pytestmark = pytest.mark.slow
 
 
 def sh(args, cwd, timeout=300, **env) -> str:
-    got = subprocess.run([str(a) for a in args], cwd=cwd, env=environment(**env),
-                         capture_output=True, text=True, timeout=timeout)
-    assert got.returncode == 0, (f"{' '.join(map(str, args))} failed ({got.returncode}):\n"
-                                 f"{got.stdout[-3000:]}\n{got.stderr[-6000:]}")
+    got = subprocess.run(
+        [str(a) for a in args],
+        cwd=cwd,
+        env=environment(**env),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+    assert got.returncode == 0, (
+        f"{' '.join(map(str, args))} failed ({got.returncode}):\n"
+        f"{got.stdout[-3000:]}\n{got.stderr[-6000:]}"
+    )
     return got.stdout
 
 
@@ -42,10 +50,24 @@ def venv(tmp_path_factory) -> Path:
     env = tmp / "venv"
     sh([sys.executable, "-m", "venv", "--without-pip", env], tmp)
     python = env / "bin" / "python"
-    sh([sys.executable, "-m", "pip", "--python", python, "install", "--quiet", "--no-deps",
-        "--no-index", wheel], tmp)
-    site = Path(sh([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                   tmp).strip())
+    sh(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "--python",
+            python,
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--no-index",
+            wheel,
+        ],
+        tmp,
+    )
+    site = Path(
+        sh([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], tmp).strip()
+    )
     ours = {sysconfig.get_paths()[k] for k in ("purelib", "platlib")}
     (site / "dependencies.pth").write_text("\n".join(sorted(ours)) + "\n")
     return env / "bin"
@@ -53,7 +75,11 @@ def venv(tmp_path_factory) -> Path:
 
 def test_wheel_installs_packages_and_data(venv, tmp_path):
     """vmj and fits import from the wheel, with their data and `py.typed` markers."""
-    out = sh([venv / "python", "-c", """
+    out = sh(
+        [
+            venv / "python",
+            "-c",
+            """
 import json, vmj, fits
 from importlib.resources import files
 from importlib.metadata import version
@@ -63,7 +89,10 @@ shipped = [str(p) for p in (files("vmj") / "py.typed", files("fits") / "py.typed
 print(json.dumps({"vmj": vmj.__file__, "fits": fits.__file__, "shipped": shipped,
                   "version": version("vmj"), "__version__": vmj.__version__,
                   "cells": len(vmj.paper_cells())}))
-"""], tmp_path)
+""",
+        ],
+        tmp_path,
+    )
     got = json.loads(out)
     env = str(venv.parent)
     assert got["vmj"].startswith(env) and got["fits"].startswith(env), got
@@ -77,11 +106,17 @@ def test_wheel_command_line(venv, tmp_path):
     record (the README's numbers: zeta = 0.00598, xF = 0.016 deg)."""
     table = sh([venv / "vmj", "table", "1"], tmp_path)
     assert "mu=9 eps=0 k=3" in table  # the misprint's note
-    record = sh([venv / "python", "-c",
-                 "from importlib.resources import files; "
-                 "print(files('fits') / 'data' / '80P.txt')"], tmp_path).strip()
-    fit = json.loads(sh([venv / "vmj", "fit", record, "--series", "--model", "oscillator",
-                         "--json"], tmp_path))
+    record = sh(
+        [
+            venv / "python",
+            "-c",
+            "from importlib.resources import files; print(files('fits') / 'data' / '80P.txt')",
+        ],
+        tmp_path,
+    ).strip()
+    fit = json.loads(
+        sh([venv / "vmj", "fit", record, "--series", "--model", "oscillator", "--json"], tmp_path)
+    )
     assert fit["converged"]
     assert fit["params"]["zeta"] == pytest.approx(0.00598, rel=0.01)
     assert fit["params"]["xF"] == pytest.approx(0.0159, rel=0.05)

@@ -31,22 +31,39 @@ __version__ = "0.2.0"
 if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs as written
     from ._checks import AbstractParams, assume_valid
     from ._host import retain_host_memory
-    from ._integrate import (energy_balance, limit_cycle, linear_simulate, rope_energy_map,
-                             simulate, stick_slip_closed_form, stick_slip_cycle,
-                             stick_slip_simulate, turning_points)
-    from ._laws._dissipation import (CoulombDamping, DissipationLaw, QuadraticDamping,
-                                     ViscousDamping)
+    from ._integrate import (
+        energy_balance,
+        limit_cycle,
+        linear_simulate,
+        rope_energy_map,
+        simulate,
+        stick_slip_closed_form,
+        stick_slip_cycle,
+        stick_slip_simulate,
+        turning_points,
+    )
+    from ._laws._dissipation import CoulombDamping, DissipationLaw, QuadraticDamping, ViscousDamping
     from ._laws._forcing import BaseMotion, Forcing, HarmonicForce, NoForcing
     from ._laws._friction import AffineFriction, Coulomb, FrictionLaw, MassProportional
     from ._laws._length import Braking, ConstantSpeed, LengthProfile
-    from ._laws._restoring import (LinearRestoring, PolynomialRestoring, RestoringLaw,
-                                   SineRestoring)
-    from ._models._base import (AbstractAnalytic, AbstractDecayModel, AbstractEnergyMap,
-                                AbstractLimitCycle, AbstractModel)
+    from ._laws._restoring import LinearRestoring, PolynomialRestoring, RestoringLaw, SineRestoring
+    from ._models._base import (
+        AbstractAnalytic,
+        AbstractDecayModel,
+        AbstractEnergyMap,
+        AbstractLimitCycle,
+        AbstractModel,
+    )
     from ._models._linear import LinearOscillator
     from ._models._oscillator import Oscillator
-    from ._models._rope import KGF, Rope, action_amplitude, action_frequency, kbm_amplitude, \
-        kbm_frequency
+    from ._models._rope import (
+        KGF,
+        Rope,
+        action_amplitude,
+        action_frequency,
+        kbm_amplitude,
+        kbm_frequency,
+    )
     from ._models._stick_slip import StickSlip, StickSlipCycle
     from ._models._variable_mass import VariableMass
     from ._solution import RESULTS, DecaySequence, SolverError, Trajectory
@@ -54,37 +71,95 @@ if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs a
     from ._solvers._closed import ClosedForm, EnergyBalance
     from ._solvers._exact import Exact
     from ._solvers._smoothed import Smoothed
-    from ._sweep import (Grid, SweepError, SweepResult, grid, map_chunks, resolve_field,
-                         sensitivity, sweep)
+    from ._sweep import (
+        Grid,
+        SweepError,
+        SweepResult,
+        grid,
+        map_chunks,
+        resolve_field,
+        sensitivity,
+        sweep,
+    )
     from ._tables import PAPER, paper_cells, paper_model, paper_table
 
 
 __all__ = [
     # models and laws
-    "AbstractParams", "AbstractModel", "AbstractDecayModel", "AbstractEnergyMap",
-    "AbstractAnalytic", "AbstractLimitCycle",
-    "VariableMass", "Rope", "Oscillator", "LinearOscillator", "StickSlip",
-    "FrictionLaw", "Coulomb", "MassProportional", "AffineFriction",
-    "RestoringLaw", "LinearRestoring", "PolynomialRestoring", "SineRestoring",
-    "DissipationLaw", "ViscousDamping", "CoulombDamping", "QuadraticDamping",
-    "LengthProfile", "ConstantSpeed", "Braking", "KGF",
-    "Forcing", "NoForcing", "HarmonicForce", "BaseMotion", "assume_valid",
+    "AbstractParams",
+    "AbstractModel",
+    "AbstractDecayModel",
+    "AbstractEnergyMap",
+    "AbstractAnalytic",
+    "AbstractLimitCycle",
+    "VariableMass",
+    "Rope",
+    "Oscillator",
+    "LinearOscillator",
+    "StickSlip",
+    "FrictionLaw",
+    "Coulomb",
+    "MassProportional",
+    "AffineFriction",
+    "RestoringLaw",
+    "LinearRestoring",
+    "PolynomialRestoring",
+    "SineRestoring",
+    "DissipationLaw",
+    "ViscousDamping",
+    "CoulombDamping",
+    "QuadraticDamping",
+    "LengthProfile",
+    "ConstantSpeed",
+    "Braking",
+    "KGF",
+    "Forcing",
+    "NoForcing",
+    "HarmonicForce",
+    "BaseMotion",
+    "assume_valid",
     # solvers and entry points
-    "AbstractSolver", "Exact", "Smoothed", "EnergyBalance", "ClosedForm",
-    "turning_points", "simulate", "limit_cycle",
+    "AbstractSolver",
+    "Exact",
+    "Smoothed",
+    "EnergyBalance",
+    "ClosedForm",
+    "turning_points",
+    "simulate",
+    "limit_cycle",
     # results
-    "RESULTS", "SolverError", "DecaySequence", "Trajectory", "StickSlipCycle",
+    "RESULTS",
+    "SolverError",
+    "DecaySequence",
+    "Trajectory",
+    "StickSlipCycle",
     # closed forms and averaged laws
-    "energy_balance", "rope_energy_map", "kbm_amplitude", "kbm_frequency", "action_amplitude",
+    "energy_balance",
+    "rope_energy_map",
+    "kbm_amplitude",
+    "kbm_frequency",
+    "action_amplitude",
     "action_frequency",
     # the older per-model spellings
-    "stick_slip_cycle", "stick_slip_closed_form", "stick_slip_simulate", "linear_simulate",
+    "stick_slip_cycle",
+    "stick_slip_closed_form",
+    "stick_slip_simulate",
+    "linear_simulate",
     # sweeps and sensitivities
-    "Grid", "SweepResult", "SweepError", "grid", "sweep", "sensitivity", "map_chunks",
+    "Grid",
+    "SweepResult",
+    "SweepError",
+    "grid",
+    "sweep",
+    "sensitivity",
+    "map_chunks",
     "resolve_field",
     "retain_host_memory",
     # the variable-mass paper's tables
-    "PAPER", "paper_cells", "paper_model", "paper_table",
+    "PAPER",
+    "paper_cells",
+    "paper_model",
+    "paper_table",
 ]
 
 
@@ -94,10 +169,15 @@ def _table() -> dict:
     import pathlib
 
     tree = ast.parse(pathlib.Path(__file__).read_text(encoding="utf-8"))
-    block = next(n for n in tree.body if isinstance(n, ast.If) and
-                 ast.unparse(n.test) == "TYPE_CHECKING")
-    return {alias.name: "." * node.level + node.module for node in block.body
-            if isinstance(node, ast.ImportFrom) for alias in node.names}
+    block = next(
+        n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING"
+    )
+    return {
+        alias.name: "." * node.level + node.module
+        for node in block.body
+        if isinstance(node, ast.ImportFrom)
+        for alias in node.names
+    }
 
 
 _LAZY: dict | None = None

@@ -12,16 +12,25 @@ import contextlib
 import contextvars
 import math
 import warnings
-from typing import ClassVar
 from collections.abc import Callable
+from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["AbstractParams", "validated", "assume_valid", "guard", "check", "check_all",
-           "check_int", "scalar", "warn_if_float32"]
+__all__ = [
+    "AbstractParams",
+    "validated",
+    "assume_valid",
+    "guard",
+    "check",
+    "check_all",
+    "check_int",
+    "scalar",
+    "warn_if_float32",
+]
 
 
 def _is_traced(x) -> bool:
@@ -39,8 +48,12 @@ def check(name: str, value, ok: Callable, allowed: str):
     `ok` must work on Python numbers, NumPy and JAX arrays alike. `allowed` is the human
     description of the range, e.g. `"> 0"` or `"in [0, 1]"`.
     """
-    if isinstance(value, (float, int)) and not isinstance(value, bool) and \
-            math.isfinite(value) and ok(value):
+    if (
+        isinstance(value, (float, int))
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and ok(value)
+    ):
         return value  # the common case, without building arrays
     return check_all([(name, value, ok, allowed)])[0]
 
@@ -66,8 +79,7 @@ def check_all(items) -> list:
         if _is_traced(value):
             if _ASSUMED.get():
                 continue
-            traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))),
-                           message))
+            traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))), message))
             continue
         arr = np.asarray(value, dtype=float)
         if not (np.all(np.isfinite(arr)) and np.all(ok(arr))):
@@ -75,8 +87,12 @@ def check_all(items) -> list:
             raise ValueError(f"{message} (got {shown})")
     if traced:
         bad = jnp.stack([b for _, b, _ in traced])
-        guarded = eqx.branched_error_if(tuple(out[i] for i, _, _ in traced), jnp.any(bad),
-                                        jnp.argmax(bad), [m for _, _, m in traced])
+        guarded = eqx.branched_error_if(
+            tuple(out[i] for i, _, _ in traced),
+            jnp.any(bad),
+            jnp.argmax(bad),
+            [m for _, _, m in traced],
+        )
         for (i, _, _), g in zip(traced, guarded):
             out[i] = g
     return out
@@ -172,12 +188,19 @@ def _problems(m, traced: bool = True) -> list:
     for n, (ok, allowed) in type(m)._limits.items():
         value = getattr(m, n)
         if _is_traced(value):
-            out.append((f"{n} must be finite and {allowed}", value,
-                        jnp.isfinite(value) & ok(value) if traced else None, True))
+            out.append(
+                (
+                    f"{n} must be finite and {allowed}",
+                    value,
+                    jnp.isfinite(value) & ok(value) if traced else None,
+                    True,
+                )
+            )
         else:
             arr = np.asarray(value, dtype=float)
-            out.append((f"{n} must be finite and {allowed}", arr,
-                        np.isfinite(arr) & ok(arr), False))
+            out.append(
+                (f"{n} must be finite and {allowed}", arr, np.isfinite(arr) & ok(arr), False)
+            )
     for n, (ok, allowed) in type(m)._relations.items():
         if not traced and any(_is_traced(x) for x in jax.tree.leaves(m)):
             out.append((f"{n} must be {allowed}", getattr(m, n), None, True))
@@ -218,5 +241,6 @@ def validated(model):
     if not traced or _ASSUMED.get():
         return model
     bad = jnp.stack([jnp.logical_not(jnp.all(ok)) for _, ok in traced])
-    return eqx.branched_error_if(model, jnp.any(bad), jnp.argmax(bad),
-                                 [message for message, _ in traced])
+    return eqx.branched_error_if(
+        model, jnp.any(bad), jnp.argmax(bad), [message for message, _ in traced]
+    )

@@ -26,8 +26,9 @@ def check_writable(path, name: str = "path") -> str:
         raise ValueError(f"{name} {path!r} is a directory; give a file path")
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
-        raise ValueError(f"{name} {path!r}: the directory {folder} does not exist (vmj creates "
-                         "no directories)")
+        raise ValueError(
+            f"{name} {path!r}: the directory {folder} does not exist (vmj creates no directories)"
+        )
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ValueError(f"{name} {path!r}: the directory {folder} is not writable")
     return path

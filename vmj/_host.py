@@ -46,8 +46,9 @@ def retain_host_memory(limit: int = 2**30) -> bool:
     ms with it and 156-165 (183-187) ms without it.
     """
     if isinstance(limit, bool) or not isinstance(limit, int) or not 0 <= limit <= _INT_MAX:
-        raise ValueError(f"limit must be an integer number of bytes in [0, {_INT_MAX}], "
-                         f"got {limit!r}")
+        raise ValueError(
+            f"limit must be an integer number of bytes in [0, {_INT_MAX}], got {limit!r}"
+        )
     if platform.libc_ver()[0] != "glibc":
         return False
     mallopt = getattr(ctypes.CDLL(None), "mallopt", None)

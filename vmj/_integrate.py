@@ -11,8 +11,18 @@ from typing import TYPE_CHECKING
 
 import jax
 
-from ._checks import (_float, _is_traced, anything, check, check_int, guard, positive, scalar,
-                      validated, warn_if_float32)
+from ._checks import (
+    _float,
+    _is_traced,
+    anything,
+    check,
+    check_int,
+    guard,
+    positive,
+    scalar,
+    validated,
+    warn_if_float32,
+)
 from ._models._base import check_horizon, require_scalar_fields
 from ._models._rope import Rope
 from ._models._stick_slip import MAX_REVERSALS, StickSlip, smoothed_states
@@ -24,15 +34,27 @@ from ._solvers._smoothed import Smoothed
 if TYPE_CHECKING:  # names used in annotations only
     from jaxtyping import Array, ArrayLike
 
-    from ._models._base import (AbstractDecayModel, AbstractEnergyMap, AbstractLimitCycle,
-                                AbstractModel)
+    from ._models._base import (
+        AbstractDecayModel,
+        AbstractEnergyMap,
+        AbstractLimitCycle,
+        AbstractModel,
+    )
     from ._models._linear import LinearOscillator
     from ._models._stick_slip import StickSlipCycle
     from ._solvers._base import AbstractSolver
 
-__all__ = ["turning_points", "simulate", "limit_cycle", "energy_balance", "rope_energy_map",
-           "stick_slip_cycle", "stick_slip_closed_form", "stick_slip_simulate",
-           "linear_simulate"]
+__all__ = [
+    "turning_points",
+    "simulate",
+    "limit_cycle",
+    "energy_balance",
+    "rope_energy_map",
+    "stick_slip_cycle",
+    "stick_slip_closed_form",
+    "stick_slip_simulate",
+    "linear_simulate",
+]
 
 _METHODS = {"exact": Exact, "smooth": Smoothed, "energy": EnergyBalance, "closed": ClosedForm}
 
@@ -45,8 +67,10 @@ def _solver(solver, method, smoothing, max_substeps, default):
         if method is not None:
             raise ValueError("give either solver or method, not both")
         if smoothing is not None or max_substeps is not None:
-            raise ValueError("smoothing and max_substeps are settings of the solver object: "
-                             "vmj.Smoothed(smoothing=...), vmj.Exact(max_substeps=...)")
+            raise ValueError(
+                "smoothing and max_substeps are settings of the solver object: "
+                "vmj.Smoothed(smoothing=...), vmj.Exact(max_substeps=...)"
+            )
         return solver
     if method is None:
         kind = default
@@ -57,8 +81,9 @@ def _solver(solver, method, smoothing, max_substeps, default):
     if kind is Smoothed:
         return Smoothed(smoothing=smoothing)
     if smoothing is not None:
-        raise ValueError(f"smoothing applies to the smoothed solver (method 'smooth'), not "
-                         f"{kind.name!r}")
+        raise ValueError(
+            f"smoothing applies to the smoothed solver (method 'smooth'), not {kind.name!r}"
+        )
     if kind is Exact and max_substeps is not None:
         return Exact(max_substeps=check_int("max_substeps", max_substeps, 1))
     return _default(kind)
@@ -87,16 +112,24 @@ def _checked(solver, model, task: str):
 # static. They hold no host callbacks for concrete inputs, so JAX's persistent compilation
 # cache can store them.
 
+
 # -- turning points of a free decay ------------------------------------------------------------
 @partial(jax.jit, static_argnums=2)
 def _turning_points(model, a0, n, solver):
     return solver.turning_points(model, a0, n)
 
 
-def turning_points(model: AbstractDecayModel, a0: ArrayLike, n: int,
-                   solver: AbstractSolver | str | None = None, *, method: str | None = None,
-                   smoothing: ArrayLike | None = None, max_substeps: int | None = None,
-                   throw: bool = False) -> DecaySequence:
+def turning_points(
+    model: AbstractDecayModel,
+    a0: ArrayLike,
+    n: int,
+    solver: AbstractSolver | str | None = None,
+    *,
+    method: str | None = None,
+    smoothing: ArrayLike | None = None,
+    max_substeps: int | None = None,
+    throw: bool = False,
+) -> DecaySequence:
     """Turning points (velocity zeros) of the free decay released from rest at `x(0) = -a0`.
 
     **Arguments:**
@@ -129,8 +162,9 @@ def turning_points(model: AbstractDecayModel, a0: ArrayLike, n: int,
     return throw_if_failed(seq, seq.result, throw)
 
 
-def energy_balance(model: AbstractEnergyMap, a0: ArrayLike, n: int, *,
-                   throw: bool = False) -> DecaySequence:
+def energy_balance(
+    model: AbstractEnergyMap, a0: ArrayLike, n: int, *, throw: bool = False
+) -> DecaySequence:
     """The paper's energy-balance recurrences (11)-(12) and the corrected (13); the same as
     `vmj.turning_points(model, a0, n, vmj.EnergyBalance())`.
 
@@ -172,9 +206,17 @@ def _simulate(model, x0, v0, t1, n_save, solver):
     return solver.simulate(model, x0, v0, t1, n_save)
 
 
-def simulate(model: AbstractModel, x0: ArrayLike, v0: ArrayLike, t1: ArrayLike,
-             solver: AbstractSolver | None = None, *, smoothing: ArrayLike | None = None,
-             n_save: int = 2001, throw: bool = False) -> Trajectory:
+def simulate(
+    model: AbstractModel,
+    x0: ArrayLike,
+    v0: ArrayLike,
+    t1: ArrayLike,
+    solver: AbstractSolver | None = None,
+    *,
+    smoothing: ArrayLike | None = None,
+    n_save: int = 2001,
+    throw: bool = False,
+) -> Trajectory:
     """The trajectory of `model` from `x(0) = x0`, `x'(0) = v0` to `t1`.
 
     **Arguments:**
@@ -211,8 +253,16 @@ def simulate(model: AbstractModel, x0: ArrayLike, v0: ArrayLike, t1: ArrayLike,
     return throw_if_failed(traj, traj.result, throw)
 
 
-def linear_simulate(osc: LinearOscillator, x0: ArrayLike, v0: ArrayLike, t1: ArrayLike, *,
-                    n_save: int = 2001, rtol: float = 1e-12, throw: bool = False) -> Trajectory:
+def linear_simulate(
+    osc: LinearOscillator,
+    x0: ArrayLike,
+    v0: ArrayLike,
+    t1: ArrayLike,
+    *,
+    n_save: int = 2001,
+    rtol: float = 1e-12,
+    throw: bool = False,
+) -> Trajectory:
     """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Tsit5) from `x(0) = x0` [m],
     `x'(0) = v0` [m/s] to `t1` [s] `> 0`: `vmj.simulate(osc, x0, v0, t1,
     vmj.Smoothed(rtol=rtol))`. `rtol` is the relative tolerance (the absolute one is `rtol`
@@ -227,8 +277,13 @@ def _limit_cycle(model, max_reversals, solver):
     return solver.limit_cycle(model, max_reversals)
 
 
-def limit_cycle(model: AbstractLimitCycle, solver: AbstractSolver | None = None, *,
-                max_reversals: int = MAX_REVERSALS, throw: bool = False) -> StickSlipCycle:
+def limit_cycle(
+    model: AbstractLimitCycle,
+    solver: AbstractSolver | None = None,
+    *,
+    max_reversals: int = MAX_REVERSALS,
+    throw: bool = False,
+) -> StickSlipCycle:
     """The limit cycle of a self-excited model ([`vmj.StickSlip`][]), from breakaway to the
     next breakaway.
 
@@ -260,9 +315,14 @@ def limit_cycle(model: AbstractLimitCycle, solver: AbstractSolver | None = None,
     return throw_if_failed(cycle, cycle.result, throw)
 
 
-def stick_slip_cycle(model: StickSlip, *, method: str = "exact",
-                     max_reversals: int = MAX_REVERSALS, smoothing: ArrayLike | None = None,
-                     throw: bool = False) -> StickSlipCycle:
+def stick_slip_cycle(
+    model: StickSlip,
+    *,
+    method: str = "exact",
+    max_reversals: int = MAX_REVERSALS,
+    smoothing: ArrayLike | None = None,
+    throw: bool = False,
+) -> StickSlipCycle:
     """`vmj.limit_cycle` with `method="exact" | "smooth"` (the older spelling)."""
     if method not in ("exact", "smooth"):
         raise ValueError(f"method must be 'exact' or 'smooth' (got {method!r})")
@@ -270,16 +330,23 @@ def stick_slip_cycle(model: StickSlip, *, method: str = "exact",
     return limit_cycle(model, solver, max_reversals=max_reversals, throw=throw)
 
 
-def stick_slip_closed_form(model: StickSlip, *, max_reversals: int = MAX_REVERSALS,
-                           throw: bool = False) -> StickSlipCycle:
+def stick_slip_closed_form(
+    model: StickSlip, *, max_reversals: int = MAX_REVERSALS, throw: bool = False
+) -> StickSlipCycle:
     """The paper's closed forms (11)-(20) for the limit cycle of `model`:
     `vmj.limit_cycle(model, vmj.ClosedForm())` (see `_closed_forms/_belokobylsky.py`)."""
     return limit_cycle(model, ClosedForm(), max_reversals=max_reversals, throw=throw)
 
 
-def stick_slip_simulate(model: StickSlip, t1: ArrayLike, *, smoothing: ArrayLike | None = None,
-                        n_save: int = 4001, throw: bool = False,
-                        memory: bool = False) -> Trajectory | tuple[Trajectory, Array]:
+def stick_slip_simulate(
+    model: StickSlip,
+    t1: ArrayLike,
+    *,
+    smoothing: ArrayLike | None = None,
+    n_save: int = 4001,
+    throw: bool = False,
+    memory: bool = False,
+) -> Trajectory | tuple[Trajectory, Array]:
     """The smoothed stick-slip model (diffrax Kvaerno5, rtol 1e-8) from breakaway:
     `vmj.simulate(model, -eps, -Omega, t1, vmj.Smoothed(smoothing=w))` (default `w = 1e-4`;
     see `vmj.StickSlip.vector_field` for the smoothed equations).
@@ -290,11 +357,9 @@ def stick_slip_simulate(model: StickSlip, t1: ArrayLike, *, smoothing: ArrayLike
     if not isinstance(model, StickSlip):
         raise ValueError(f"model must be a vmj.StickSlip (got {type(model).__name__})")
     x0, v0 = model.breakaway()
-    traj = simulate(model, x0, v0, t1, Smoothed(smoothing=smoothing), n_save=n_save,
-                    throw=throw)
+    traj = simulate(model, x0, v0, t1, Smoothed(smoothing=smoothing), n_save=n_save, throw=throw)
     if not memory:
         return traj
     solver = Smoothed(smoothing=smoothing).with_defaults(model, x0, v0)
     _, ys, _ = smoothed_states(model, solver, _float(t1), check_int("n_save", n_save, 2))
     return traj, ys[:, 2]
-

@@ -58,21 +58,21 @@ class RESULTS(enum.IntEnum):
 _MESSAGES = {
     RESULTS.successful: "reached every requested turning point",
     RESULTS.stopped: "the mass came to rest for good: |spring force| <= static friction at a "
-                     "turning point",
+    "turning point",
     RESULTS.mass_exhausted: "the mass m0 + delta*t reaches zero (at t = m0/|delta|) before the "
-                            "next turning point; the solve stopped there",
+    "next turning point; the solve stopped there",
     RESULTS.step_limit: "no velocity zero within the step limit: the motion is overdamped or "
-                        "creeping (raise max_substeps if it is only slow)",
+    "creeping (raise max_substeps if it is only slow)",
     RESULTS.solver_failed: "the smoothed ODE solve failed (step limit or non-finite state); try a "
-                           "larger smoothing or max_steps",
+    "larger smoothing or max_steps",
     RESULTS.length_exhausted: "the rope length l(t) reaches zero before the next turning point; "
-                              "the solve stopped there",
+    "the solve stopped there",
     RESULTS.unbounded: "no turning point: the energy of the swing is above the potential barrier "
-                       "(the motion is unbounded)",
+    "(the motion is unbounded)",
     RESULTS.too_many_reversals: "more reversals per cycle than max_reversals: raise max_reversals "
-                                "(a cycle has floor((eps - 1)/2) reversals)",
+    "(a cycle has floor((eps - 1)/2) reversals)",
     RESULTS.no_cycle: "the smoothed model did not settle into a stick-slip cycle within the "
-                      "simulated periods; try a smaller smoothing",
+    "simulated periods; try a smaller smoothing",
 }
 #: the messages indexed by code (for `equinox.branched_error_if` and tables)
 RESULTS.messages = tuple(_MESSAGES[r] for r in RESULTS)
@@ -94,8 +94,9 @@ def throw_if_failed(value, result, throw: bool):
         if np.any(RESULTS.failed(codes)):
             raise SolverError(RESULTS(int(codes.max())).message)
         return value
-    return eqx.branched_error_if(value, jnp.any(RESULTS.failed(result)), jnp.max(result),
-                                 RESULTS.messages)
+    return eqx.branched_error_if(
+        value, jnp.any(RESULTS.failed(result)), jnp.max(result), RESULTS.messages
+    )
 
 
 class DecaySequence(eqx.Module):
@@ -143,9 +144,9 @@ class DecaySequence(eqx.Module):
     @property
     def stop_time(self) -> Array:
         """Time at which the mass comes to rest for good [s]; `inf` if it has not stopped."""
-        last = jnp.take_along_axis(
-            self.times, jnp.maximum(self.count - 1, 0)[..., None], axis=-1
-        )[..., 0]
+        last = jnp.take_along_axis(self.times, jnp.maximum(self.count - 1, 0)[..., None], axis=-1)[
+            ..., 0
+        ]
         last = jnp.where(self.count > 0, last, 0.0)
         return jnp.where(self.stopped, last, jnp.inf)
 

@@ -8,9 +8,9 @@ from importlib import resources
 
 import numpy as np
 
+from ._integrate import energy_balance, turning_points
 from ._laws._friction import Coulomb, MassProportional
 from ._models._variable_mass import VariableMass
-from ._integrate import energy_balance, turning_points
 
 __all__ = ["PAPER", "paper_cells", "paper_model", "paper_table"]
 
@@ -27,24 +27,28 @@ def paper_cells(table: int | None = None) -> list[dict]:
     for r in csv.DictReader(text.splitlines()):
         if table is not None and int(r["table"]) != table:
             continue
-        rows.append({
-            "table": int(r["table"]),
-            "friction": r["friction"],
-            "delta": float(r["delta_kg_s"]),
-            "mu": float(r["mu_kg_s"]),
-            "eps": float(r["eps"]),
-            "k": int(r["k"]),
-            "paper_energy_cm": float(r["energy_balance_cm"]),
-            "paper_energy_star": r["energy_balance_star"] == "1",
-            "paper_monograph_cm": float(r["monograph_cm"]),
-            "paper_monograph_star": r["monograph_star"] == "1",
-            "note": r["note"],
-        })
+        rows.append(
+            {
+                "table": int(r["table"]),
+                "friction": r["friction"],
+                "delta": float(r["delta_kg_s"]),
+                "mu": float(r["mu_kg_s"]),
+                "eps": float(r["eps"]),
+                "k": int(r["k"]),
+                "paper_energy_cm": float(r["energy_balance_cm"]),
+                "paper_energy_star": r["energy_balance_star"] == "1",
+                "paper_monograph_cm": float(r["monograph_cm"]),
+                "paper_monograph_star": r["monograph_star"] == "1",
+                "note": r["note"],
+            }
+        )
     return rows
 
 
 def paper_model(friction: str, delta: float, eps: float, mu: float) -> VariableMass:
-    law = Coulomb(PAPER["FT"]) if friction == "constant" else MassProportional(PAPER["f"], PAPER["g"])
+    law = (
+        Coulomb(PAPER["FT"]) if friction == "constant" else MassProportional(PAPER["f"], PAPER["g"])
+    )
     return VariableMass(PAPER["m0"], PAPER["c"], delta, eps, mu, law)
 
 
@@ -66,18 +70,22 @@ def paper_table(table: int, n: int = 12) -> list[dict]:
     solved = {}
     for delta, mu, eps in columns:
         model = paper_model(friction, delta, eps, mu)
-        solved[delta, mu, eps] = (energy_balance(model, PAPER["a0"], n),
-                                  turning_points(model, PAPER["a0"], n))
+        solved[delta, mu, eps] = (
+            energy_balance(model, PAPER["a0"], n),
+            turning_points(model, PAPER["a0"], n),
+        )
     out = []
     for cell in cells:
         energy, exact = solved[cell["delta"], cell["mu"], cell["eps"]]
         k = cell["k"] - 1
-        out.append({
-            **{key: cell[key] for key in ("k", "mu", "eps", "delta")},
-            **{key: cell[key] for key in cell if key.startswith("paper_") or key == "note"},
-            "energy_cm": float(np.asarray(energy.amplitudes)[k] * 100),
-            "energy_crossed": bool(np.asarray(energy.crossed)[k]),
-            "exact_cm": float(np.asarray(exact.amplitudes)[k] * 100),
-            "exact_crossed": bool(np.asarray(exact.crossed)[k]),
-        })
+        out.append(
+            {
+                **{key: cell[key] for key in ("k", "mu", "eps", "delta")},
+                **{key: cell[key] for key in cell if key.startswith("paper_") or key == "note"},
+                "energy_cm": float(np.asarray(energy.amplitudes)[k] * 100),
+                "energy_crossed": bool(np.asarray(energy.crossed)[k]),
+                "exact_cm": float(np.asarray(exact.amplitudes)[k] * 100),
+                "exact_crossed": bool(np.asarray(exact.crossed)[k]),
+            }
+        )
     return out

@@ -21,8 +21,15 @@ if TYPE_CHECKING:  # names used in annotations only
 
     from ._sweep import SweepResult
 
-__all__ = ["pyplot", "save", "plot_table", "plot_swings", "plot_energy_error", "plot_sensitivity",
-           "per"]
+__all__ = [
+    "pyplot",
+    "save",
+    "plot_table",
+    "plot_swings",
+    "plot_energy_error",
+    "plot_sensitivity",
+    "per",
+]
 
 
 def pyplot() -> ModuleType:
@@ -75,8 +82,10 @@ def _panels(result):
     """(delta values or [None], an index function) for one panel per delta."""
     dims = list(result.dims)
     if dims[:2] != ["eps", "mu"] or len(dims) > 3 or (len(dims) == 3 and dims[2] != "delta"):
-        raise ValueError("the sweep figures need axes eps, mu and optionally delta, in this order "
-                         f"(got {', '.join(dims)})")
+        raise ValueError(
+            "the sweep figures need axes eps, mu and optionally delta, in this order "
+            f"(got {', '.join(dims)})"
+        )
     if len(dims) == 2:
         return [None], lambda a, j: a
     return list(result.coords["delta"]), lambda a, j: a[:, :, j]
@@ -107,8 +116,15 @@ def _grid_of_panels(n_panels):
     plt = pyplot()
     cols = min(n_panels, 4)
     rows = -(-n_panels // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.2 * rows), squeeze=False,
-                             sharex=True, sharey=True, constrained_layout=True)
+    fig, axes = plt.subplots(
+        rows,
+        cols,
+        figsize=(3.6 * cols, 3.2 * rows),
+        squeeze=False,
+        sharex=True,
+        sharey=True,
+        constrained_layout=True,
+    )
     for ax in axes.flat[n_panels:]:
         ax.set_visible(False)
     return plt, fig, list(axes.flat)
@@ -131,8 +147,15 @@ def plot_swings(result: SweepResult, path: str, title: str = "") -> None:
         stopped = at(np.asarray(seq.stopped), j)
         failed = RESULTS.failed(at(np.asarray(seq.result), j))
         shown = np.where(stopped, count, n + 1.0)  # still moving after n swings: "over"
-        mesh = ax.pcolormesh(_edges(eps), _edges(mu), shown.T, cmap=cmap, vmin=lowest - 0.5,
-                             vmax=n + 0.5, shading="flat")
+        mesh = ax.pcolormesh(
+            _edges(eps),
+            _edges(mu),
+            shown.T,
+            cmap=cmap,
+            vmin=lowest - 0.5,
+            vmax=n + 0.5,
+            shading="flat",
+        )
         if failed.any():
             ie, im = np.nonzero(failed)
             ax.plot(eps[ie], mu[im], "rx", ms=4, label="mass exhausted")
@@ -151,18 +174,27 @@ def plot_energy_error(exact: SweepResult, energy: SweepResult, a0: float, path: 
     ones, relative to `a0`, over (eps, mu) for each delta (log scale)."""
     deltas, at = _panels(exact)
     eps, mu = exact.coords["eps"], exact.coords["mu"]
-    err = np.max(np.abs(np.abs(np.asarray(energy.values.positions))
-                        - np.abs(np.asarray(exact.values.positions))), axis=-1) / a0
+    err = (
+        np.max(
+            np.abs(
+                np.abs(np.asarray(energy.values.positions))
+                - np.abs(np.asarray(exact.values.positions))
+            ),
+            axis=-1,
+        )
+        / a0
+    )
     plt, fig, axes = _grid_of_panels(len(deltas))
     from matplotlib.colors import LogNorm
 
-    norm = LogNorm(vmin=max(float(np.nanmin(err[err > 0])) if (err > 0).any() else 1e-6, 1e-6),
-                   vmax=max(float(np.nanmax(err)), 1e-5))
+    norm = LogNorm(
+        vmin=max(float(np.nanmin(err[err > 0])) if (err > 0).any() else 1e-6, 1e-6),
+        vmax=max(float(np.nanmax(err)), 1e-5),
+    )
     mesh = None
     for j, (ax, d) in enumerate(zip(axes, deltas)):
         e = np.maximum(at(err, j), norm.vmin)
-        mesh = ax.pcolormesh(_edges(eps), _edges(mu), e.T, norm=norm, cmap="magma",
-                             shading="flat")
+        mesh = ax.pcolormesh(_edges(eps), _edges(mu), e.T, norm=norm, cmap="magma", shading="flat")
         cs = ax.contour(eps, mu, e.T, levels=[1e-3, 1e-2], colors=["w", "c"], linewidths=1)
         ax.clabel(cs, fmt={1e-3: "0.1 %", 1e-2: "1 %"}, fontsize=7)
         _boundary(ax, eps, mu, d)
@@ -181,12 +213,22 @@ def plot_sensitivity(data: dict, path: str) -> None:
     `units`, `d_amplitudes`, `d_times`)."""
     plt = pyplot()
     wrt = data["wrt"]
-    fig, axes = plt.subplots(2, len(wrt), figsize=(3.4 * len(wrt), 5.2), squeeze=False,
-                             sharex=True, constrained_layout=True)
+    fig, axes = plt.subplots(
+        2,
+        len(wrt),
+        figsize=(3.4 * len(wrt), 5.2),
+        squeeze=False,
+        sharex=True,
+        constrained_layout=True,
+    )
     for j, name in enumerate(wrt):
         unit = data["units"][name]
-        for i, (key, label) in enumerate((("d_amplitudes", f"d|x_k|/d{name} [{per('m', unit)}]"),
-                                          ("d_times", f"dt_k/d{name} [{per('s', unit)}]"))):
+        for i, (key, label) in enumerate(
+            (
+                ("d_amplitudes", f"d|x_k|/d{name} [{per('m', unit)}]"),
+                ("d_times", f"dt_k/d{name} [{per('s', unit)}]"),
+            )
+        ):
             values = data[key][name]
             ax = axes[i][j]
             ax.plot(range(1, len(values) + 1), values, "o-", ms=3, lw=1)
@@ -194,8 +236,9 @@ def plot_sensitivity(data: dict, path: str) -> None:
             ax.set_ylabel(label, fontsize=8)
             ax.grid(alpha=0.3)
         axes[1][j].set_xlabel("turning point k")
-    fig.suptitle(f"{data['model']} ({data['method']}): sensitivities of the turning points",
-                 fontsize=9)
+    fig.suptitle(
+        f"{data['model']} ({data['method']}): sensitivities of the turning points", fontsize=9
+    )
     save(fig, path)
     plt.close(fig)
 

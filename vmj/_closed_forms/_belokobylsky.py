@@ -23,16 +23,21 @@ def closed_form_cycle(eps, Omega, max_reversals: int) -> dict:
     k = jnp.arange(1, n + 1)
     sign_k = jnp.where(k % 2 == 0, 1.0, -1.0)  # (-1)^k
     used = k <= kstar + 1
-    tau_k = 2.0 * (jnp.pi * (1.0 - sign_k) / 2.0
-                   - sign_k * jnp.arctan((2 * k - (eps + 1.0)) / Omega))  # (14)
+    tau_k = 2.0 * (
+        jnp.pi * (1.0 - sign_k) / 2.0 - sign_k * jnp.arctan((2 * k - (eps + 1.0)) / Omega)
+    )  # (14)
     xi_k = sign_k * (2 * k - eps)  # (13)
     A_k = jnp.sqrt((2 * k - (eps + 1.0)) ** 2 + Omega**2)  # (12)
     slip = jnp.sum(jnp.where(used, tau_k, 0.0))  # (17)
     sign_kstar = jnp.where(kstar % 2 == 0, 1.0, -1.0)
     stick = (eps + sign_kstar * (eps - 2.0 * (kstar + 1))) / Omega  # (19)
     return dict(
-        reversals=kstar, count=jnp.minimum(kstar + 1, n),
-        slip_intervals=jnp.where(used, tau_k, 0.0), positions=jnp.where(used, xi_k, 0.0),
-        amplitudes=jnp.where(used, A_k, 0.0), slip_time=slip, stick_time=stick,
+        reversals=kstar,
+        count=jnp.minimum(kstar + 1, n),
+        slip_intervals=jnp.where(used, tau_k, 0.0),
+        positions=jnp.where(used, xi_k, 0.0),
+        amplitudes=jnp.where(used, A_k, 0.0),
+        slip_time=slip,
+        stick_time=stick,
         period=slip + stick,  # (20)
     )

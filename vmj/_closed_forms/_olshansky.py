@@ -42,7 +42,8 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
     exponent_root_mass = half_per_root_mass * lam / 4  # exponent of E_k * sqrt(m)
     nonzero = exponent_root_mass != 0
     inverse_exponent_root_mass = jnp.where(nonzero, 1.0, 0.0) / jnp.where(
-        nonzero, exponent_root_mass, 1.0)
+        nonzero, exponent_root_mass, 1.0
+    )
     dF_dm = friction.dforce_dmass()
     # friction that falls with the mass (f-law, delta < 0): a stuck mass waits until it has
     # fallen below the spring force, then moves on (never with constant friction)
@@ -75,11 +76,16 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
         return (t_out, jnp.where(advance, m_next, m_in), p_out), (t_out, p_out) + flags
 
     init = (jnp.zeros_like(m0), m0, -a0 * jnp.ones_like(m0))
-    (_, m, p), (times, positions, crossed, advanced, over) = lax.scan(swing, init, None,
-                                                                      length=n)
+    (_, m, p), (times, positions, crossed, advanced, over) = lax.scan(swing, init, None, length=n)
     stuck = (c * jnp.abs(p) <= friction.force(m)) & jnp.logical_not(falls)
     ended = jnp.logical_not(advanced[-1]) & jnp.logical_not(stuck)
-    code = jnp.where(stuck, RESULTS.stopped,
-                     jnp.where(ended & over[-1], RESULTS.step_limit,
-                               jnp.where(ended, RESULTS.mass_exhausted, RESULTS.successful)))
+    code = jnp.where(
+        stuck,
+        RESULTS.stopped,
+        jnp.where(
+            ended & over[-1],
+            RESULTS.step_limit,
+            jnp.where(ended, RESULTS.mass_exhausted, RESULTS.successful),
+        ),
+    )
     return DecaySequence.from_scan(times, positions, crossed, advanced, code)

@@ -27,9 +27,9 @@ from jax import lax
 
 from .._laws._dissipation import ViscousDamping
 from .._laws._restoring import LinearRestoring
-from .._solution import RESULTS
-from .._numerics._scan import decay_scan
 from .._numerics._roots import bracketed_newton, expanding_root, implicit_step
+from .._numerics._scan import decay_scan
+from .._solution import RESULTS
 from ._osinski import swing_nodes
 
 __all__ = ["energy_map_sequence", "chord_swing"]
@@ -87,8 +87,7 @@ def energy_map_sequence(model, a0, n: int):
     law, omega = model.restoring, model.omega
     kinetic, _ = model.levels()
     drag = [d for d in model.dissipation if d.velocity_dependent]
-    closed = isinstance(law, LinearRestoring) and all(isinstance(d, ViscousDamping)
-                                                      for d in drag)
+    closed = isinstance(law, LinearRestoring) and all(isinstance(d, ViscousDamping) for d in drag)
 
     if closed:
         zeta = sum((d.zeta for d in drag), jnp.zeros_like(omega))

@@ -24,10 +24,10 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from .._solution import RESULTS
-from .._numerics._scan import decay_scan
-from .._numerics._roots import expanding_root
 from .._numerics._ode import ode_solve
+from .._numerics._roots import expanding_root
+from .._numerics._scan import decay_scan
+from .._solution import RESULTS
 
 __all__ = ["kbm", "action_law", "energy_map_sequence", "half_swings_until", "swing_nodes"]
 
@@ -50,8 +50,8 @@ def _kbm_amplitude(rope, a0, t):
     moving = u != 0
     safe_u = jnp.where(moving, u, 1.0)
     # (l0^(5/4) l^(1/4) - l^(3/2)) / u, and its u -> 0 limit (5/4) sqrt(l0) t
-    gap = jnp.where(moving, (l0 ** 1.25 * l ** 0.25 - l ** 1.5) / safe_u, 1.25 * jnp.sqrt(l0) * t)
-    return jnp.maximum(a0 * ratio ** 0.25 - 0.8 * D * gap, 0.0)
+    gap = jnp.where(moving, (l0**1.25 * l**0.25 - l**1.5) / safe_u, 1.25 * jnp.sqrt(l0) * t)
+    return jnp.maximum(a0 * ratio**0.25 - 0.8 * D * gap, 0.0)
 
 
 def _kbm_printed(rope, a0, t):
@@ -59,13 +59,13 @@ def _kbm_printed(rope, a0, t):
     l0, u = rope.length.l0, rope.length.u
     l = l0 - u * t
     D = _kbm_D(rope)
-    return a0 * (l / l0) ** 0.25 - (D / u) * (4 / 7) * (l0 ** 2 * l ** 0.25 / l0 ** 0.25 - l ** 2)
+    return a0 * (l / l0) ** 0.25 - (D / u) * (4 / 7) * (l0**2 * l**0.25 / l0**0.25 - l**2)
 
 
 def _kbm_frequency(rope, a, t):
     l = rope.length.length(t)
     omega = jnp.sqrt(rope.A * rope.e / (rope.m * l))
-    return omega + 3 * rope.A * rope.d * a * a / (8 * rope.m * omega * l ** 3)
+    return omega + 3 * rope.A * rope.d * a * a / (8 * rope.m * omega * l**3)
 
 
 def kbm(rope, a0, t):
@@ -79,7 +79,7 @@ def kbm(rope, a0, t):
 def _poly(rope, l):
     """Coefficients `(c2, c3, c4)` of `V(x) = c2 x^2 + c3 x^3 + c4 x^4` at length `l`."""
     A = rope.A
-    return A * rope.e / (2 * l), A * rope.b / (3 * l * l), A * rope.d / (4 * l ** 3)
+    return A * rope.e / (2 * l), A * rope.b / (3 * l * l), A * rope.d / (4 * l**3)
 
 
 def _quotient(c, p1, r1, r2):
@@ -119,12 +119,19 @@ def _action(rope, c, r1, r2):
     """Action `(1/pi) int_{r1}^{r2} sqrt(2 m (E - V)) dx` of a frictionless swing [J s]."""
     mq = _swing_nodes(_quotient(c, 0.0, r1, r2), r1, r2)
     half = (r2 - r1) / 2
-    return jnp.sqrt(2 * rope.m) * half * half / jnp.pi * jnp.sum(
-        _W * jnp.cos(_THETA) ** 2 * jnp.sqrt(mq))
+    return (
+        jnp.sqrt(2 * rope.m)
+        * half
+        * half
+        / jnp.pi
+        * jnp.sum(_W * jnp.cos(_THETA) ** 2 * jnp.sqrt(mq))
+    )
 
 
-_UNBOUNDED = ("no turning point: the energy of the swing is above the potential barrier of "
-              "the rope's quadratic/cubic law (the motion is unbounded)")
+_UNBOUNDED = (
+    "no turning point: the energy of the swing is above the potential barrier of "
+    "the rope's quadratic/cubic law (the motion is unbounded)"
+)
 
 
 def _turning_point(c, E, side):
@@ -160,8 +167,14 @@ def energy_map_sequence(rope, a0, n: int):
         def g(y):  # (W(x) - W(x + s y)) / y: positive until the next turning point
             z = s * y
             c2, c3, c4 = c
-            return s * (-(c2 * (2 * x + z) + c3 * (3 * x * x + 3 * x * z + z * z)
-                          + c4 * (4 * x ** 3 + 6 * x * x * z + 4 * x * z * z + z ** 3)) - p1)
+            return s * (
+                -(
+                    c2 * (2 * x + z)
+                    + c3 * (3 * x * x + 3 * x * z + z * z)
+                    + c4 * (4 * x**3 + 6 * x * x * z + 4 * x * z * z + z**3)
+                )
+                - p1
+            )
 
         y, bounded = expanding_root(g, 2 * jnp.abs(x))
         x1 = x + s * y
@@ -213,8 +226,9 @@ def action_law(rope, a0, ts):
     t1 = ts[-1]
     import diffrax as dfx  # only where an ODE is solved (light imports)
 
-    sol = ode_solve(field, J0, t1, dfx.SaveAt(ts=ts), rtol=1e-10, atol=1e-10 * J0,
-                    max_steps=100_000)
+    sol = ode_solve(
+        field, J0, t1, dfx.SaveAt(ts=ts), rtol=1e-10, atol=1e-10 * J0, max_steps=100_000
+    )
     Js = sol.ys
 
     def output(J, t):
@@ -223,7 +237,8 @@ def action_law(rope, a0, ts):
         _, xm, xp, Om = _swing_of_action(rope, Js * Js, rope.length.length(t))
         l = rope.length.length(t)
         return jnp.where(alive, (xp - xm) / 2, 0.0), jnp.where(
-            alive, Om, jnp.sqrt(rope.A * rope.e / (rope.m * l)))
+            alive, Om, jnp.sqrt(rope.A * rope.e / (rope.m * l))
+        )
 
     amp, freq = jax.vmap(output)(Js, ts)
     ok = sol.result == dfx.RESULTS.successful
@@ -241,4 +256,3 @@ def half_swings_until(rope, a0, t1) -> int:
     k = A * (float(rope.e) + 2 * abs(float(rope.b)) * s + 3 * float(rope.d) * s * s) / l_min
     omega = np.sqrt(k / m)
     return int(np.ceil(1.2 * float(t1) * omega / np.pi)) + 4
-

@@ -134,8 +134,10 @@ class CoulombDamping(DissipationLaw):
 
     xF: Array
     xS: Array
-    _limits: ClassVar[dict] = {"xF": (nonnegative, ">= 0 [position unit]"),
-                               "xS": (nonnegative, ">= xF [position unit]")}
+    _limits: ClassVar[dict] = {
+        "xF": (nonnegative, ">= 0 [position unit]"),
+        "xS": (nonnegative, ">= xF [position unit]"),
+    }
     _relations: ClassVar[dict] = {"xS": (lambda law: law.xS >= law.xF, ">= xF [position unit]")}
 
     def __init__(self, xF, xS=None):
@@ -146,7 +148,7 @@ class CoulombDamping(DissipationLaw):
         return omega * omega * self.xF * sgn
 
     def smoothed_force(self, omega, x, v, w):
-        static = jnp.exp(-(v / (STRIBECK * w)) ** 8)
+        static = jnp.exp(-((v / (STRIBECK * w)) ** 8))
         return omega * omega * (self.xF + (self.xS - self.xF) * static) * jnp.tanh(v / w)
 
     def series_term(self, omega, n, xs, vs, s):

@@ -81,8 +81,11 @@ class AffineFriction(FrictionLaw):
     FT: Array = eqx.field(converter=_float)
     f: Array = eqx.field(converter=_float)
     g: Array = eqx.field(converter=_float, default=9.81)
-    _limits: ClassVar[dict] = {"FT": (nonnegative, ">= 0 [N]"), "f": (nonnegative, ">= 0 [-]"),
-                               "g": (positive, "> 0 [m/s^2]")}
+    _limits: ClassVar[dict] = {
+        "FT": (nonnegative, ">= 0 [N]"),
+        "f": (nonnegative, ">= 0 [-]"),
+        "g": (positive, "> 0 [m/s^2]"),
+    }
 
     def force(self, mass):
         return self.FT + self.f * self.g * mass

@@ -122,8 +122,9 @@ class Braking(LengthProfile):
 
     def next_break(self, t):
         t = _float(t)
-        return jnp.where(t < self.t_brake, self.t_brake,
-                         jnp.where(t < self.t_stop, self.t_stop, jnp.inf))
+        return jnp.where(
+            t < self.t_brake, self.t_brake, jnp.where(t < self.t_stop, self.t_stop, jnp.inf)
+        )
 
     def lifetime(self):
         u, tb, ts, l0 = self.u, self.t_brake, self.t_stop, self.l0

@@ -116,8 +116,10 @@ def _cubic_potential(law, x):
 
 def _cubic_chord(law, x, z):
     """`(P(x + z) - P(x)) / z` for `P = b2 x^3/3 + b3 x^4/4`, expanded (no cancellation)."""
-    return (law.b2 * (3 * x * x + 3 * x * z + z * z) / 3
-            + law.b3 * (4 * x ** 3 + 6 * x * x * z + 4 * x * z * z + z ** 3) / 4)
+    return (
+        law.b2 * (3 * x * x + 3 * x * z + z * z) / 3
+        + law.b3 * (4 * x**3 + 6 * x * x * z + 4 * x * z * z + z**3) / 4
+    )
 
 
 def _cubic_term(law, n, xs, x2):
@@ -137,8 +139,10 @@ def _cubic_frequency(law, a):
     return jnp.sqrt(jnp.maximum(1 + 0.75 * law.b3 * a * a - (5 / 6) * (law.b2 * a) ** 2, 0.1))
 
 
-_CUBIC_LIMITS = {"b2": (anything, "a real number [1/position unit]"),
-                 "b3": (anything, "a real number [1/position unit^2]")}
+_CUBIC_LIMITS = {
+    "b2": (anything, "a real number [1/position unit]"),
+    "b3": (anything, "a real number [1/position unit^2]"),
+}
 
 
 class PolynomialRestoring(RestoringLaw):
@@ -203,8 +207,10 @@ class SineRestoring(RestoringLaw):
 
     b2: Array = eqx.field(converter=_float, default=0.0)
     b3: Array = eqx.field(converter=_float, default=0.0)
-    _limits: ClassVar[dict] = {"b2": (anything, "a real number [1/rad]"),
-                               "b3": (anything, "a real number [1/rad^2]")}
+    _limits: ClassVar[dict] = {
+        "b2": (anything, "a real number [1/rad]"),
+        "b3": (anything, "a real number [1/rad^2]"),
+    }
 
     def value(self, x):
         return jnp.sin(x) + _cubic(self, x)

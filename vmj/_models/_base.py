@@ -30,8 +30,15 @@ from jaxtyping import Array
 from .._checks import AbstractParams, _is_traced, positive
 from .._solution import RESULTS
 
-__all__ = ["check_horizon", "require_scalar_fields", "AbstractModel", "AbstractDecayModel", "AbstractEnergyMap", "AbstractAnalytic",
-           "AbstractLimitCycle"]
+__all__ = [
+    "check_horizon",
+    "require_scalar_fields",
+    "AbstractModel",
+    "AbstractDecayModel",
+    "AbstractEnergyMap",
+    "AbstractAnalytic",
+    "AbstractLimitCycle",
+]
 
 
 class AbstractModel(AbstractParams):
@@ -198,8 +205,10 @@ def check_horizon(model: AbstractModel, t1, name: str = "t1") -> None:
         return
     t_max = float(np.max(np.asarray(t1)))
     if t_max >= float(life):
-        raise ValueError(f"{name} must be below {model.lifetime_text} = {float(life):.6g} s "
-                         f"(got {t_max:.6g}); the model is meaningless beyond it")
+        raise ValueError(
+            f"{name} must be below {model.lifetime_text} = {float(life):.6g} s "
+            f"(got {t_max:.6g}); the model is meaningless beyond it"
+        )
 
 
 def require_scalar_fields(model) -> None:

@@ -44,13 +44,17 @@ class LinearOscillator(AbstractAnalytic):
     c: Array = eqx.field(converter=_float)
     k: Array = eqx.field(converter=_float)
     forcing: Forcing = eqx.field(default_factory=NoForcing)
-    _limits: ClassVar[dict] = {"m": (positive, "> 0 [kg]"), "c": (nonnegative, ">= 0 [N s/m]"),
-               "k": (positive, "> 0 [N/m]")}
+    _limits: ClassVar[dict] = {
+        "m": (positive, "> 0 [kg]"),
+        "c": (nonnegative, ">= 0 [N s/m]"),
+        "k": (positive, "> 0 [N/m]"),
+    }
 
     def __check_init__(self):
         if not isinstance(self.forcing, Forcing):
-            raise ValueError("forcing must be vmj.NoForcing(), vmj.HarmonicForce(F0, p) or "
-                             "vmj.BaseMotion(Y0, p)")
+            raise ValueError(
+                "forcing must be vmj.NoForcing(), vmj.HarmonicForce(F0, p) or vmj.BaseMotion(Y0, p)"
+            )
 
     # -- the equation of motion, written once --------------------------------------------------
     def acceleration(self, t, x, v, sgn=None):
@@ -100,17 +104,21 @@ class LinearOscillator(AbstractAnalytic):
         (`inf` when `eta >= 1`)."""
         eta = self.damping_ratio
         under = eta < 1
-        return jnp.where(under, 2 * jnp.pi * eta / jnp.sqrt(jnp.where(under, 1 - eta**2, 1.0)),
-                         jnp.inf)
+        return jnp.where(
+            under, 2 * jnp.pi * eta / jnp.sqrt(jnp.where(under, 1 - eta**2, 1.0)), jnp.inf
+        )
 
     def free_amplitude(self, x0, v0):
         """Free response `x = A e^{-eta omega_c t} sin(omega_3 t + alpha)` (under-damped):
         returns `(A, alpha)` [m, rad], `A = sqrt(x0^2 + ((v0 + eta omega_c x0)/omega_3)^2)`.
         (The book writes `sin(omega_3 t - alpha)` with its alpha of opposite sign.)"""
         b, wd = self.decay_rate, self.damped_frequency
-        wd = eqx.error_if(wd, jnp.any(self.damping_ratio >= 1),
-                          "free_amplitude/transient/settling_time need an under-damped "
-                          "oscillator (damping ratio eta < 1); use response() otherwise")
+        wd = eqx.error_if(
+            wd,
+            jnp.any(self.damping_ratio >= 1),
+            "free_amplitude/transient/settling_time need an under-damped "
+            "oscillator (damping ratio eta < 1); use response() otherwise",
+        )
         B = (v0 + b * x0) / wd
         return jnp.sqrt(x0**2 + B**2), jnp.arctan2(x0, B)
 

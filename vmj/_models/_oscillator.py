@@ -16,8 +16,7 @@ from jaxtyping import Array
 
 from .._checks import _float, positive
 from .._closed_forms._oscillator import energy_map_sequence
-from .._laws._dissipation import (CoulombDamping, DissipationLaw, QuadraticDamping,
-                                  ViscousDamping)
+from .._laws._dissipation import CoulombDamping, DissipationLaw, QuadraticDamping, ViscousDamping
 from .._laws._restoring import LinearRestoring, RestoringLaw, SineRestoring
 from ._base import AbstractEnergyMap
 
@@ -73,12 +72,16 @@ class Oscillator(AbstractEnergyMap):
 
     def __check_init__(self):
         if not isinstance(self.restoring, RestoringLaw):
-            raise ValueError("restoring must be a restoring law: vmj.LinearRestoring(), "
-                             "vmj.PolynomialRestoring(b2, b3) or vmj.SineRestoring(b2, b3)")
+            raise ValueError(
+                "restoring must be a restoring law: vmj.LinearRestoring(), "
+                "vmj.PolynomialRestoring(b2, b3) or vmj.SineRestoring(b2, b3)"
+            )
         if not all(isinstance(d, DissipationLaw) for d in self.dissipation):
-            raise ValueError("dissipation must be a tuple of dissipation laws: "
-                             "vmj.ViscousDamping(zeta), vmj.CoulombDamping(xF, xS), "
-                             "vmj.QuadraticDamping(cq)")
+            raise ValueError(
+                "dissipation must be a tuple of dissipation laws: "
+                "vmj.ViscousDamping(zeta), vmj.CoulombDamping(xF, xS), "
+                "vmj.QuadraticDamping(cq)"
+            )
 
     @classmethod
     def pendulum(cls, omega, zeta=0.0, xF=0.0, xS=None, cq=0.0, b2=0.0, b3=0.0) -> Oscillator:
@@ -86,8 +89,11 @@ class Oscillator(AbstractEnergyMap):
         `zeta` [-], dry friction `xF` (kinetic) and `xS` (static, default `xF`) [rad] and
         quadratic drag `cq` [1/rad]. Every law is present whatever its value, so that every
         subset of parameters shares one compiled model."""
-        return cls(omega, SineRestoring(b2, b3), (ViscousDamping(zeta), CoulombDamping(xF, xS),
-                                                  QuadraticDamping(cq)))
+        return cls(
+            omega,
+            SineRestoring(b2, b3),
+            (ViscousDamping(zeta), CoulombDamping(xF, xS), QuadraticDamping(cq)),
+        )
 
     @classmethod
     def linear(cls, omega, zeta=0.0, xF=0.0, xS=None) -> Oscillator:
@@ -103,8 +109,10 @@ class Oscillator(AbstractEnergyMap):
     def release_range(self):
         """A pendulum is released below the upright position: `0 < a0 < pi` [rad]."""
         if self.restoring.angular:
-            return (lambda a: (a > 0) & (a < np.pi),
-                    "in (0, pi) [rad] (angles are in radians: convert degrees with np.deg2rad)")
+            return (
+                lambda a: (a > 0) & (a < np.pi),
+                "in (0, pi) [rad] (angles are in radians: convert degrees with np.deg2rad)",
+            )
         return super().release_range()
 
     # -- the equation of motion, written once ---------------------------------------------------
@@ -120,16 +128,19 @@ class Oscillator(AbstractEnergyMap):
         """`x''` at position `x`, velocity `v`, with `sgn` standing for `sign(v)` (exactly +-1
         in the exact solver)."""
         om = self.omega
-        return -sum((d.force(om, x, v, sgn) for d in self.dissipation),
-                    om * om * self.restoring.value(x))
+        return -sum(
+            (d.force(om, x, v, sgn) for d in self.dissipation), om * om * self.restoring.value(x)
+        )
 
     def vector_field(self, t, y, w):
         """The smoothed ODE: each law's smoothed force (`sign(v)` as `tanh(v/w)`; the static
         friction level as the limit of the dry friction at small speed)."""
         x, v = y[0], y[1]
         om = self.omega
-        acc = -sum((d.smoothed_force(om, x, v, w) for d in self.dissipation),
-                   om * om * self.restoring.value(x))
+        acc = -sum(
+            (d.smoothed_force(om, x, v, w) for d in self.dissipation),
+            om * om * self.restoring.value(x),
+        )
         return jnp.stack([v, acc])
 
     def velocity_scale(self, a0) -> Array:

@@ -17,16 +17,23 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, ArrayLike
 
-from .._checks import (_float, _is_traced, anything, check, nonnegative, positive, validated,
-                       warn_if_float32)
+from .._checks import (
+    _float,
+    _is_traced,
+    anything,
+    check,
+    nonnegative,
+    positive,
+    validated,
+    warn_if_float32,
+)
 from .._closed_forms._osinski import action_law, energy_map_sequence, kbm
 from .._laws._length import ConstantSpeed, LengthProfile
 from .._numerics._series import cauchy, cauchy_term
 from .._solution import RESULTS
 from ._base import AbstractEnergyMap, check_horizon, require_scalar_fields
 
-__all__ = ["Rope", "KGF", "kbm_amplitude", "kbm_frequency", "action_amplitude",
-           "action_frequency"]
+__all__ = ["Rope", "KGF", "kbm_amplitude", "kbm_frequency", "action_amplitude", "action_frequency"]
 
 KGF = 9.80665
 """One kilogram-force (kG) [N]: the unit of the rope paper's technical units."""
@@ -76,24 +83,34 @@ class Rope(AbstractEnergyMap):
 
     def __check_init__(self):
         if not isinstance(self.length, LengthProfile):
-            raise ValueError("length must be a length profile: vmj.ConstantSpeed(l0, u) or "
-                             "vmj.Braking(l0, u, t_brake, t_stop)")
+            raise ValueError(
+                "length must be a length profile: vmj.ConstantSpeed(l0, u) or "
+                "vmj.Braking(l0, u, t_brake, t_stop)"
+            )
 
     @classmethod
     def from_technical(cls, m, A, e, b, d, T, length) -> Rope:
         """Build from technical units as printed in the paper: `m` [kG s^2/m], `A` [cm^2],
         `e`, `b`, `d`, `T` [kG/cm^2]; the profile stays in metres and seconds."""
         kg_cm2 = KGF * 1e4
-        return cls(np.multiply(m, KGF), np.multiply(A, 1e-4), np.multiply(e, kg_cm2),
-                   np.multiply(b, kg_cm2), np.multiply(d, kg_cm2), np.multiply(T, kg_cm2), length)
+        return cls(
+            np.multiply(m, KGF),
+            np.multiply(A, 1e-4),
+            np.multiply(e, kg_cm2),
+            np.multiply(b, kg_cm2),
+            np.multiply(d, kg_cm2),
+            np.multiply(T, kg_cm2),
+            length,
+        )
 
     @classmethod
     def paper(cls, u=0.0, T=0.0, cubic: bool = True, l0=10.0) -> Rope:
         """The paper's example (rope 6x37, 22 mm): `A = 1.74 cm^2`, `l0 = 10 m`,
         `m = 2 kG s^2/m`, `e = 0.8e6`, `d = 0.8e11` (or 0 with `cubic=False`), `b = 0`, with the
         friction `T` in kG/cm^2 (technical, as printed) and the speed `u` [m/s]."""
-        return cls.from_technical(2.0, 1.74, 0.8e6, 0.0, 0.8e11 if cubic else 0.0, T,
-                                  ConstantSpeed(l0, u))
+        return cls.from_technical(
+            2.0, 1.74, 0.8e6, 0.0, 0.8e11 if cubic else 0.0, T, ConstantSpeed(l0, u)
+        )
 
     # -- the equation of motion, written once ---------------------------------------------------
     def spring(self, t, x) -> Array:
@@ -154,8 +171,12 @@ class Rope(AbstractEnergyMap):
         for _ in range(PIECES):
             brk = self.length.next_break(p0)
             p0 = jnp.where(jnp.isfinite(brk), brk, p0)
-            here = jnp.logical_not(found) & jnp.isfinite(brk) & (brk < self.lifetime()) & (
-                jnp.abs(self.net_force(p0, x)) > static)
+            here = (
+                jnp.logical_not(found)
+                & jnp.isfinite(brk)
+                & (brk < self.lifetime())
+                & (jnp.abs(self.net_force(p0, x)) > static)
+            )
             t_rel = jnp.where(here, p0, t_rel)
             found = found | here
         t_go = jnp.where(stuck, t_rel, t)
@@ -164,8 +185,9 @@ class Rope(AbstractEnergyMap):
 
     def swing_scale(self, t, x):
         """`|x|` plus the static deflection of the frame's inertial force."""
-        return jnp.abs(x) + jnp.abs(self.m * self.length.accel(t)) / (self.A * self.e) * \
-            self.length.length(t)
+        return jnp.abs(x) + jnp.abs(self.m * self.length.accel(t)) / (
+            self.A * self.e
+        ) * self.length.length(t)
 
     def taylor(self, t, x, v, s, order: int):
         """On each polynomial piece of the length profile `g_k(tau) = 1/l(t + tau)^k` has a
@@ -192,8 +214,11 @@ class Rope(AbstractEnergyMap):
             xs, x2, x3 = carry
             x2 = x2.at[n].set(cauchy_term(xs, xs, n))
             x3 = x3.at[n].set(cauchy_term(x2, xs, n))
-            rhs = -A * (self.e * cauchy_term(g1, xs, n) + self.b * cauchy_term(g2, x2, n)
-                        + self.d * cauchy_term(g3, x3, n))
+            rhs = -A * (
+                self.e * cauchy_term(g1, xs, n)
+                + self.b * cauchy_term(g2, x2, n)
+                + self.d * cauchy_term(g3, x3, n)
+            )
             rhs = rhs + jnp.where(n == 0, force0, 0.0)
             return xs.at[n + 2].set(rhs / (m * (n + 1) * (n + 2))), x2, x3
 
@@ -231,16 +256,22 @@ class Rope(AbstractEnergyMap):
 
     def guard_energy_map(self):
         if not isinstance(self.length, ConstantSpeed):
-            raise ValueError("the energy map needs a vmj.ConstantSpeed length profile "
-                             f"(got {type(self.length).__name__})")
+            raise ValueError(
+                "the energy map needs a vmj.ConstantSpeed length profile "
+                f"(got {type(self.length).__name__})"
+            )
         u = self.length.u
         if not _is_traced(u):
             if float(u) != 0:
-                raise ValueError(f"u must be 0 for the energy map (a rope of fixed length; got "
-                                 f"{float(u)})")
+                raise ValueError(
+                    f"u must be 0 for the energy map (a rope of fixed length; got {float(u)})"
+                )
             return self
-        return eqx.tree_at(lambda r: r.length.u, self, eqx.error_if(
-            u, u != 0, "u must be 0 for the energy map (a rope of fixed length)"))
+        return eqx.tree_at(
+            lambda r: r.length.u,
+            self,
+            eqx.error_if(u, u != 0, "u must be 0 for the energy map (a rope of fixed length)"),
+        )
 
 
 # -- the averaged laws (closed forms in _closed_forms/_osinski.py) -------------------------------
@@ -249,8 +280,10 @@ def _averaged_inputs(rope, a0, t):
     if not isinstance(rope, Rope):
         raise ValueError(f"rope must be a vmj.Rope (got {type(rope).__name__})")
     if not isinstance(rope.length, ConstantSpeed):
-        raise ValueError("the averaged laws need a vmj.ConstantSpeed length profile "
-                         f"(got {type(rope.length).__name__})")
+        raise ValueError(
+            "the averaged laws need a vmj.ConstantSpeed length profile "
+            f"(got {type(rope.length).__name__})"
+        )
     require_scalar_fields(rope)
     rope = validated(rope)
     a0 = _float(check("a0", a0, positive, "> 0 [m]"))

@@ -32,8 +32,8 @@ from jaxtyping import Array
 
 from .._checks import _float, _is_traced, check, check_int, positive
 from .._closed_forms._belokobylsky import closed_form_cycle
-from .._solution import RESULTS, Trajectory
 from .._numerics._roots import bracketed_newton, implicit_step
+from .._solution import RESULTS, Trajectory
 from ._base import AbstractLimitCycle
 
 __all__ = ["StickSlip", "StickSlipCycle", "MAX_REVERSALS"]
@@ -163,9 +163,16 @@ class StickSlip(AbstractLimitCycle):
     def closed_form_cycle(self, max_reversals: int) -> StickSlipCycle:
         """The paper's closed forms (11)-(20)."""
         fields = closed_form_cycle(self.eps, self.Omega, max_reversals)
-        return StickSlipCycle(**fields, result=jnp.where(
-            fields["count"] == fields["reversals"] + 1, RESULTS.successful,
-            RESULTS.too_many_reversals), model=self, method="closed")
+        return StickSlipCycle(
+            **fields,
+            result=jnp.where(
+                fields["count"] == fields["reversals"] + 1,
+                RESULTS.successful,
+                RESULTS.too_many_reversals,
+            ),
+            model=self,
+            method="closed",
+        )
 
     def smoothed_cycle(self, max_reversals: int, solver) -> StickSlipCycle:
         """The cycle measured on the smoothed model (NumPy post-processing; concrete scalar
@@ -246,8 +253,10 @@ class StickSlipCycle(eqx.Module):
         """
         n_save = check_int("n_save", n_save, 2)
         if self.method == "smooth":
-            raise ValueError("a cycle measured on the smoothed model has no analytic trajectory; "
-                             "sample it with vmj.stick_slip_simulate")
+            raise ValueError(
+                "a cycle measured on the smoothed model has no analytic trajectory; "
+                "sample it with vmj.stick_slip_simulate"
+            )
         return _sample(self, n_save, jnp.asarray(periods, dtype=self.period.dtype), physical)
 
 
@@ -278,9 +287,12 @@ def _sample(cycle, n_save, periods, physical):
     if physical:
         # phi / angle_scale = xi + Omega tau (+ xi(0) offset so that phi = 0 at breakaway)
         phi = m.angle_scale * (xi + m.Omega * ts + m.eps)
-        return Trajectory(ts=ts * m.time_scale, xs=phi,
-                          vs=(dxi + m.Omega) * m.angle_scale / m.time_scale,
-                          result=cycle.result)
+        return Trajectory(
+            ts=ts * m.time_scale,
+            xs=phi,
+            vs=(dxi + m.Omega) * m.angle_scale / m.time_scale,
+            result=cycle.result,
+        )
     return Trajectory(ts=ts, xs=xi, vs=dxi, result=cycle.result)
 
 
@@ -309,8 +321,13 @@ def _velocity_zero(model, xi0, s):
     a_ng, Om_ng = lax.stop_gradient(xi0 + s), lax.stop_gradient(model.Omega)
     quarter = 0.5 * jnp.pi * jnp.ones_like(a_ng)
     lo = jnp.where(s > 0, quarter, 0.0)
-    x = bracketed_newton(lambda x: (f(x, a_ng, Om_ng), fprime(x, a_ng, Om_ng)), lo,
-                         lo + quarter, lo + 0.5 * quarter, NEWTON)
+    x = bracketed_newton(
+        lambda x: (f(x, a_ng, Om_ng), fprime(x, a_ng, Om_ng)),
+        lo,
+        lo + quarter,
+        lo + 0.5 * quarter,
+        NEWTON,
+    )
     a = xi0 + s
     x = implicit_step(lambda x: (f(x, a, model.Omega), fprime(x, a, model.Omega)), x)
     tau = 2.0 * x
@@ -329,8 +346,12 @@ def _exact_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
         amplitude = jnp.sqrt(a * a + model.Omega**2)
         reverse = jnp.abs(xi1) > 1.0 + REVERSAL_MARGIN
         active = jnp.logical_not(done)
-        out = (jnp.where(active, tau, 0.0), jnp.where(active, xi1, 0.0),
-               jnp.where(active, amplitude, 0.0), active)
+        out = (
+            jnp.where(active, tau, 0.0),
+            jnp.where(active, xi1, 0.0),
+            jnp.where(active, amplitude, 0.0),
+            active,
+        )
         new_done = done | jnp.logical_not(reverse)
         reversals = reversals + (active & reverse).astype(jnp.int32)
         xi = jnp.where(active, xi1, xi)
@@ -344,8 +365,16 @@ def _exact_cycle(model: StickSlip, max_reversals: int) -> StickSlipCycle:
     stick = (xi_end + model.eps) / model.Omega  # xi falls at rate Omega from xi_end to -eps
     code = jnp.where(done, RESULTS.successful, RESULTS.too_many_reversals)
     return StickSlipCycle(
-        reversals=reversals, count=count, slip_intervals=taus, positions=xis, amplitudes=amps,
-        slip_time=slip, stick_time=stick, period=slip + stick, result=code, model=model,
+        reversals=reversals,
+        count=count,
+        slip_intervals=taus,
+        positions=xis,
+        amplitudes=amps,
+        slip_time=slip,
+        stick_time=stick,
+        period=slip + stick,
+        result=code,
+        model=model,
     )
 
 
@@ -369,9 +398,19 @@ def smoothed_states(model, solver, t1, n_save: int):
 def _failed_cycle(model, max_reversals, code) -> StickSlipCycle:
     zeros = jnp.zeros(max_reversals + 1)
     nan = jnp.asarray(jnp.nan)
-    return StickSlipCycle(reversals=jnp.asarray(0), count=jnp.asarray(0), slip_intervals=zeros,
-                          positions=zeros, amplitudes=zeros, slip_time=nan, stick_time=nan,
-                          period=nan, result=jnp.asarray(code), model=model, method="smooth")
+    return StickSlipCycle(
+        reversals=jnp.asarray(0),
+        count=jnp.asarray(0),
+        slip_intervals=zeros,
+        positions=zeros,
+        amplitudes=zeros,
+        slip_time=nan,
+        stick_time=nan,
+        period=nan,
+        result=jnp.asarray(code),
+        model=model,
+        method="smooth",
+    )
 
 
 def _smooth_cycle(model, max_reversals, solver) -> StickSlipCycle:
@@ -398,14 +437,15 @@ def _smooth_cycle(model, max_reversals, solver) -> StickSlipCycle:
     rests = []
     for i in starts:
         j = stops[stops > i]
-        if j.size and z[i:j[0] + 1].max() > 0.5:
+        if j.size and z[i : j[0] + 1].max() > 0.5:
             rests.append((level(i, over), level(j[0], over), i, j[0]))
     if len(rests) < 2:
         return _failed_cycle(model, max_reversals, RESULTS.no_cycle)
     (_, b1, _, i1), (d2, b2, i2, _) = rests[-2], rests[-1]
     # reversals: sign changes of the disk velocity while slipping between the two rests
-    flips = np.nonzero((u[:-1] * u[1:] < 0) & (np.arange(len(u) - 1) > i1)
-                       & (np.arange(len(u) - 1) < i2))[0]
+    flips = np.nonzero(
+        (u[:-1] * u[1:] < 0) & (np.arange(len(u) - 1) > i1) & (np.arange(len(u) - 1) < i2)
+    )[0]
     marks = [b1] + [level(i, u) for i in flips] + [d2]
     taus = np.diff(marks)
     n = max_reversals + 1
@@ -424,9 +464,15 @@ def _smooth_cycle(model, max_reversals, solver) -> StickSlipCycle:
     amplitudes = np.zeros(n)
     amplitudes[: min(n, len(taus))] = amps[:n]
     return StickSlipCycle(
-        reversals=jnp.asarray(rev), count=jnp.asarray(min(n, len(taus))),
-        slip_intervals=jnp.asarray(padded), positions=jnp.asarray(positions),
-        amplitudes=jnp.asarray(amplitudes), slip_time=jnp.asarray(d2 - b1),
-        stick_time=jnp.asarray(b2 - d2), period=jnp.asarray(b2 - b1),
-        result=jnp.asarray(code), model=model, method="smooth",
+        reversals=jnp.asarray(rev),
+        count=jnp.asarray(min(n, len(taus))),
+        slip_intervals=jnp.asarray(padded),
+        positions=jnp.asarray(positions),
+        amplitudes=jnp.asarray(amplitudes),
+        slip_time=jnp.asarray(d2 - b1),
+        stick_time=jnp.asarray(b2 - d2),
+        period=jnp.asarray(b2 - b1),
+        result=jnp.asarray(code),
+        model=model,
+        method="smooth",
     )

@@ -55,8 +55,10 @@ class VariableMass(AbstractEnergyMap):
 
     def __check_init__(self):
         if not isinstance(self.friction, FrictionLaw):
-            raise ValueError("friction must be a friction law: vmj.Coulomb(F), "
-                             "vmj.MassProportional(f, g) or vmj.AffineFriction(FT, f, g)")
+            raise ValueError(
+                "friction must be a friction law: vmj.Coulomb(F), "
+                "vmj.MassProportional(f, g) or vmj.AffineFriction(FT, f, g)"
+            )
 
     # -- the equation of motion, written once -------------------------------------------------
     def mass(self, t: ArrayLike) -> Array:

@@ -27,8 +27,9 @@ def early_exit_loop(cond, body, init, max_steps: int, buffers=None, kind: str = 
     if kind == "lax":  # (`cond` bounds the steps itself; buffers are updated in place)
         return lax.while_loop(cond, body, init)
     base = max_steps if max_steps <= 64 else 16  # one level of conditionals up to 64 steps
-    return eqxi.while_loop(cond, body, init, max_steps=max_steps, buffers=buffers,
-                           kind="bounded", base=max(base, 2))
+    return eqxi.while_loop(
+        cond, body, init, max_steps=max_steps, buffers=buffers, kind="bounded", base=max(base, 2)
+    )
 
 
 def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence:
@@ -61,13 +62,17 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
 
     x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
     t0 = jnp.zeros_like(x0)
-    buffers = (jnp.zeros((n,) + x0.shape, x0.dtype), jnp.zeros((n,) + x0.shape, x0.dtype),
-               jnp.zeros((n,) + x0.shape, bool))
+    buffers = (
+        jnp.zeros((n,) + x0.shape, x0.dtype),
+        jnp.zeros((n,) + x0.shape, x0.dtype),
+        jnp.zeros((n,) + x0.shape, bool),
+    )
     zero = jnp.zeros(x0.shape, jnp.int32)
     init = (jnp.array(0), t0, x0, zero + RESULTS.successful, zero, buffers)
     # (the count is carried: a sum over the swings afterwards costs more than the loop)
     k, t, x, code, count, (times, positions, crossed) = early_exit_loop(
-        cond, body, init, n, buffers=lambda carry: carry[5], kind=kind)
+        cond, body, init, n, buffers=lambda carry: carry[5], kind=kind
+    )
     # swings not run (every lane had stopped or failed) repeat the last turning point
     run = (jnp.arange(n) < k).reshape((n,) + (1,) * x0.ndim)
     times = jnp.where(run, times, t)
@@ -75,5 +80,11 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
     crossed = crossed & run
     _, _, stuck = model.rest(t, x)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return DecaySequence(times=times, positions=positions, crossed=crossed, count=count,
-                         stopped=code == RESULTS.stopped, result=code)
+    return DecaySequence(
+        times=times,
+        positions=positions,
+        crossed=crossed,
+        count=count,
+        stopped=code == RESULTS.stopped,
+        result=code,
+    )

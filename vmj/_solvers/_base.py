@@ -6,6 +6,7 @@ import abc
 from typing import ClassVar
 
 import equinox as eqx
+
 __all__ = ["AbstractSolver", "unsupported"]
 
 
@@ -25,5 +26,6 @@ class AbstractSolver(eqx.Module):
 
 
 def unsupported(solver, model, task: str, use: str) -> ValueError:
-    return ValueError(f"{type(solver).__name__} does not solve {task} of "
-                      f"{type(model).__name__}; {use}")
+    return ValueError(
+        f"{type(solver).__name__} does not solve {task} of {type(model).__name__}; {use}"
+    )

@@ -29,9 +29,13 @@ class EnergyBalance(AbstractSolver):
 
     def check(self, model, task):
         if task != "turning_points" or not isinstance(model, AbstractEnergyMap):
-            raise unsupported(self, model, task.replace("_", " "),
-                              "the energy balance gives the turning points of the variable-mass "
-                              "model, the rope of fixed length and the oscillator")
+            raise unsupported(
+                self,
+                model,
+                task.replace("_", " "),
+                "the energy balance gives the turning points of the variable-mass "
+                "model, the rope of fixed length and the oscillator",
+            )
         return model.guard_energy_map()
 
     def turning_points(self, model, a0, n: int):
@@ -48,9 +52,13 @@ class ClosedForm(AbstractSolver):
     def check(self, model, task):
         ok = {"simulate": AbstractAnalytic, "limit_cycle": AbstractLimitCycle}.get(task)
         if ok is None or not isinstance(model, ok):
-            raise unsupported(self, model, task.replace("_", " "),
-                              "closed forms exist for the linear oscillator's response and the "
-                              "stick-slip limit cycle")
+            raise unsupported(
+                self,
+                model,
+                task.replace("_", " "),
+                "closed forms exist for the linear oscillator's response and the "
+                "stick-slip limit cycle",
+            )
         return model
 
     def simulate(self, model, x0, v0, t1, n_save: int) -> Trajectory:

@@ -27,11 +27,11 @@ from equinox.internal import unvmap_any
 from jax import lax
 
 from .._models._base import AbstractDecayModel, AbstractLimitCycle
+from .._numerics._roots import bracketed_newton, implicit_step
+from .._numerics._scan import decay_scan, early_exit_loop
 from .._numerics._series import derivative, horner, horner_and_derivative
 from .._solution import RESULTS
-from .._numerics._scan import decay_scan, early_exit_loop
 from ._base import AbstractSolver, unsupported
-from .._numerics._roots import bracketed_newton, implicit_step
 
 __all__ = ["Exact"]
 
@@ -62,8 +62,11 @@ class Exact(AbstractSolver):
     def __check_init__(self):
         if self.max_substeps is None:
             return
-        if isinstance(self.max_substeps, bool) or not isinstance(self.max_substeps, int) or \
-                self.max_substeps < 1:
+        if (
+            isinstance(self.max_substeps, bool)
+            or not isinstance(self.max_substeps, int)
+            or self.max_substeps < 1
+        ):
             raise ValueError(f"max_substeps must be an integer >= 1 (got {self.max_substeps!r})")
 
     def check(self, model, task):
@@ -71,8 +74,9 @@ class Exact(AbstractSolver):
             return model
         if task == "limit_cycle" and isinstance(model, AbstractLimitCycle):
             return model
-        raise unsupported(self, model, task.replace("_", " "),
-                          "use vmj.Smoothed() or the model's closed forms")
+        raise unsupported(
+            self, model, task.replace("_", " "), "use vmj.Smoothed() or the model's closed forms"
+        )
 
     def turning_points(self, model, a0, n: int):
         steps = model.exact_substeps if self.max_substeps is None else self.max_substeps
@@ -84,8 +88,9 @@ class Exact(AbstractSolver):
 
 def _solve_decay(model, a0, n: int, max_substeps: int, kind: str):
     def swing(t0, x0, s, moving):
-        found, limited, t1, x1 = march_to_velocity_zero(model, t0, x0, s, moving,
-                                                        max_substeps, kind)
+        found, limited, t1, x1 = march_to_velocity_zero(
+            model, t0, x0, s, moving, max_substeps, kind
+        )
         return found, jnp.where(limited, model.exhausted, RESULTS.step_limit), t1, x1
 
     return decay_scan(model, a0, n, swing, kind)
@@ -100,8 +105,9 @@ def _decay(model, a0, *, n: int, max_substeps: int):
 
 @_decay.def_jvp
 def _decay_jvp(primals, tangents, *, n: int, max_substeps: int):
-    return eqx.filter_jvp(lambda m, a: _solve_decay(m, a, n, max_substeps, "bounded"),
-                          primals, tangents)
+    return eqx.filter_jvp(
+        lambda m, a: _solve_decay(m, a, n, max_substeps, "bounded"), primals, tangents
+    )
 
 
 def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: str):
@@ -138,10 +144,10 @@ def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: st
         return k + 1, t, x, v, found, limited, inaccurate, start
 
     false = jnp.array(False)
-    init = (jnp.array(0), t0, x0, zero, jnp.logical_not(moving), false, false,
-            (t0, x0, zero, zero))
+    init = (jnp.array(0), t0, x0, zero, jnp.logical_not(moving), false, false, (t0, x0, zero, zero))
     _, _, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
-        cond, body, init, max_substeps, kind=kind)
+        cond, body, init, max_substeps, kind=kind
+    )
     t_guess = t0 + model.half_period(t0, scale)
     t1, x1 = _velocity_zero(model.taylor(t, x, v, s, ORDER), t, h, s, t_guess)
     return found & jnp.logical_not(inaccurate), limited, t1, x1
@@ -154,7 +160,8 @@ def _velocity_zero(cs, t, h, s, t_guess):
     f_cs = [lax.stop_gradient(c * s) for c in dcs]
     hi = lax.stop_gradient(h)
     tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
-    tau = bracketed_newton(lambda x: horner_and_derivative(f_cs, x), jnp.zeros_like(hi), hi,
-                           tau, NEWTON)
+    tau = bracketed_newton(
+        lambda x: horner_and_derivative(f_cs, x), jnp.zeros_like(hi), hi, tau, NEWTON
+    )
     tau = implicit_step(lambda x: horner_and_derivative(dcs, x), tau)
     return t + tau, horner(cs, tau)

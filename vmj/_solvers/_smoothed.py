@@ -10,8 +10,8 @@ from jax import lax
 from jaxtyping import Array
 
 from .._checks import _float, _is_traced, check, positive
-from .._numerics._ode import ode_solve
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
+from .._numerics._ode import ode_solve
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
 
@@ -59,11 +59,19 @@ class Smoothed(AbstractSolver):
             check("rtol", self.rtol, positive, "> 0")
 
     def check(self, model, task):
-        ok = {"turning_points": AbstractDecayModel, "simulate": AbstractModel,
-              "limit_cycle": AbstractLimitCycle}[task]
+        ok = {
+            "turning_points": AbstractDecayModel,
+            "simulate": AbstractModel,
+            "limit_cycle": AbstractLimitCycle,
+        }[task]
         if not isinstance(model, ok):
-            raise unsupported(self, model, task.replace("_", " "), "see vmj.turning_points, "
-                              "vmj.simulate and vmj.limit_cycle for the models each solves")
+            raise unsupported(
+                self,
+                model,
+                task.replace("_", " "),
+                "see vmj.turning_points, "
+                "vmj.simulate and vmj.limit_cycle for the models each solves",
+            )
         return model
 
     # -- settings ----------------------------------------------------------------------------
@@ -74,10 +82,16 @@ class Smoothed(AbstractSolver):
             return eqx.tree_at(lambda s: s.smoothing, self, _float(self.smoothing))
         scale = model.smoothing_scale(x0, v0)
         if not (_is_traced(scale)) and not bool(jnp.all(scale > 0)):
-            raise ValueError("smoothing must be given (> 0 [m/s]) when the motion starts at rest "
-                             "at x = 0: its default is relative to the initial velocity scale")
-        return eqx.tree_at(lambda s: s.smoothing, self, DEFAULT_SMOOTHING * _float(scale),
-                           is_leaf=lambda x: x is None)
+            raise ValueError(
+                "smoothing must be given (> 0 [m/s]) when the motion starts at rest "
+                "at x = 0: its default is relative to the initial velocity scale"
+            )
+        return eqx.tree_at(
+            lambda s: s.smoothing,
+            self,
+            DEFAULT_SMOOTHING * _float(scale),
+            is_leaf=lambda x: x is None,
+        )
 
     def _settings(self, model):
         rtol = model.smoothed_rtol if self.rtol is None else self.rtol
@@ -98,9 +112,16 @@ class Smoothed(AbstractSolver):
         rtol, steps, ode = self._settings(model)
         w = self.smoothing
         y0 = model.initial_state(x0, v0)
-        sol = ode_solve(lambda t, y, args: model.vector_field(t, y, w), y0, t1, saveat,
-                        rtol=rtol, atol=rtol * model.length_scale(x0, v0), max_steps=steps,
-                        solver=ode)
+        sol = ode_solve(
+            lambda t, y, args: model.vector_field(t, y, w),
+            y0,
+            t1,
+            saveat,
+            rtol=rtol,
+            atol=rtol * model.length_scale(x0, v0),
+            max_steps=steps,
+            solver=ode,
+        )
         ok = sol.result == dfx.RESULTS.successful
         return sol, jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
 
@@ -119,9 +140,18 @@ class Smoothed(AbstractSolver):
         go_on = dfx.SaveAt(t1=True, solver_state=True, controller_state=True, made_jump=True)
 
         def piece(t_a, t_b, y, resume):
-            sol = ode_solve(lambda t, y, args: model.vector_field(t, y, w), y, t_b, go_on,
-                            rtol=rtol, atol=atol, max_steps=steps, solver=ode, t0=t_a,
-                            resume=resume)
+            sol = ode_solve(
+                lambda t, y, args: model.vector_field(t, y, w),
+                y,
+                t_b,
+                go_on,
+                rtol=rtol,
+                atol=atol,
+                max_steps=steps,
+                solver=ode,
+                t0=t_a,
+                resume=resume,
+            )
             resume = (sol.solver_state, sol.controller_state, sol.made_jump)
             return sol.ys[-1], resume, sol.result == dfx.RESULTS.successful
 
@@ -170,6 +200,7 @@ class Smoothed(AbstractSolver):
         def swing(t0, y0, s):
             """From the turning point `(t0, y0)`, moving in direction `s`, to the next one (or
             to the horizon): `(reached, okay, t, y)`."""
+
             def reverses(t, y, args, **kwargs):
                 return s * model.observe(y)[1] / scale
 
@@ -178,8 +209,18 @@ class Smoothed(AbstractSolver):
                 return jnp.where(s * x < 0, (s * v - slow) / scale, 1.0)
 
             event = dfx.Event((reverses, arrests), root_finder=newton, direction=False)
-            sol = ode_solve(field, y0, t_end, dfx.SaveAt(t1=True), rtol=rtol, atol=atol,
-                            max_steps=steps, solver=ode, t0=t0, event=event)
+            sol = ode_solve(
+                field,
+                y0,
+                t_end,
+                dfx.SaveAt(t1=True),
+                rtol=rtol,
+                atol=atol,
+                max_steps=steps,
+                solver=ode,
+                t0=t0,
+                event=event,
+            )
             reached = sol.result == dfx.RESULTS.event_occurred
             okay = reached | (sol.result == dfx.RESULTS.successful)
             return reached, okay, sol.ts[-1], sol.ys[-1]
@@ -199,10 +240,17 @@ class Smoothed(AbstractSolver):
 
         y_start = model.initial_state(x0, v0)
         false = jnp.zeros_like(x0, dtype=bool)
-        init = (jnp.zeros_like(x0), y_start, jnp.ones_like(x0), jnp.logical_not(false), false,
-                false)
+        init = (
+            jnp.zeros_like(x0),
+            y_start,
+            jnp.ones_like(x0),
+            jnp.logical_not(false),
+            false,
+            false,
+        )
         (_, y_end, _, _, stuck, failed), (times, positions, turned) = lax.scan(
-            body, init, None, length=n)
+            body, init, None, length=n
+        )
         count = jnp.sum(turned.astype(jnp.int32))
         k = jnp.arange(n)
         valid = k < count
@@ -216,10 +264,24 @@ class Smoothed(AbstractSolver):
         incomplete = (count < n) & jnp.logical_not(stopped)
         exhausted = incomplete & (t_end >= 0.998 * model.lifetime())
         code = jnp.where(
-            failed, RESULTS.solver_failed,
-            jnp.where(exhausted, model.exhausted,
-                      jnp.where(incomplete, RESULTS.step_limit,
-                                jnp.where(stopped, RESULTS.stopped, RESULTS.successful))))
+            failed,
+            RESULTS.solver_failed,
+            jnp.where(
+                exhausted,
+                model.exhausted,
+                jnp.where(
+                    incomplete,
+                    RESULTS.step_limit,
+                    jnp.where(stopped, RESULTS.stopped, RESULTS.successful),
+                ),
+            ),
+        )
         code = code.astype(jnp.int32)
-        return DecaySequence(times=times, positions=positions, crossed=crossed, count=count,
-                             stopped=code == RESULTS.stopped, result=code)
+        return DecaySequence(
+            times=times,
+            positions=positions,
+            crossed=crossed,
+            count=count,
+            stopped=code == RESULTS.stopped,
+            result=code,
+        )

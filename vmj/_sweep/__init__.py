@@ -8,5 +8,13 @@ from ._sensitivity import sensitivity
 from ._sweep import SweepError, sweep
 from ._tree import resolve_field
 
-__all__ = ["Grid", "grid", "SweepResult", "sensitivity", "sweep", "SweepError", "map_chunks",
-           "resolve_field"]
+__all__ = [
+    "Grid",
+    "grid",
+    "SweepResult",
+    "sensitivity",
+    "sweep",
+    "SweepError",
+    "map_chunks",
+    "resolve_field",
+]

@@ -35,8 +35,17 @@ CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (o
 class Progress:
     """Chunks done / total, rate and estimated time left, on stderr (or to a callable)."""
 
-    def __init__(self, total: int, points: int, show, *, already: int = 0, label: str = "sweep",
-                 unit: str = "points", stream=None):
+    def __init__(
+        self,
+        total: int,
+        points: int,
+        show,
+        *,
+        already: int = 0,
+        label: str = "sweep",
+        unit: str = "points",
+        stream=None,
+    ):
         self.total, self.points, self.label, self.unit = total, points, label, unit
         self.callback = show if callable(show) else None
         self.enabled = bool(show) and self.callback is None
@@ -56,9 +65,11 @@ class Progress:
         left = (self.total - self.done) / rate if rate > 0 else float("nan")
         per_point = self.points / self.total
         bar = "#" * int(30 * self.done / self.total)
-        self.stream.write(f"\r{self.label} [{bar:<30}] {self.done}/{self.total} chunks "
-                          f"{rate * per_point:9.3g} {self.unit}/s  {elapsed:6.1f} s  "
-                          f"ETA {left:6.1f} s")
+        self.stream.write(
+            f"\r{self.label} [{bar:<30}] {self.done}/{self.total} chunks "
+            f"{rate * per_point:9.3g} {self.unit}/s  {elapsed:6.1f} s  "
+            f"ETA {left:6.1f} s"
+        )
         if self.done == self.total:
             self.stream.write("\n")
         self.stream.flush()
@@ -131,17 +142,25 @@ def cluster(client):
     try:
         import distributed
     except ImportError:  # pragma: no cover - exercised only without the extra
-        raise ImportError("a Dask client needs the optional extra: pip install "
-                          "'vmj[distributed]'") from None
+        raise ImportError(
+            "a Dask client needs the optional extra: pip install 'vmj[distributed]'"
+        ) from None
     if isinstance(client, distributed.Client):
         yield client
         return
     if not isinstance(client, str):
-        raise ValueError(f"client must be a dask.distributed.Client, a scheduler address such as "
-                         f"'tcp://host:8786', or 'local' (got {type(client).__name__})")
+        raise ValueError(
+            f"client must be a dask.distributed.Client, a scheduler address such as "
+            f"'tcp://host:8786', or 'local' (got {type(client).__name__})"
+        )
     if client == "local":
-        lc = distributed.LocalCluster(n_workers=CORES, threads_per_worker=1, processes=True,
-                                      host="127.0.0.1", dashboard_address=None)
+        lc = distributed.LocalCluster(
+            n_workers=CORES,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        )
         with lc, distributed.Client(lc) as c:
             yield c
         return
@@ -157,9 +176,11 @@ def threads_of(client) -> int:
 
 def worker_memory(client) -> int | None:
     """The smallest memory limit per worker thread in bytes (None: no limits set)."""
-    limits = [w["memory_limit"] / max(1, w["nthreads"])
-              for w in client.scheduler_info(n_workers=-1)["workers"].values()
-              if w.get("memory_limit")]
+    limits = [
+        w["memory_limit"] / max(1, w["nthreads"])
+        for w in client.scheduler_info(n_workers=-1)["workers"].values()
+        if w.get("memory_limit")
+    ]
     return int(min(limits)) if limits else None
 
 
@@ -171,9 +192,18 @@ class Interrupted(RuntimeError):
     """A run stopped before every chunk was done (its client closed, its tasks cancelled)."""
 
 
-def run_chunks(job, todo, *, sink: Callable, fail: Callable | None, progress: Progress,
-               client=None, threads: int = 1, sink_in_thread: bool = False,
-               store=None) -> None:
+def run_chunks(
+    job,
+    todo,
+    *,
+    sink: Callable,
+    fail: Callable | None,
+    progress: Progress,
+    client=None,
+    threads: int = 1,
+    sink_in_thread: bool = False,
+    store=None,
+) -> None:
     """Evaluate `job.compute(c)` for every chunk `c` in `todo` and pass each result to
     `sink(c, result)` as it arrives (in this process; with `sink_in_thread` and no client, in
     the thread that computed it). A chunk that raises is passed to `fail(c, exception)` and the
@@ -191,9 +221,11 @@ def run_chunks(job, todo, *, sink: Callable, fail: Callable | None, progress: Pr
     except BaseException:
         if store is not None:
             done = int((store.status() == 1).sum())
-            sys.stderr.write(f"\n{progress.label} stopped: {done} of {progress.total} chunks "
-                             f"are in the store {store.path!r}; rerun with resume=True to "
-                             f"compute only the others\n")
+            sys.stderr.write(
+                f"\n{progress.label} stopped: {done} of {progress.total} chunks "
+                f"are in the store {store.path!r}; rerun with resume=True to "
+                f"compute only the others\n"
+            )
         raise
 
 
@@ -226,7 +258,6 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
 
 def _run_dask(job, todo, sink, fail, progress, client):
     import distributed
-
     import jax
 
     client.register_plugin(_float64_plugin(bool(jax.config.jax_enable_x64)))
@@ -235,8 +266,9 @@ def _run_dask(job, todo, sink, fail, progress, client):
     tries = dict.fromkeys(todo, 0)
 
     def submit(c):
-        return client.submit(_run_on_worker, shared, c, pure=False,
-                             key=f"vmj-{job.token[:12]}-{run}-{c}-{tries[c]}")
+        return client.submit(
+            _run_on_worker, shared, c, pure=False, key=f"vmj-{job.token[:12]}-{run}-{c}-{tries[c]}"
+        )
 
     futures = {submit(c): c for c in todo}
     try:

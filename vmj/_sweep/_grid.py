@@ -49,8 +49,9 @@ def grid(model: eqx.Module, **axes: ArrayLike) -> Grid:
         raise ValueError("grid needs at least one axis, e.g. grid(model, eps=[0, 0.5, 1])")
     for leaf in jax.tree.leaves(model):
         if np.ndim(leaf) != 0:
-            raise ValueError("grid takes a model with scalar parameters; the swept ones are the "
-                             "keyword axes")
+            raise ValueError(
+                "grid takes a model with scalar parameters; the swept ones are the keyword axes"
+            )
     names = list(axes)
     paths = [resolve_field(model, n) for n in names]
     if len(set(paths)) != len(paths):
@@ -59,12 +60,12 @@ def grid(model: eqx.Module, **axes: ArrayLike) -> Grid:
     for i, (name, values) in enumerate(axes.items()):
         arr = np.asarray(values, dtype=float)
         if arr.ndim != 1 or arr.size == 0:
-            raise ValueError(f"grid axis {name} must be a non-empty 1-D sequence (got shape "
-                             f"{arr.shape})")
+            raise ValueError(
+                f"grid axis {name} must be a non-empty 1-D sequence (got shape {arr.shape})"
+            )
         _set_fields(model, [paths[i]], [arr])  # ValueError naming the parameter and range
         coords[name] = arr
         shape = [1] * len(names)
         shape[i] = arr.size
         shaped.append(arr.reshape(shape))
     return Grid(_set_fields(model, paths, shaped), tuple(names), coords)
-

@@ -25,11 +25,13 @@ class _MapJob:
         self.fn, self.items, self.chunk, self.token = fn, items, chunk, token
 
     def compute(self, c: int) -> list:
-        part = self.items[c * self.chunk:(c + 1) * self.chunk]
+        part = self.items[c * self.chunk : (c + 1) * self.chunk]
         got = list(self.fn(part))
         if len(got) != len(part):
-            raise ValueError(f"fn returned {len(got)} results for a chunk of {len(part)} items "
-                             f"(one result per item is needed)")
+            raise ValueError(
+                f"fn returned {len(got)} results for a chunk of {len(part)} items "
+                f"(one result per item is needed)"
+            )
         return got
 
 
@@ -74,28 +76,39 @@ def map_chunks(
     if resume and store is None:
         raise ValueError("resume=True needs a store (the path of the work to continue)")
     n = len(items)
-    definition = {"fn": digest(fn), "items": digest(items), "chunk_size": chunk_size,
-                  "vmj": _version()}
-    described = {"fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",
-                 "items": f"{n} items ({definition['items'][:8]})",
-                 "chunk_size": "default" if chunk_size is None else str(chunk_size),
-                 "versions": f"vmj {definition['vmj']}"}
+    definition = {
+        "fn": digest(fn),
+        "items": digest(items),
+        "chunk_size": chunk_size,
+        "vmj": _version(),
+    }
+    described = {
+        "fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",
+        "items": f"{n} items ({definition['items'][:8]})",
+        "chunk_size": "default" if chunk_size is None else str(chunk_size),
+        "versions": f"vmj {definition['vmj']}",
+    }
     token = digest(definition)
     with cluster(client) as cl:
         lanes = threads_of(cl) if cl is not None else CORES
         st = None
         if store is not None:
-            st = ChunkStore.existing(store, kind="map", definition=definition,
-                                     described=described, resume=resume)
+            st = ChunkStore.existing(
+                store, kind="map", definition=definition, described=described, resume=resume
+            )
         if st is not None:
             chunk = int(st.meta["chunk"])
         else:
             chunk = chunk_plan(n, chunk_size or DEFAULT_ITEMS, lanes)
         n_chunks = math.ceil(n / chunk)
         if store is not None and st is None:
-            st = ChunkStore.create(store, kind="map", definition=definition,
-                                   described=described,
-                                   plan={"n": n, "chunk": chunk, "n_chunks": n_chunks})
+            st = ChunkStore.create(
+                store,
+                kind="map",
+                definition=definition,
+                described=described,
+                plan={"n": n, "chunk": chunk, "n_chunks": n_chunks},
+            )
         out: list = [None] * n
         todo = list(range(n_chunks))
         if st is not None and resume:
@@ -104,11 +117,11 @@ def map_chunks(
                 if blob is None:
                     todo.append(c)
                 else:
-                    out[c * chunk:(c + 1) * chunk] = pickle.loads(blob)
+                    out[c * chunk : (c + 1) * chunk] = pickle.loads(blob)
         resumed = n_chunks - len(todo)
 
         def sink(c, got):
-            out[c * chunk:(c + 1) * chunk] = got
+            out[c * chunk : (c + 1) * chunk] = got
             if st is not None:
                 st.write(c, pickle.dumps(got, protocol=5))
 
@@ -122,11 +135,22 @@ def map_chunks(
 
         show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
         bar = Progress(n_chunks, n, show, already=resumed, label="map", unit="items")
-        run_chunks(_MapJob(fn, items, chunk, token), todo, sink=sink, progress=bar, client=cl,
-                   threads=lanes, fail=fail if (cl is not None or st is not None) else None,
-                   store=st)
+        run_chunks(
+            _MapJob(fn, items, chunk, token),
+            todo,
+            sink=sink,
+            progress=bar,
+            client=cl,
+            threads=lanes,
+            fail=fail if (cl is not None or st is not None) else None,
+            store=st,
+        )
     if failures:
         lo, hi, _, message = failures[min(failures)]
-        raise SweepError(f"{len(failures)} of {n_chunks} chunks failed (the first: items {lo} "
-                         f"to {hi}: {message})", failures, out)
+        raise SweepError(
+            f"{len(failures)} of {n_chunks} chunks failed (the first: items {lo} "
+            f"to {hi}: {message})",
+            failures,
+            out,
+        )
     return out

@@ -89,7 +89,7 @@ class SweepResult:
             for name, c in self.coords.items():
                 cols[name] = np.broadcast_to(c, self.shape).reshape(n)
         for name, leaf in zip(_leaf_names(self.values), jax.tree.leaves(self.values)):
-            leaf = np.asarray(leaf).reshape((n,) + np.shape(leaf)[len(self.shape):])
+            leaf = np.asarray(leaf).reshape((n,) + np.shape(leaf)[len(self.shape) :])
             if leaf.ndim == 1:
                 cols[name] = leaf
             else:
@@ -99,8 +99,9 @@ class SweepResult:
 
     @property
     def _is_grid(self) -> bool:
-        return all(d in self.coords and np.ndim(self.coords[d]) == 1 for d in self.dims) and \
-            tuple(len(self.coords[d]) for d in self.dims) == tuple(self.shape)
+        return all(d in self.coords and np.ndim(self.coords[d]) == 1 for d in self.dims) and tuple(
+            len(self.coords[d]) for d in self.dims
+        ) == tuple(self.shape)
 
     def to_csv(self, path: str) -> None:
         """Write the `columns()` to `path`; a first comment line records the axes, so that
@@ -112,8 +113,10 @@ class SweepResult:
             "dims": list(self.dims),
             "shape": list(self.shape),
             "grid": self._is_grid,
-            "fields": {k: [str(np.asarray(v).dtype), list(np.shape(v)[len(self.shape):])]
-                       for k, v in leaves.items()},
+            "fields": {
+                k: [str(np.asarray(v).dtype), list(np.shape(v)[len(self.shape) :])]
+                for k, v in leaves.items()
+            },
             "coords": [k for k in self.coords],
         }
         header = list(cols)
@@ -134,7 +137,7 @@ class SweepResult:
             first = fh.readline()
             if not first.startswith("# vmj-sweep "):
                 raise ValueError(f"{path} is not a CSV written by vmj.SweepResult.to_csv")
-            meta = json.loads(first[len("# vmj-sweep "):])
+            meta = json.loads(first[len("# vmj-sweep ") :])
             reader = csv.reader(fh)
             header = next(reader)
             raw = np.array([row for row in reader], dtype=object).reshape(-1, len(header))
@@ -155,8 +158,11 @@ class SweepResult:
                 flat = np.stack([col[k] for k in keys], axis=-1)
             else:
                 flat = col[name]
-            conv = flat.astype(np.int64).astype(kind) if kind.kind in "biu" else \
-                flat.astype(float).astype(kind)
+            conv = (
+                flat.astype(np.int64).astype(kind)
+                if kind.kind in "biu"
+                else flat.astype(float).astype(kind)
+            )
             values[name] = conv.reshape(shape + tuple(inner))
         return SweepResult(values, tuple(meta["dims"]), coords, shape)
 
@@ -167,18 +173,21 @@ class SweepResult:
         try:
             import xarray as xr
         except ImportError:  # pragma: no cover - exercised only without the extra
-            raise ImportError("SweepResult.to_xarray needs xarray: pip install 'vmj[xarray]'") \
-                from None
-        names, kdims, extra_coords = export_names(self.values, len(self.shape),
-                                                  set(self.coords) | set(self.dims))
+            raise ImportError(
+                "SweepResult.to_xarray needs xarray: pip install 'vmj[xarray]'"
+            ) from None
+        names, kdims, extra_coords = export_names(
+            self.values, len(self.shape), set(self.coords) | set(self.dims)
+        )
         leaves = [np.asarray(v) for v in jax.tree.leaves(self.values)]
-        data_vars = {name: (tuple(self.dims) + kd, v)
-                     for name, kd, v in zip(names, kdims, leaves)}
+        data_vars = {name: (tuple(self.dims) + kd, v) for name, kd, v in zip(names, kdims, leaves)}
         if self._is_grid:
             coords = {d: self.coords[d] for d in self.dims}
         else:
-            coords = {k: (tuple(self.dims), np.broadcast_to(c, self.shape))
-                      for k, c in self.coords.items()}
+            coords = {
+                k: (tuple(self.dims), np.broadcast_to(c, self.shape))
+                for k, c in self.coords.items()
+            }
         return xr.Dataset(data_vars, coords={**coords, **extra_coords})
 
     def to_netcdf(self, path: str) -> None:
@@ -200,8 +209,10 @@ class SweepResult:
         meta = st.meta
         names = [f[0] for f in meta["fields"]]
         n, shape = meta["n"], tuple(meta["shape"])
-        out = {nm: np.empty((n,) + tuple(inner), dtype=np.dtype(dt))
-               for nm, dt, inner in meta["fields"]}
+        out = {
+            nm: np.empty((n,) + tuple(inner), dtype=np.dtype(dt))
+            for nm, dt, inner in meta["fields"]
+        }
         missing = []
         for c, got in st.finished(names):
             if got is None:
@@ -209,14 +220,22 @@ class SweepResult:
                 continue
             lo = c * meta["chunk"]
             for nm, g in zip(names, got):
-                out[nm][lo:lo + len(g)] = g
+                out[nm][lo : lo + len(g)] = g
         if missing:
-            raise ValueError(f"store {path!r} holds an unfinished sweep: {len(missing)} of "
-                             f"{meta['n_chunks']} chunks are missing, failed or do not match "
-                             f"their checksum; resume it with vmj.sweep(..., store={path!r}, "
-                             f"resume=True)")
+            raise ValueError(
+                f"store {path!r} holds an unfinished sweep: {len(missing)} of "
+                f"{meta['n_chunks']} chunks are missing, failed or do not match "
+                f"their checksum; resume it with vmj.sweep(..., store={path!r}, "
+                f"resume=True)"
+            )
         coords = {k: np.asarray(st.group[k][...]) for k in meta["coords"]}
         values = {nm: v.reshape(shape + v.shape[1:]) for nm, v in out.items()}
-        return SweepResult(values, tuple(meta["dims"]), coords, shape, 1, meta["n_chunks"],
-                           resumed=meta["n_chunks"])
-
+        return SweepResult(
+            values,
+            tuple(meta["dims"]),
+            coords,
+            shape,
+            1,
+            meta["n_chunks"],
+            resumed=meta["n_chunks"],
+        )

@@ -73,18 +73,29 @@ def sensitivity(
     if isinstance(model, Grid) or any(np.ndim(x) for x in jax.tree.leaves(model)):
         from ._sweep import sweep
 
-        return sweep(_PointSensitivity(fn, wrt, mode), model, chunk_size=chunk_size,
-                     progress=progress, devices=devices, client=client, store=store,
-                     resume=resume, **solver_args)
-    theta0 = {w: _float(solver_args[w] if w in solver_args else
-                        _get(model, paths[field_names.index(w)])) for w in wrt}
+        return sweep(
+            _PointSensitivity(fn, wrt, mode),
+            model,
+            chunk_size=chunk_size,
+            progress=progress,
+            devices=devices,
+            client=client,
+            store=store,
+            resume=resume,
+            **solver_args,
+        )
+    theta0 = {
+        w: _float(solver_args[w] if w in solver_args else _get(model, paths[field_names.index(w)]))
+        for w in wrt
+    }
     for w, v in theta0.items():
         if jnp.ndim(v) != 0:
-            raise ValueError(f"sensitivity takes scalar parameters ({w} has shape "
-                             f"{jnp.shape(v)}); use vmj.sweep or jax.vmap over a batch")
+            raise ValueError(
+                f"sensitivity takes scalar parameters ({w} has shape "
+                f"{jnp.shape(v)}); use vmj.sweep or jax.vmap over a batch"
+            )
 
-    out = _sensitivity(fn, model, tuple(paths), tuple(field_names), wrt, mode, theta0,
-                       solver_args)
+    out = _sensitivity(fn, model, tuple(paths), tuple(field_names), wrt, mode, theta0, solver_args)
     return {w: out[w] for w in wrt}
 
 
@@ -106,15 +117,17 @@ def _sensitivity(fn, model, paths, field_names, wrt, mode, theta0, solver_args):
     def of(theta):
         m = model
         if paths:
-            m = eqx.tree_at(lambda m: [_get(m, p) for p in paths], m,
-                            [theta[w] for w in field_names])
+            m = eqx.tree_at(
+                lambda m: [_get(m, p) for p in paths], m, [theta[w] for w in field_names]
+            )
         args = {**solver_args, **{w: theta[w] for w in wrt if w in solver_args}}
         out = fn(m, **args)
         for leaf in jax.tree.leaves(out):
             if not jnp.issubdtype(jnp.result_type(leaf), jnp.inexact):
                 raise ValueError(
                     "sensitivity needs fn to return float arrays only (got an integer or boolean "
-                    "output: select float fields such as .amplitudes, .times or .stop_time)")
+                    "output: select float fields such as .amplitudes, .times or .stop_time)"
+                )
         return out
 
     jac = (jax.jacfwd if mode == "forward" else jax.jacrev)(of)(theta0)

@@ -138,8 +138,9 @@ def _zarr():
     try:
         import zarr
     except ImportError:  # pragma: no cover - exercised only without the extra
-        raise ImportError("a store needs the optional extra: pip install 'vmj[distributed]'") \
-            from None
+        raise ImportError(
+            "a store needs the optional extra: pip install 'vmj[distributed]'"
+        ) from None
     return zarr
 
 
@@ -155,8 +156,9 @@ class ChunkStore:
 
     # -- opening -------------------------------------------------------------------------------
     @classmethod
-    def existing(cls, path, *, kind: str, definition: dict, described: dict,
-                 resume: bool) -> ChunkStore | None:
+    def existing(
+        cls, path, *, kind: str, definition: dict, described: dict, resume: bool
+    ) -> ChunkStore | None:
         """The store at `path` if there is one (None otherwise). It must hold work of `kind`
         (`"sweep"` or `"map"`) with the same `definition` (a dict of digests; `described` says
         the same in words), and `resume=True` is needed to continue it; its stored plan (chunk
@@ -173,13 +175,17 @@ class ChunkStore:
         if not isinstance(meta, dict) or meta.get("format") != FORMAT:
             raise ValueError(f"store {path!r} exists and is not a vmj store: choose another path")
         if meta.get("kind") != kind or meta.get("token") != digest(definition):
-            raise ValueError(f"store {path!r} holds a different {meta.get('kind', 'sweep')}: "
-                             f"{_differences(meta.get('described', {}), described)}. Use another "
-                             f"store path, or delete this one to start over")
+            raise ValueError(
+                f"store {path!r} holds a different {meta.get('kind', 'sweep')}: "
+                f"{_differences(meta.get('described', {}), described)}. Use another "
+                f"store path, or delete this one to start over"
+            )
         if not resume:
-            raise ValueError(f"store {path!r} already holds this {kind}: pass resume=True to "
-                             f"continue it (only the chunks not yet in it are computed), or "
-                             f"choose another path")
+            raise ValueError(
+                f"store {path!r} already holds this {kind}: pass resume=True to "
+                f"continue it (only the chunks not yet in it are computed), or "
+                f"choose another path"
+            )
         return cls(group, path, meta)
 
     @classmethod
@@ -197,20 +203,38 @@ class ChunkStore:
         return cls(group, path, meta)
 
     @classmethod
-    def create(cls, path, *, kind: str, definition: dict, described: dict,
-               plan: dict) -> ChunkStore:
+    def create(
+        cls, path, *, kind: str, definition: dict, described: dict, plan: dict
+    ) -> ChunkStore:
         """A new store at `path` for work of `kind` with `plan` (`n`, `chunk`, `n_chunks`, and
         for a sweep its `dims`, `shape`, `grid`, `fields`)."""
         zarr = _zarr()
         path = os.fspath(path)
-        meta = {"format": FORMAT, "kind": kind, "token": digest(definition),
-                "described": described, **plan}
+        meta = {
+            "format": FORMAT,
+            "kind": kind,
+            "token": digest(definition),
+            "described": described,
+            **plan,
+        }
         group = zarr.open_group(path, mode="w-", zarr_format=3)
         n_chunks = plan["n_chunks"]
-        group.create_array("vmj_status", shape=(n_chunks,), chunks=(1,), dtype="int8",
-                           fill_value=NOT_DONE, dimension_names=("chunk",))
-        group.create_array("vmj_checksum", shape=(n_chunks,), chunks=(1,), dtype="uint64",
-                           fill_value=0, dimension_names=("chunk",))
+        group.create_array(
+            "vmj_status",
+            shape=(n_chunks,),
+            chunks=(1,),
+            dtype="int8",
+            fill_value=NOT_DONE,
+            dimension_names=("chunk",),
+        )
+        group.create_array(
+            "vmj_checksum",
+            shape=(n_chunks,),
+            chunks=(1,),
+            dtype="uint64",
+            fill_value=0,
+            dimension_names=("chunk",),
+        )
         group.attrs.update({"vmj_failures": {}, "vmj": meta})  # the definition last
         return cls(group, path, meta)
 
@@ -221,16 +245,21 @@ class ChunkStore:
         n, chunk = self.meta["n"], self.meta["chunk"]
         for name, dtype, inner, kdims in fields:
             if name not in self.group:
-                self.group.create_array(name, shape=(n,) + tuple(inner),
-                                        chunks=(chunk,) + tuple(inner), dtype=dtype,
-                                        fill_value=np.zeros((), dtype).item(),
-                                        dimension_names=("point",) + tuple(kdims))
+                self.group.create_array(
+                    name,
+                    shape=(n,) + tuple(inner),
+                    chunks=(chunk,) + tuple(inner),
+                    dtype=dtype,
+                    fill_value=np.zeros((), dtype).item(),
+                    dimension_names=("point",) + tuple(kdims),
+                )
         for name, value in {**coords, **inner_coords}.items():
             if name not in self.group:
                 value = np.asarray(value)
                 dims = coord_dims.get(name, (name,))
-                self.group.create_array(name, data=value, chunks=value.shape or (1,),
-                                        dimension_names=tuple(dims))
+                self.group.create_array(
+                    name, data=value, chunks=value.shape or (1,), dimension_names=tuple(dims)
+                )
 
     def write(self, c: int, arrays, names=None) -> None:
         """Write chunk `c` (one array per field, its rows only; for a map, `names=None` and one
@@ -245,7 +274,7 @@ class ChunkStore:
         else:
             lo = c * self.meta["chunk"]
             for name, a in zip(names, arrays):
-                self.group[name][lo:lo + len(a)] = a
+                self.group[name][lo : lo + len(a)] = a
             total = chunk_checksum(arrays)
         self._checksum[c] = np.uint64(total)
         self._status[c] = DONE

@@ -27,8 +27,15 @@ import numpy as np
 
 from .._checks import check_int, warn_if_float32
 from .._solution import RESULTS
-from ._engine import CORES, Progress, cluster, failure_message, run_chunks, threads_of, \
-    worker_memory
+from ._engine import (
+    CORES,
+    Progress,
+    cluster,
+    failure_message,
+    run_chunks,
+    threads_of,
+    worker_memory,
+)
 from ._grid import Grid
 from ._result import SweepResult, export_names
 from ._store import ChunkStore, describe_fn, digest
@@ -84,13 +91,16 @@ def _evaluate(fn, kwargs, model, swept, shape, start, size, sharding):
     idx = jnp.minimum(start + jnp.arange(size), math.prod(shape) - 1)
     part = [_take(x, shape, idx) if s else x for x, s in zip(leaves, swept)]
     if sharding is not None:
-        part = [jax.lax.with_sharding_constraint(x, sharding) if s else x
-                for x, s in zip(part, swept)]
+        part = [
+            jax.lax.with_sharding_constraint(x, sharding) if s else x for x, s in zip(part, swept)
+        ]
 
     def point(batched):
         it = iter(batched)
-        return fn(jax.tree.unflatten(treedef, [next(it) if s else x for x, s in
-                                               zip(part, swept)]), **kwargs)
+        return fn(
+            jax.tree.unflatten(treedef, [next(it) if s else x for x, s in zip(part, swept)]),
+            **kwargs,
+        )
 
     return jax.vmap(point)([x for x, s in zip(part, swept) if s])
 
@@ -99,8 +109,9 @@ class _SweepJob:
     """What evaluating chunks of one sweep needs: picklable (NumPy leaves), so that it is sent
     to the workers of a cluster once; each process puts the model on its device once."""
 
-    def __init__(self, fn, kwargs, model, swept, shape, chunk, token, *, devices=None,
-                 sharding=None):
+    def __init__(
+        self, fn, kwargs, model, swept, shape, chunk, token, *, devices=None, sharding=None
+    ):
         self.fn, self.kwargs, self.swept, self.shape = fn, kwargs, swept, tuple(shape)
         self.model = jax.tree.map(np.asarray, model)
         self.n, self.chunk, self.token = math.prod(shape), chunk, token
@@ -126,8 +137,9 @@ class _SweepJob:
                 if devs is not None and len(devs) == 1:
                     place = devs[0]
                 elif devs is not None:
-                    place = jax.sharding.NamedSharding(self.sharding.mesh,
-                                                       jax.sharding.PartitionSpec())
+                    place = jax.sharding.NamedSharding(
+                        self.sharding.mesh, jax.sharding.PartitionSpec()
+                    )
                 self._on_device = jax.tree.map(lambda x: jax.device_put(x, place), self.model)
             return self._on_device
 
@@ -136,16 +148,32 @@ class _SweepJob:
         return min(c * self.chunk, max(self.n - self.chunk, 0))
 
     def args(self, start: int, chunk: int | None = None):
-        return (self.fn, self.kwargs, self.on_device(), self.swept, self.shape,
-                jnp.asarray(start), chunk or self.chunk, self.sharding)
+        return (
+            self.fn,
+            self.kwargs,
+            self.on_device(),
+            self.swept,
+            self.shape,
+            jnp.asarray(start),
+            chunk or self.chunk,
+            self.sharding,
+        )
 
     def key(self, chunk: int):
         """What the compiled chunk depends on, hashable (None if it cannot be hashed)."""
         leaves, treedef = jax.tree.flatten(self.model)
         try:
-            key = (self.fn, tuple(sorted(self.kwargs.items())), treedef,
-                   tuple((np.shape(x), np.result_type(x).str) for x in leaves), self.swept,
-                   self.shape, chunk, self.sharding, bool(jax.config.jax_enable_x64))
+            key = (
+                self.fn,
+                tuple(sorted(self.kwargs.items())),
+                treedef,
+                tuple((np.shape(x), np.result_type(x).str) for x in leaves),
+                self.swept,
+                self.shape,
+                chunk,
+                self.sharding,
+                bool(jax.config.jax_enable_x64),
+            )
             hash(key)
         except TypeError:
             return None
@@ -182,7 +210,7 @@ class _SweepJob:
         start = self.first(c)
         out = jax.tree.leaves(_evaluate(*self.args(start)))
         lo, hi = c * self.chunk, min((c + 1) * self.chunk, self.n)
-        return [np.asarray(g)[lo - start:hi - start] for g in out]
+        return [np.asarray(g)[lo - start : hi - start] for g in out]
 
 
 def _devices(devices):
@@ -257,19 +285,23 @@ def _sized(job, n, chunk_size, lanes, multiple, memory, concurrent) -> int:
         if need * concurrent <= memory:
             return chunk
         fits = int(memory / concurrent / per_point)
-        raise ValueError(f"chunk_size={chunk_size} needs {need / 1e9:.3g} GB of working memory "
-                         f"per chunk ({per_point / 1e6:.3g} MB per point, {concurrent} chunks "
-                         f"side by side), more than the {memory / 1e9:.3g} GB available; use "
-                         f"chunk_size <= {max(fits, 1)}, or leave it at the default, which is "
-                         f"sized to fit")
+        raise ValueError(
+            f"chunk_size={chunk_size} needs {need / 1e9:.3g} GB of working memory "
+            f"per chunk ({per_point / 1e6:.3g} MB per point, {concurrent} chunks "
+            f"side by side), more than the {memory / 1e9:.3g} GB available; use "
+            f"chunk_size <= {max(fits, 1)}, or leave it at the default, which is "
+            f"sized to fit"
+        )
     budget = MEMORY_FRACTION * memory
     if need * concurrent <= budget:
         return chunk
     fits = int(budget / concurrent / per_point)
     if fits < multiple:
-        raise ValueError(f"one point of this sweep needs {per_point / 1e6:.3g} MB of working "
-                         f"memory, more than the {budget / concurrent / 1e9:.3g} GB available "
-                         f"to each of its {concurrent} chunks side by side")
+        raise ValueError(
+            f"one point of this sweep needs {per_point / 1e6:.3g} MB of working "
+            f"memory, more than the {budget / concurrent / 1e9:.3g} GB available "
+            f"to each of its {concurrent} chunks side by side"
+        )
     return chunk_plan(n, fits, lanes, multiple)
 
 
@@ -281,8 +313,7 @@ def _layout(model):
         dims, coords, model = model.dims, model.coords, model.model
     leaves = jax.tree.leaves(model)
     try:
-        shape = tuple(np.broadcast_shapes(*(np.shape(x) for x in leaves
-                                            if eqx.is_array_like(x))))
+        shape = tuple(np.broadcast_shapes(*(np.shape(x) for x in leaves if eqx.is_array_like(x))))
     except ValueError as e:
         raise ValueError(f"the model's parameters do not broadcast together: {e}") from None
     if not grid:
@@ -365,22 +396,24 @@ def sweep(
     n = math.prod(shape)
     leaves, treedef = jax.tree.flatten(model)
     swept = tuple(eqx.is_array_like(x) and np.ndim(x) > 0 for x in leaves)
-    model = jax.tree.unflatten(treedef, [np.asarray(x) if eqx.is_array_like(x) else x
-                                         for x in leaves])
+    model = jax.tree.unflatten(
+        treedef, [np.asarray(x) if eqx.is_array_like(x) else x for x in leaves]
+    )
     # what the store records and a cluster's workers key their copy on (digests of the model's
     # arrays: computed only when there is a store or a cluster)
     definition = described = None
     token = ""
     if store is not None or client is not None:
-        definition, described = _definition(fn, model, solver_args, shape, dims, coords,
-                                            chunk_size)
+        definition, described = _definition(fn, model, solver_args, shape, dims, coords, chunk_size)
         token = digest(definition)
 
     with cluster(client) as cl:
         if cl is not None:
             if devices is not None:
-                raise ValueError("devices applies to the in-process sweep; a cluster's workers "
-                                 "each use their own default device")
+                raise ValueError(
+                    "devices applies to the in-process sweep; a cluster's workers "
+                    "each use their own default device"
+                )
             devs, nd, sharding = jax.local_devices()[:1], 1, None
             lanes = threads = threads_of(cl)
             # the smallest memory limit of a worker thread (else this machine's); the client
@@ -400,13 +433,23 @@ def sweep(
             threads = CORES if nd == 1 else 1
             memory = available_memory(devs[0])
             concurrent = threads
-        job = _SweepJob(fn, solver_args, model, swept, shape, 1, token,
-                        devices=devs if cl is None else None, sharding=sharding)
+        job = _SweepJob(
+            fn,
+            solver_args,
+            model,
+            swept,
+            shape,
+            1,
+            token,
+            devices=devs if cl is None else None,
+            sharding=sharding,
+        )
 
         st = None
         if store is not None:
-            st = ChunkStore.existing(store, kind="sweep", definition=definition,
-                                     described=described, resume=resume)
+            st = ChunkStore.existing(
+                store, kind="sweep", definition=definition, described=described, resume=resume
+            )
         if st is not None:
             job.chunk = int(st.meta["chunk"])
         else:
@@ -418,21 +461,36 @@ def sweep(
         spec = job.spec()
         spec_leaves, out_def = jax.tree.flatten(spec)
         names, kdims, kcoords = export_names(
-            spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"})
+            spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"}
+        )
         out = [np.empty((n,) + s.shape[1:], dtype=s.dtype) for s in spec_leaves]
         if store is not None and st is None:
-            plan = {"n": n, "chunk": chunk, "n_chunks": n_chunks, "dims": list(dims),
-                    "shape": list(shape), "grid": is_grid,
-                    "fields": [[nm, np.dtype(s.dtype).str, list(s.shape[1:])]
-                               for nm, s in zip(names, spec_leaves)],
-                    "coords": list(coords)}
-            st = ChunkStore.create(store, kind="sweep", definition=definition,
-                                   described=described, plan=plan)
-            coord_dims = {k: ((k,) if is_grid else tuple(f"{k}_{i}" for i in range(np.ndim(v))))
-                          for k, v in coords.items()}
+            plan = {
+                "n": n,
+                "chunk": chunk,
+                "n_chunks": n_chunks,
+                "dims": list(dims),
+                "shape": list(shape),
+                "grid": is_grid,
+                "fields": [
+                    [nm, np.dtype(s.dtype).str, list(s.shape[1:])]
+                    for nm, s in zip(names, spec_leaves)
+                ],
+                "coords": list(coords),
+            }
+            st = ChunkStore.create(
+                store, kind="sweep", definition=definition, described=described, plan=plan
+            )
+            coord_dims = {
+                k: ((k,) if is_grid else tuple(f"{k}_{i}" for i in range(np.ndim(v))))
+                for k, v in coords.items()
+            }
             st.create_sweep_arrays(
                 [(nm, s.dtype, s.shape[1:], kd) for nm, s, kd in zip(names, spec_leaves, kdims)],
-                coords, coord_dims, kcoords)
+                coords,
+                coord_dims,
+                kcoords,
+            )
 
         def rows(c):
             return slice(c * chunk, min((c + 1) * chunk, n))
@@ -468,33 +526,61 @@ def sweep(
             job.compile()  # here, once, before the threads share the executable
         show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
         bar = Progress(n_chunks, n, show, already=resumed)
-        run_chunks(job, todo, sink=sink, progress=bar, client=cl, threads=threads,
-                   fail=fail if (cl is not None or st is not None) else None,
-                   sink_in_thread=cl is None and st is None, store=st)
+        run_chunks(
+            job,
+            todo,
+            sink=sink,
+            progress=bar,
+            client=cl,
+            threads=threads,
+            fail=fail if (cl is not None or st is not None) else None,
+            sink_in_thread=cl is None and st is None,
+            store=st,
+        )
 
     values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out])
-    result = SweepResult(values, tuple(dims), dict(coords), shape, nd, n_chunks,
-                         computed=len(todo) - len(failures), resumed=resumed)
+    result = SweepResult(
+        values,
+        tuple(dims),
+        dict(coords),
+        shape,
+        nd,
+        n_chunks,
+        computed=len(todo) - len(failures),
+        resumed=resumed,
+    )
     if failures:
         for c in failures:
             for o in out:
                 o[rows(c)] = np.nan if o.dtype.kind in "fc" else 0
         lo, hi, code, message = failures[min(failures)]
-        text = (f"{len(failures)} of {n_chunks} chunks failed (the first: points {lo} to {hi}: "
-                f"{message})")
+        text = (
+            f"{len(failures)} of {n_chunks} chunks failed (the first: points {lo} to {hi}: "
+            f"{message})"
+        )
         if st is not None:
-            text += (f"; the other chunks are in the store {st.path!r}: rerun with resume=True "
-                     f"to compute only the failed ones")
+            text += (
+                f"; the other chunks are in the store {st.path!r}: rerun with resume=True "
+                f"to compute only the failed ones"
+            )
         raise SweepError(text, failures, result)
     return result
 
 
 def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
     """The definition of a sweep (digests) and the same in words, for the store's refusals."""
-    definition = {"fn": digest(fn), "model": digest(model), "solver_args": digest(solver_args),
-                  "shape": list(shape), "dims": list(dims), "coords": digest(coords),
-                  "chunk_size": chunk_size, "vmj": _version(), "jax": jax.__version__,
-                  "x64": bool(jax.config.jax_enable_x64)}
+    definition = {
+        "fn": digest(fn),
+        "model": digest(model),
+        "solver_args": digest(solver_args),
+        "shape": list(shape),
+        "dims": list(dims),
+        "coords": digest(coords),
+        "chunk_size": chunk_size,
+        "vmj": _version(),
+        "jax": jax.__version__,
+        "x64": bool(jax.config.jax_enable_x64),
+    }
     described = {
         "fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",
         "model": f"{type(model).__name__} (parameters {definition['model'][:8]})",

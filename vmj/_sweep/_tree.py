@@ -10,6 +10,7 @@ from .._checks import _float, validated
 
 __all__ = ["resolve_field"]
 
+
 def _field_paths(model, prefix=()):
     """Paths (tuples of attribute names, and positions in a tuple of laws as digit strings) to
     every array field of a module tree."""
@@ -31,7 +32,7 @@ def resolve_field(model: eqx.Module, name: str) -> tuple[str, ...]:
     `"dissipation.0.zeta"`)."""
     paths = _field_paths(model)
     want = tuple(name.split("."))
-    hits = [p for p in paths if p[-len(want):] == want]
+    hits = [p for p in paths if p[-len(want) :] == want]
     if len(hits) != 1:
         known = ", ".join(sorted(".".join(p) for p in paths))
         why = "is ambiguous" if hits else "is not a parameter"
@@ -58,5 +59,3 @@ def _set_fields(model, paths, values):
     values = [_float(v) for v in values]
     model = eqx.tree_at(lambda m: [_get(m, p) for p in paths], model, values)
     return validated(model)
-
-

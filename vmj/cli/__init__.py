@@ -9,8 +9,26 @@ Bad input prints one line `vmj: error: ...` to stderr and exits with status 2.
 """
 
 from ._app import COMMANDS, main
-from ._options import (count, emit, figure_path, input_file, number, output_path, parse_axis,
-                       parse_set)
+from ._options import (
+    count,
+    emit,
+    figure_path,
+    input_file,
+    number,
+    output_path,
+    parse_axis,
+    parse_set,
+)
 
-__all__ = ["main", "COMMANDS", "number", "count", "parse_set", "parse_axis", "input_file",
-           "output_path", "figure_path", "emit"]
+__all__ = [
+    "main",
+    "COMMANDS",
+    "number",
+    "count",
+    "parse_set",
+    "parse_axis",
+    "input_file",
+    "output_path",
+    "figure_path",
+    "emit",
+]

@@ -36,14 +36,26 @@ class Command:
 COMMANDS = (
     Command("decay", "turning points of a free decay (variable-mass, rope)", "vmj.cli._decay"),
     Command("table", "reproduce a table of the variable-mass paper", "vmj.cli._table"),
-    Command("sweep", "a decay or cycle over a grid of parameters (CSV, NetCDF, figures)",
-            "vmj.cli._sweep"),
-    Command("sensitivity", "derivatives of the turning points with respect to parameters",
-            "vmj.cli._sensitivity"),
-    Command("stick-slip", "stick-slip limit cycle with instantaneous velocity reversal",
-            "vmj.cli._stick_slip"),
-    Command("linear", "linear one-degree-of-freedom oscillator: frequencies, decrement, "
-            "responses", "vmj.cli._linear"),
+    Command(
+        "sweep",
+        "a decay or cycle over a grid of parameters (CSV, NetCDF, figures)",
+        "vmj.cli._sweep",
+    ),
+    Command(
+        "sensitivity",
+        "derivatives of the turning points with respect to parameters",
+        "vmj.cli._sensitivity",
+    ),
+    Command(
+        "stick-slip",
+        "stick-slip limit cycle with instantaneous velocity reversal",
+        "vmj.cli._stick_slip",
+    ),
+    Command(
+        "linear",
+        "linear one-degree-of-freedom oscillator: frequencies, decrement, responses",
+        "vmj.cli._linear",
+    ),
     Command("fit", "identify friction and damping from a measured decay", "fits._cli"),
 )
 
@@ -61,8 +73,9 @@ Run 'vmj COMMAND --help' for the options of a command (units in brackets)."""
 
 #: what an option's value may look like when it starts with a minus sign: a number with an
 #: exponent, an axis (`-3:3:7`, `-1,0,1`), `-inf`; argparse alone takes `-1e3` for an option
-NEGATIVE = re.compile(r"^-((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?([:,].*)?|inf|infinity|nan)$",
-                      re.IGNORECASE)
+NEGATIVE = re.compile(
+    r"^-((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?([:,].*)?|inf|infinity|nan)$", re.IGNORECASE
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -75,8 +88,9 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         where = self.prog.removeprefix("vmj").strip()
-        self.exit(2, f"vmj: error: {where + ': ' if where else ''}{message} "
-                     f"(see '{self.prog} --help')\n")
+        self.exit(
+            2, f"vmj: error: {where + ': ' if where else ''}{message} (see '{self.prog} --help')\n"
+        )
 
 
 class _Commands(argparse._SubParsersAction):
@@ -100,27 +114,40 @@ def add_global_options(parser, nested: bool = False) -> None:
     if any("--no-cache" in a.option_strings for a in parser._actions):
         return
     default = argparse.SUPPRESS if nested else None
-    parser.add_argument("--cache-dir", metavar="PATH", default=default,
-                        help=f"persistent compilation cache directory (default: ${CACHE_ENV}, "
-                             "else $XDG_CACHE_HOME/vmj/jax or ~/.cache/vmj/jax)")
-    parser.add_argument("--no-cache", action="store_true",
-                        default=argparse.SUPPRESS if nested else False,
-                        help=f"do not use the persistent compilation cache (also: {CACHE_ENV}=off)")
+    parser.add_argument(
+        "--cache-dir",
+        metavar="PATH",
+        default=default,
+        help=f"persistent compilation cache directory (default: ${CACHE_ENV}, "
+        "else $XDG_CACHE_HOME/vmj/jax or ~/.cache/vmj/jax)",
+    )
+    parser.add_argument(
+        "--no-cache",
+        action="store_true",
+        default=argparse.SUPPRESS if nested else False,
+        help=f"do not use the persistent compilation cache (also: {CACHE_ENV}=off)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
     import vmj
 
-    parser = _Parser(prog="vmj", formatter_class=HelpFormatter, epilog=EPILOG,
-                     description="Oscillators with dry friction and time-varying parameters.")
+    parser = _Parser(
+        prog="vmj",
+        formatter_class=HelpFormatter,
+        epilog=EPILOG,
+        description="Oscillators with dry friction and time-varying parameters.",
+    )
     parser.add_argument("--version", action="version", version=f"vmj {vmj.__version__}")
     add_global_options(parser)
     parser.register("action", "commands", _Commands)
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
-                                action="commands", parser_class=_Parser)
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", action="commands", parser_class=_Parser
+    )
     for command in COMMANDS:
-        sub.add_parser(command.name, help=command.help, description=command.help,
-                       formatter_class=HelpFormatter)
+        sub.add_parser(
+            command.name, help=command.help, description=command.help, formatter_class=HelpFormatter
+        )
     return parser
 
 
@@ -136,7 +163,8 @@ def cache_directory(args) -> tuple[str | None, str]:
     if env:
         return env, CACHE_ENV
     base = os.environ.get("XDG_CACHE_HOME", "").strip() or os.path.join(
-        os.path.expanduser("~"), ".cache")
+        os.path.expanduser("~"), ".cache"
+    )
     return os.path.join(base, "vmj", "jax"), "default"
 
 
@@ -155,13 +183,16 @@ def _set_up_jax(args) -> None:
                 raise OSError(f"{path!r} is not writable")
         except OSError as e:
             if source != "default":
-                raise ValueError(f"{source}: cannot use {path!r} as the compilation cache ({e})") \
-                    from None
+                raise ValueError(
+                    f"{source}: cannot use {path!r} as the compilation cache ({e})"
+                ) from None
             print(f"vmj: warning: compilation cache off ({e})", file=sys.stderr)
             path = None
     if path is not None:
         jax.config.update("jax_compilation_cache_dir", path)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # every program: a loaded one beats even a 0.1 s compile
+        jax.config.update(
+            "jax_persistent_cache_min_compile_time_secs", 0.0
+        )  # every program: a loaded one beats even a 0.1 s compile
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     from .._host import retain_host_memory
 
@@ -169,8 +200,10 @@ def _set_up_jax(args) -> None:
 
 
 def _one_line(error: BaseException) -> str:
-    return "; ".join(ln.strip() for ln in str(error).splitlines() if ln.strip()) or \
-        type(error).__name__
+    return (
+        "; ".join(ln.strip() for ln in str(error).splitlines() if ln.strip())
+        or type(error).__name__
+    )
 
 
 def main(argv=None) -> int:

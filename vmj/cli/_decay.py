@@ -15,12 +15,19 @@ def add_arguments(p) -> None:
 
     sub = p.add_subparsers(dest="model", required=True, metavar="MODEL")
     for name, (add, run) in DECAY.items():
-        q = sub.add_parser(name, help=MODELS[name].summary, description=MODELS[name].summary,
-                           formatter_class=p.formatter_class)
+        q = sub.add_parser(
+            name,
+            help=MODELS[name].summary,
+            description=MODELS[name].summary,
+            formatter_class=p.formatter_class,
+        )
         add_options(q, MODELS[name])
         add(q)
-        q.add_argument("--force", action="store_true",
-                       help=f"compute more than {MAX_TURNING_POINTS} turning points")
+        q.add_argument(
+            "--force",
+            action="store_true",
+            help=f"compute more than {MAX_TURNING_POINTS} turning points",
+        )
         q.add_argument("--json", action="store_true", help="print one JSON object")
         add_global_options(q, nested=True)
         q.set_defaults(decay_run=run)
@@ -39,8 +46,12 @@ def turning_point_limit(args, n: int, what: str) -> None:
 # -- variable-mass -------------------------------------------------------------------------------
 def _variable_mass_args(q) -> None:
     q.add_argument("--n", type=count, default=12, help="number of turning points")
-    q.add_argument("--method", choices=("exact", "smooth", "energy"), default="exact",
-                   help="exact non-smooth solver, smoothed ODE, or the paper's energy balance")
+    q.add_argument(
+        "--method",
+        choices=("exact", "smooth", "energy"),
+        default="exact",
+        help="exact non-smooth solver, smoothed ODE, or the paper's energy balance",
+    )
 
 
 def _variable_mass(args) -> int:
@@ -71,16 +82,29 @@ def _variable_mass(args) -> int:
 
 # -- rope ----------------------------------------------------------------------------------------
 def _rope_args(q) -> None:
-    q.add_argument("--brake", type=number, nargs=2, metavar=("T_BRAKE", "T_STOP"),
-                   help="brake uniformly from T_BRAKE to rest at T_STOP [s] (the same as "
-                        "--t_brake T_BRAKE --t_stop T_STOP)")
+    q.add_argument(
+        "--brake",
+        type=number,
+        nargs=2,
+        metavar=("T_BRAKE", "T_STOP"),
+        help="brake uniformly from T_BRAKE to rest at T_STOP [s] (the same as "
+        "--t_brake T_BRAKE --t_stop T_STOP)",
+    )
     q.add_argument("--t1", type=number, required=True, help="final time [s]")
-    q.add_argument("--method", choices=("exact", "smooth", "kbm"), default="exact",
-                   help="exact non-smooth solver, smoothed ODE, or the first-order averaged "
-                        "envelope (kbm; constant speed only)")
-    q.add_argument("--units", choices=("si", "technical"), default="si",
-                   help="technical: m in kG s^2/m, A in cm^2, e, b, d, T in kG/cm^2, a0 in cm "
-                        "(the paper's units); the output is always SI")
+    q.add_argument(
+        "--method",
+        choices=("exact", "smooth", "kbm"),
+        default="exact",
+        help="exact non-smooth solver, smoothed ODE, or the first-order averaged "
+        "envelope (kbm; constant speed only)",
+    )
+    q.add_argument(
+        "--units",
+        choices=("si", "technical"),
+        default="si",
+        help="technical: m in kG s^2/m, A in cm^2, e, b, d, T in kG/cm^2, a0 in cm "
+        "(the paper's units); the output is always SI",
+    )
 
 
 def rope_model(args, t1_flag: str = "--t1"):
@@ -107,8 +131,10 @@ def rope_model(args, t1_flag: str = "--t1"):
     try:
         n = half_swings_until(rope, values["a0"], args.t1)
     except (OverflowError, ValueError):
-        raise ValueError(f"the number of swings before {t1_flag} {args.t1:g} cannot be estimated "
-                         "(parameters out of floating-point range)") from None
+        raise ValueError(
+            f"the number of swings before {t1_flag} {args.t1:g} cannot be estimated "
+            "(parameters out of floating-point range)"
+        ) from None
     turning_point_limit(args, n, f"about {n:.3g} half-swings before {t1_flag} {args.t1:g}")
     return rope, values, n
 
@@ -127,8 +153,9 @@ def _rope(args) -> int:
         times = np.linspace(0.0, args.t1, n + 1)  # at least every half period
         amps = np.asarray(vmj.kbm_amplitude(rope, a0, jnp.asarray(times)))
         stopped = bool(amps[-1] <= 0)
-        message = ("friction stops the averaged motion" if stopped
-                   else "first-order averaged envelope")
+        message = (
+            "friction stops the averaged motion" if stopped else "first-order averaged envelope"
+        )
         failed = False
     else:
         seq = vmj.turning_points(rope, a0, n, method=args.method, max_substeps=12)

@@ -10,8 +10,16 @@ from ._params import MODELS, add_options, given
 __all__ = ["add_arguments", "run", "KEYS"]
 
 #: the JSON keys, in order (a contract)
-KEYS = ("natural_frequency", "damped_frequency", "damping_ratio", "log_decrement",
-        "free_amplitude", "free_phase", "forced_amplitude", "forced_phase")
+KEYS = (
+    "natural_frequency",
+    "damped_frequency",
+    "damping_ratio",
+    "log_decrement",
+    "free_amplitude",
+    "free_phase",
+    "forced_amplitude",
+    "forced_phase",
+)
 
 
 def add_arguments(p) -> None:
@@ -67,8 +75,10 @@ def run(args) -> int:
         f"A = {fmt(A, 'm')}, alpha = {fmt(alpha, 'rad')}",
     ]
     if forced:
-        lines.append("forced response x = D sin(p t - beta): "
-                     f"D = {fmt(out['forced_amplitude'], 'm')}, "
-                     f"beta = {fmt(out['forced_phase'], 'rad')}")
+        lines.append(
+            "forced response x = D sin(p t - beta): "
+            f"D = {fmt(out['forced_amplitude'], 'm')}, "
+            f"beta = {fmt(out['forced_phase'], 'rad')}"
+        )
     emit(out, args.json, "\n".join(lines))
     return 0

@@ -13,9 +13,21 @@ import json
 import math
 import os
 
-__all__ = ["HelpFormatter", "LARGEST", "number", "count", "parse_set", "parse_axis", "input_file",
-           "output_path", "figure_path", "emit", "refuse_above", "traced_checks",
-           "FIGURE_FORMATS"]
+__all__ = [
+    "HelpFormatter",
+    "LARGEST",
+    "number",
+    "count",
+    "parse_set",
+    "parse_axis",
+    "input_file",
+    "output_path",
+    "figure_path",
+    "emit",
+    "refuse_above",
+    "traced_checks",
+    "FIGURE_FORMATS",
+]
 
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -47,8 +59,9 @@ def number(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
     if abs(value) > LARGEST:
-        raise argparse.ArgumentTypeError(f"must be a number of magnitude at most {LARGEST:g} "
-                                         f"(got {text!r})")
+        raise argparse.ArgumentTypeError(
+            f"must be a number of magnitude at most {LARGEST:g} (got {text!r})"
+        )
     return value
 
 
@@ -91,8 +104,9 @@ def parse_axis(flag: str, text: str, limit: int | None = None, over: str = "") -
         try:
             return number(t.strip())
         except argparse.ArgumentTypeError as e:
-            raise ValueError(f"{flag}: {e} (an axis is start:stop:count, a comma list, or one "
-                             "value)") from None
+            raise ValueError(
+                f"{flag}: {e} (an axis is start:stop:count, a comma list, or one value)"
+            ) from None
 
     if ":" in text:
         parts = text.split(":")
@@ -104,8 +118,9 @@ def parse_axis(flag: str, text: str, limit: int | None = None, over: str = "") -
         except ValueError:
             n = 0
         if n < 1 or (n == 1 and start != stop):
-            raise ValueError(f"{flag}: count must be an integer >= 1, and >= 2 when start != stop "
-                             f"(got {text!r})")
+            raise ValueError(
+                f"{flag}: count must be an integer >= 1, and >= 2 when start != stop (got {text!r})"
+            )
         refuse(n)
         if n == 1:
             return [start]
@@ -134,8 +149,9 @@ def input_file(text: str) -> str:
         head.decode("utf-8")
     except UnicodeDecodeError as e:
         if len(head) < 65536 or e.start < len(head) - 3:  # not a character cut at 64 kB
-            raise argparse.ArgumentTypeError(f"{text!r} is not a UTF-8 text file (byte "
-                                             f"{e.start}: {e.reason})") from None
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not a UTF-8 text file (byte {e.start}: {e.reason})"
+            ) from None
     except UnicodeError as e:
         raise argparse.ArgumentTypeError(f"{text!r} is not a text file ({e})") from None
     return text
@@ -166,8 +182,22 @@ def store_path(text: str) -> str:
 
 
 #: figure formats matplotlib writes with its default backends (checked by the tests)
-FIGURE_FORMATS = ("png", "pdf", "svg", "svgz", "eps", "ps", "jpg", "jpeg", "tif", "tiff",
-                  "webp", "pgf", "raw", "rgba")
+FIGURE_FORMATS = (
+    "png",
+    "pdf",
+    "svg",
+    "svgz",
+    "eps",
+    "ps",
+    "jpg",
+    "jpeg",
+    "tif",
+    "tiff",
+    "webp",
+    "pgf",
+    "raw",
+    "rgba",
+)
 
 
 def figure_path(text: str) -> str:
@@ -175,8 +205,9 @@ def figure_path(text: str) -> str:
     path = output_path(text)
     ext = os.path.splitext(path)[1].lstrip(".").lower()
     if ext and ext not in FIGURE_FORMATS:
-        raise argparse.ArgumentTypeError(f"{text!r}: unknown figure format {ext!r} (use one of "
-                                         f"{', '.join(FIGURE_FORMATS)})")
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: unknown figure format {ext!r} (use one of {', '.join(FIGURE_FORMATS)})"
+        )
     return path
 
 
@@ -189,8 +220,10 @@ def refuse_above(what: str, amount: float, limit: float, unit: str = "") -> None
     """Refuse work estimated above `limit` (`amount` and `limit` in `unit`); call it only when
     `--force` was not given."""
     if amount > limit:
-        raise ValueError(f"{what}: refused above {limit:.3g}{' ' + unit if unit else ''} (give "
-                         "--force to run it anyway)")
+        raise ValueError(
+            f"{what}: refused above {limit:.3g}{' ' + unit if unit else ''} (give "
+            "--force to run it anyway)"
+        )
 
 
 @contextlib.contextmanager
@@ -210,5 +243,6 @@ def traced_checks():
     except eqx.EquinoxRuntimeError as e:
         tag = "EquinoxRuntimeError: "
         said = [ln.split(tag, 1)[1] for ln in str(e).splitlines() if tag in ln]
-        raise ValueError(said[-1] if said else "invalid input (a check inside the computation)") \
-            from None
+        raise ValueError(
+            said[-1] if said else "invalid input (a check inside the computation)"
+        ) from None

@@ -13,10 +13,11 @@ imports vmj's solvers; reading this table does not.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 
 __all__ = ["Param", "ModelSpec", "MODELS", "add_options", "given"]
+
 
 @dataclass(frozen=True)
 class Param:
@@ -90,8 +91,10 @@ class ModelSpec:
         for p in self.params:
             if name == p.name or name in p.aliases:
                 return p
-        raise ValueError(f"unknown parameter {name!r} of {self.name} (known: "
-                         f"{', '.join(p.name for p in self.params)})")
+        raise ValueError(
+            f"unknown parameter {name!r} of {self.name} (known: "
+            f"{', '.join(p.name for p in self.params)})"
+        )
 
     @property
     def fields(self) -> tuple:
@@ -102,8 +105,10 @@ class ModelSpec:
         parameter and across parameters (missing, alternatives, requirements); fill in the
         defaults. `spell(name)` says how a missing parameter is given. Returns
         `{name: SI value}`."""
-        out = {name: self.param(name).check(value, flag, technical)
-               for name, (value, flag) in values.items()}
+        out = {
+            name: self.param(name).check(value, flag, technical)
+            for name, (value, flag) in values.items()
+        }
         missing, groups = [], {}
         for p in self.params:
             if p.group is not None:
@@ -146,12 +151,29 @@ VARIABLE_MASS = ModelSpec(
         Param("delta", "rate of change of the mass [kg/s]", "VariableMass", "delta"),
         Param("m0", "initial mass [kg]", "VariableMass", "m0"),
         Param("c", "spring stiffness [N/m]", "VariableMass", "c"),
-        Param("FT", "constant dry friction force [N]", "Coulomb", "friction.F",
-              group="friction", aliases=("F",)),
-        Param("f", "dry friction coefficient, F = f g m(t) [-]", "MassProportional",
-              "friction.f", group="friction"),
-        Param("g", "gravity, with --f [m/s^2]", "MassProportional", "friction.g", default=9.81,
-              requires="f"),
+        Param(
+            "FT",
+            "constant dry friction force [N]",
+            "Coulomb",
+            "friction.F",
+            group="friction",
+            aliases=("F",),
+        ),
+        Param(
+            "f",
+            "dry friction coefficient, F = f g m(t) [-]",
+            "MassProportional",
+            "friction.f",
+            group="friction",
+        ),
+        Param(
+            "g",
+            "gravity, with --f [m/s^2]",
+            "MassProportional",
+            "friction.g",
+            default=9.81,
+            requires="f",
+        ),
         Param("a0", "initial deflection [m]", allowed=_POSITIVE_LENGTH),
     ),
     _variable_mass,
@@ -174,26 +196,68 @@ _STRESS = (lambda vmj: vmj.KGF * 1e4, "kG/cm^2")  # as vmj.Rope.from_technical c
 ROPE = ModelSpec(
     "rope",
     (
-        Param("m", "suspended mass [kg] (technical: kG s^2/m)", "Rope", "m",
-              technical=(lambda vmj: vmj.KGF, "kG s^2/m")),
-        Param("A", "rope cross-section [m^2] (technical: cm^2)", "Rope", "A",
-              technical=(lambda vmj: 1e-4, "cm^2")),
+        Param(
+            "m",
+            "suspended mass [kg] (technical: kG s^2/m)",
+            "Rope",
+            "m",
+            technical=(lambda vmj: vmj.KGF, "kG s^2/m"),
+        ),
+        Param(
+            "A",
+            "rope cross-section [m^2] (technical: cm^2)",
+            "Rope",
+            "A",
+            technical=(lambda vmj: 1e-4, "cm^2"),
+        ),
         Param("e", "linear modulus [Pa] (technical: kG/cm^2)", "Rope", "e", technical=_STRESS),
-        Param("b", "quadratic coefficient [Pa] (technical: kG/cm^2)", "Rope", "b", default=0.0,
-              technical=_STRESS),
-        Param("d", "cubic coefficient [Pa] (technical: kG/cm^2)", "Rope", "d", default=0.0,
-              technical=_STRESS),
-        Param("T", "friction stress between the wires [Pa] (technical: kG/cm^2)", "Rope", "T",
-              technical=_STRESS),
+        Param(
+            "b",
+            "quadratic coefficient [Pa] (technical: kG/cm^2)",
+            "Rope",
+            "b",
+            default=0.0,
+            technical=_STRESS,
+        ),
+        Param(
+            "d",
+            "cubic coefficient [Pa] (technical: kG/cm^2)",
+            "Rope",
+            "d",
+            default=0.0,
+            technical=_STRESS,
+        ),
+        Param(
+            "T",
+            "friction stress between the wires [Pa] (technical: kG/cm^2)",
+            "Rope",
+            "T",
+            technical=_STRESS,
+        ),
         Param("l0", "initial free rope length [m]", "ConstantSpeed", "length.l0"),
-        Param("u", "hoisting speed [m/s] (> 0 hoisting, < 0 lowering)", "ConstantSpeed",
-              "length.u"),
-        Param("t_brake", "time the drum starts braking [s], with --t_stop", "Braking",
-              "length.t_brake", requires="t_stop"),
-        Param("t_stop", "time the drum stops [s], with --t_brake", "Braking", "length.t_stop",
-              requires="t_brake"),
-        Param("a0", "initial deflection [m] (technical: cm)", allowed=_POSITIVE_LENGTH,
-              technical=(lambda vmj: 1e-2, "cm")),
+        Param(
+            "u", "hoisting speed [m/s] (> 0 hoisting, < 0 lowering)", "ConstantSpeed", "length.u"
+        ),
+        Param(
+            "t_brake",
+            "time the drum starts braking [s], with --t_stop",
+            "Braking",
+            "length.t_brake",
+            requires="t_stop",
+        ),
+        Param(
+            "t_stop",
+            "time the drum stops [s], with --t_brake",
+            "Braking",
+            "length.t_stop",
+            requires="t_brake",
+        ),
+        Param(
+            "a0",
+            "initial deflection [m] (technical: cm)",
+            allowed=_POSITIVE_LENGTH,
+            technical=(lambda vmj: 1e-2, "cm"),
+        ),
     ),
     _rope,
     "mass on a hoisting rope of varying length with friction between the wires (Osinski)",
@@ -232,14 +296,32 @@ LINEAR = ModelSpec(
         Param("m", "mass [kg]", "LinearOscillator", "m"),
         Param("c", "viscous damping [N s/m]", "LinearOscillator", "c"),
         Param("k", "stiffness [N/m]", "LinearOscillator", "k"),
-        Param("F0", "harmonic force amplitude [N], with --p", "HarmonicForce", "forcing.F0",
-              requires="p"),
-        Param("p", "forcing angular frequency [1/s], with --F0", "HarmonicForce", "forcing.p",
-              requires="F0"),
-        Param("x0", "initial displacement [m]", allowed=(lambda x: x == x, "a real number [m]"),
-              default=0.0),
-        Param("v0", "initial velocity [m/s]", allowed=(lambda x: x == x, "a real number [m/s]"),
-              default=0.0),
+        Param(
+            "F0",
+            "harmonic force amplitude [N], with --p",
+            "HarmonicForce",
+            "forcing.F0",
+            requires="p",
+        ),
+        Param(
+            "p",
+            "forcing angular frequency [1/s], with --F0",
+            "HarmonicForce",
+            "forcing.p",
+            requires="F0",
+        ),
+        Param(
+            "x0",
+            "initial displacement [m]",
+            allowed=(lambda x: x == x, "a real number [m]"),
+            default=0.0,
+        ),
+        Param(
+            "v0",
+            "initial velocity [m/s]",
+            allowed=(lambda x: x == x, "a real number [m/s]"),
+            default=0.0,
+        ),
     ),
     _linear,
     "linear one-degree-of-freedom oscillator, free or harmonically forced",
@@ -276,5 +358,8 @@ def add_options(parser, spec: ModelSpec, axes: bool = False) -> None:
 
 def given(spec: ModelSpec, args) -> dict:
     """`{name: (value, flag)}` for the parameters of `spec` given as options in `args`."""
-    return {p.name: (getattr(args, p.name), f"--{p.name}") for p in spec.params
-            if getattr(args, p.name, None) is not None}
+    return {
+        p.name: (getattr(args, p.name), f"--{p.name}")
+        for p in spec.params
+        if getattr(args, p.name, None) is not None
+    }

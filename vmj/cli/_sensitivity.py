@@ -26,28 +26,50 @@ def add_arguments(p) -> None:
     sub = p.add_subparsers(dest="model", required=True, metavar="MODEL")
     for name in ("variable-mass", "rope", "stick-slip"):
         spec = MODELS[name]
-        q = sub.add_parser(name, help=f"derivatives for the {name} model",
-                           description=f"Derivatives for the {spec.summary}.",
-                           formatter_class=p.formatter_class)
+        q = sub.add_parser(
+            name,
+            help=f"derivatives for the {name} model",
+            description=f"Derivatives for the {spec.summary}.",
+            formatter_class=p.formatter_class,
+        )
         add_options(q, spec)
         names = ", ".join(x.name for x in spec.params)
-        q.add_argument("--wrt", metavar="NAME[,NAME...]", required=True,
-                       help=f"parameters to differentiate with respect to (of: {names})")
+        q.add_argument(
+            "--wrt",
+            metavar="NAME[,NAME...]",
+            required=True,
+            help=f"parameters to differentiate with respect to (of: {names})",
+        )
         if name == "variable-mass":
             q.add_argument("--n", type=count, default=12, help="number of turning points")
-            q.add_argument("--method", choices=("exact", "smooth", "energy"), default="exact",
-                           help="solver differentiated")
+            q.add_argument(
+                "--method",
+                choices=("exact", "smooth", "energy"),
+                default="exact",
+                help="solver differentiated",
+            )
         elif name == "rope":
             _rope_args(q)
             q.set_defaults(method="exact")  # the averaged envelope has no turning points
         else:
-            q.add_argument("--method", choices=("exact", "closed"), default="exact",
-                           help="solver differentiated")
+            q.add_argument(
+                "--method",
+                choices=("exact", "closed"),
+                default="exact",
+                help="solver differentiated",
+            )
         if name != "stick-slip":
-            q.add_argument("--plot", metavar="PATH", type=figure_path,
-                           help="write a figure of the derivatives against k to PATH")
-            q.add_argument("--force", action="store_true",
-                           help=f"compute more than {MAX_TURNING_POINTS} turning points")
+            q.add_argument(
+                "--plot",
+                metavar="PATH",
+                type=figure_path,
+                help="write a figure of the derivatives against k to PATH",
+            )
+            q.add_argument(
+                "--force",
+                action="store_true",
+                help=f"compute more than {MAX_TURNING_POINTS} turning points",
+            )
         else:
             q.add_argument("--force", action="store_true", help="accept eps above 1e4")
         q.add_argument("--json", action="store_true", help="print one JSON object")
@@ -75,7 +97,7 @@ def _wrt(spec, text: str, values: dict) -> list:
 
 
 def _unit(p) -> str:
-    return p.help[p.help.index("[") + 1:p.help.index("]")] if "[" in p.help else "-"
+    return p.help[p.help.index("[") + 1 : p.help.index("]")] if "[" in p.help else "-"
 
 
 def run(args) -> int:
@@ -120,19 +142,21 @@ def _cycle(args, values, model, wrt, keys, units) -> int:
     got = vmj.limit_cycle(model, solver, max_reversals=bound)
     with traced_checks():
         d = vmj.sensitivity(cycle, model, keys)
-    out = {"model": "stick-slip", "method": args.method, "wrt": [w for w, _ in wrt],
-           "units": units}
+    out = {"model": "stick-slip", "method": args.method, "wrt": [w for w, _ in wrt], "units": units}
     out.update({k: float(getattr(got, k)) for k in CYCLE})
     for k in CYCLE:
         out[f"d_{k}"] = {w: float(d[key][k]) for (w, _), key in zip(wrt, keys)}
     if bool(got.failed):
         out["message"] = vmj.RESULTS(int(got.result)).message
-    lines = [f"stick-slip cycle (eps={values['eps']:g}, Omega={values['Omega']:g}, "
-             f"method={args.method}; dimensionless time)",
-             f"{'':12}{'value':>16}" + "".join(f"{'d/d' + w:>16}" for w, _ in wrt)]
+    lines = [
+        f"stick-slip cycle (eps={values['eps']:g}, Omega={values['Omega']:g}, "
+        f"method={args.method}; dimensionless time)",
+        f"{'':12}{'value':>16}" + "".join(f"{'d/d' + w:>16}" for w, _ in wrt),
+    ]
     for k in CYCLE:
-        lines.append(f"{k:<12}{out[k]:16.8g}" +
-                     "".join(f"{out[f'd_{k}'][w]:16.8g}" for w, _ in wrt))
+        lines.append(
+            f"{k:<12}{out[k]:16.8g}" + "".join(f"{out[f'd_{k}'][w]:16.8g}" for w, _ in wrt)
+        )
     emit(out, args.json, "\n".join(lines))
     return 0
 
@@ -158,21 +182,28 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     with traced_checks():
         d = vmj.sensitivity(decay, model, keys, a0=a0, n=n)
     out = {
-        "model": args.model, "method": method, "wrt": [w for w, _ in wrt], "units": units,
+        "model": args.model,
+        "method": method,
+        "wrt": [w for w, _ in wrt],
+        "units": units,
         "times": got["times"][:keep].tolist(),
         "amplitudes": got["amplitudes"][:keep].tolist(),
-        "d_amplitudes": {w: np.asarray(d[key]["amplitudes"])[:keep].tolist()
-                         for (w, _), key in zip(wrt, keys)},
-        "d_times": {w: np.asarray(d[key]["times"])[:keep].tolist()
-                    for (w, _), key in zip(wrt, keys)},
+        "d_amplitudes": {
+            w: np.asarray(d[key]["amplitudes"])[:keep].tolist() for (w, _), key in zip(wrt, keys)
+        },
+        "d_times": {
+            w: np.asarray(d[key]["times"])[:keep].tolist() for (w, _), key in zip(wrt, keys)
+        },
         "stopped": bool(seq.stopped),
     }
     if bool(seq.failed):
         out["message"] = seq.message
     bad = [w for w, _ in wrt if not np.all(np.isfinite(out["d_amplitudes"][w] + out["d_times"][w]))]
     if bad:
-        raise ValueError(f"the derivatives with respect to {', '.join(bad)} are not finite here "
-                         "(a turning point at a stick or release boundary)")
+        raise ValueError(
+            f"the derivatives with respect to {', '.join(bad)} are not finite here "
+            "(a turning point at a stick or release boundary)"
+        )
     if args.plot:
         from vmj.plot import plot_sensitivity
 
@@ -180,11 +211,14 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     from vmj.plot import per
 
     header = f"{'k':>3} {'t [s]':>10} {'|x| [m]':>12}" + "".join(
-        f" {'d|x|/d' + w + ' [' + per('m', units[w]) + ']':>24}" for w, _ in wrt)
+        f" {'d|x|/d' + w + ' [' + per('m', units[w]) + ']':>24}" for w, _ in wrt
+    )
     lines = [header]
     for k in range(keep):
-        lines.append(f"{k + 1:>3} {out['times'][k]:10.5f} {out['amplitudes'][k]:12.8f}" + "".join(
-            f" {out['d_amplitudes'][w][k]:24.10g}" for w, _ in wrt))
+        lines.append(
+            f"{k + 1:>3} {out['times'][k]:10.5f} {out['amplitudes'][k]:12.8f}"
+            + "".join(f" {out['d_amplitudes'][w][k]:24.10g}" for w, _ in wrt)
+        )
     lines.append(f"status: {seq.message}; dt_k/dp in the JSON output (--json)")
     emit(out, args.json, "\n".join(lines))
     return 0

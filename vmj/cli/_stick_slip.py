@@ -14,11 +14,18 @@ MAX_EPS = 1e4  #: largest eps computed without --force (a cycle has about eps/2 
 
 def add_arguments(p) -> None:
     add_options(p, MODELS["stick-slip"])
-    p.add_argument("--method", choices=("exact", "closed", "smooth"), default="exact",
-                   help="exact event-driven solver, the paper's closed forms, or the smoothed "
-                        "diffrax model")
-    p.add_argument("--smoothing", type=number, default=None,
-                   help="smoothing velocity w of --method smooth [-] (default 1e-4)")
+    p.add_argument(
+        "--method",
+        choices=("exact", "closed", "smooth"),
+        default="exact",
+        help="exact event-driven solver, the paper's closed forms, or the smoothed diffrax model",
+    )
+    p.add_argument(
+        "--smoothing",
+        type=number,
+        default=None,
+        help="smoothing velocity w of --method smooth [-] (default 1e-4)",
+    )
     p.add_argument("--force", action="store_true", help=f"accept eps above {MAX_EPS:g}")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
@@ -30,8 +37,12 @@ def reversal_bound(eps: float) -> int:
 
 def eps_limit(args, eps: float, flag: str = "--eps") -> None:
     if not args.force:
-        refuse_above(f"{flag} {eps:g} means about {eps / 2:.3g} reversals per cycle "
-                     "(arrays of that length)", eps, MAX_EPS, "for eps")
+        refuse_above(
+            f"{flag} {eps:g} means about {eps / 2:.3g} reversals per cycle (arrays of that length)",
+            eps,
+            MAX_EPS,
+            "for eps",
+        )
 
 
 def run(args) -> int:
@@ -46,18 +57,26 @@ def run(args) -> int:
         if not args.smoothing > 0:
             raise ValueError(f"--smoothing must be finite and > 0 (got {args.smoothing:g})")
     model = spec.build(values)
-    solver = {"exact": vmj.Exact(), "closed": vmj.ClosedForm(),
-              "smooth": vmj.Smoothed(smoothing=args.smoothing)}[args.method]
+    solver = {
+        "exact": vmj.Exact(),
+        "closed": vmj.ClosedForm(),
+        "smooth": vmj.Smoothed(smoothing=args.smoothing),
+    }[args.method]
     cycle = vmj.limit_cycle(model, solver, max_reversals=reversal_bound(values["eps"]))
     out = cycle.reached()
     if bool(cycle.failed):
         out["message"] = vmj.RESULTS(int(cycle.result)).message
-    lines = [f"stick-slip cycle (eps={values['eps']:g}, Omega={values['Omega']:g}, "
-             f"method={args.method}; dimensionless time)",
-             f"reversals k*: {out['reversals']}"]
+    lines = [
+        f"stick-slip cycle (eps={values['eps']:g}, Omega={values['Omega']:g}, "
+        f"method={args.method}; dimensionless time)",
+        f"reversals k*: {out['reversals']}",
+    ]
     lines += [f"  slip interval {k}: {t:.10f}" for k, t in enumerate(out["slip_intervals"], 1)]
-    lines += [f"slip time:  {out['slip_time']:.10f}", f"stick time: {out['stick_time']:.10f}",
-              f"period:     {out['period']:.10f}"]
+    lines += [
+        f"slip time:  {out['slip_time']:.10f}",
+        f"stick time: {out['stick_time']:.10f}",
+        f"period:     {out['period']:.10f}",
+    ]
     if "message" in out:
         lines.append(f"status: {out['message']}")
     emit(out, args.json, "\n".join(lines))

@@ -19,11 +19,19 @@ import importlib.util
 import math
 import sys
 import time
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 
-from ._options import (count, figure_path, output_path, parse_axis, parse_set, refuse_above,
-                       store_path, traced_checks)
+from ._options import (
+    count,
+    figure_path,
+    output_path,
+    parse_axis,
+    parse_set,
+    refuse_above,
+    store_path,
+    traced_checks,
+)
 from ._params import MODELS, add_options
 
 __all__ = ["add_arguments", "run", "SWEEPS", "MAX_BYTES", "MAX_SECONDS", "MAX_AXIS"]
@@ -54,8 +62,10 @@ _SWING_BYTES = 17  #: time, position (float64) and crossed flag of one turning p
 
 
 def _decay_cost(per_swing_scale: float = 1.0):
-    return (lambda method, n, top: n * _SWING_BYTES + 64,
-            lambda method, n, top: n * _PER_SWING[method] * per_swing_scale)
+    return (
+        lambda method, n, top: n * _SWING_BYTES + 64,
+        lambda method, n, top: n * _PER_SWING[method] * per_swing_scale,
+    )
 
 
 def _turning_points(args, g, scalars, method=None):
@@ -63,8 +73,9 @@ def _turning_points(args, g, scalars, method=None):
 
     method = method or args.method
     extra = {"max_substeps": 12} if args.model == "rope" and method == "exact" else {}
-    return vmj.sweep(vmj.turning_points, g, a0=scalars["a0"], n=args.n, method=method,
-                     **_engine(args), **extra)
+    return vmj.sweep(
+        vmj.turning_points, g, a0=scalars["a0"], n=args.n, method=method, **_engine(args), **extra
+    )
 
 
 def _decay_summary(args, result) -> tuple:
@@ -75,8 +86,10 @@ def _decay_summary(args, result) -> tuple:
     seq = result.values
     codes = np.asarray(seq.result)
     failed = vmj.RESULTS.failed(codes)
-    return [f"stopped within {args.n} swings: {int(np.sum(np.asarray(seq.stopped)))}",
-            f"failed: {int(np.sum(failed))}"], codes[failed]
+    return [
+        f"stopped within {args.n} swings: {int(np.sum(np.asarray(seq.stopped)))}",
+        f"failed: {int(np.sum(failed))}",
+    ], codes[failed]
 
 
 def _stick_slip_eval(args, g, scalars):
@@ -88,8 +101,9 @@ def _stick_slip_eval(args, g, scalars):
 
     top = float(np.max(np.asarray(g.model.eps)))
     solver = vmj.ClosedForm() if args.method == "closed" else vmj.Exact()
-    return vmj.sweep(vmj.limit_cycle, g, solver=solver, max_reversals=reversal_bound(top),
-                     **_engine(args))
+    return vmj.sweep(
+        vmj.limit_cycle, g, solver=solver, max_reversals=reversal_bound(top), **_engine(args)
+    )
 
 
 def _linear_eval(args, g, scalars):
@@ -97,8 +111,14 @@ def _linear_eval(args, g, scalars):
 
     from ._linear import characteristics
 
-    return vmj.sweep(characteristics, g, x0=scalars["x0"], v0=scalars["v0"],
-                     forced="F0" in scalars, **_engine(args))
+    return vmj.sweep(
+        characteristics,
+        g,
+        x0=scalars["x0"],
+        v0=scalars["v0"],
+        forced="F0" in scalars,
+        **_engine(args),
+    )
 
 
 def _cycle_summary(args, result):
@@ -114,16 +134,34 @@ def _cycle_summary(args, result):
 
 
 SWEEPS = {
-    "variable-mass": Sweep(("exact", "energy", "smooth"), *_decay_cost(), _turning_points,
-                           "m0=5,c=4900,FT=14.7,a0=0.06"),
-    "rope": Sweep(("exact", "smooth", "energy"), *_decay_cost(3.0), _turning_points,
-                  "m=2,A=1.74,e=0.8e6,d=0.8e11,l0=10,u=0,a0=1"),
-    "stick-slip": Sweep(("exact", "closed"),
-                        lambda method, n, top: 40 * (top["eps"] / 2 + 2) + 64,
-                        lambda method, n, top: 3e-6 * (top["eps"] / 2 + 1),
-                        _stick_slip_eval, "Omega=0.7", turning_points=False),
-    "linear": Sweep(("closed",), lambda method, n, top: 64, lambda method, n, top: 1e-7,
-                    _linear_eval, "m=1,k=14.5,v0=0.1", turning_points=False),
+    "variable-mass": Sweep(
+        ("exact", "energy", "smooth"),
+        *_decay_cost(),
+        _turning_points,
+        "m0=5,c=4900,FT=14.7,a0=0.06",
+    ),
+    "rope": Sweep(
+        ("exact", "smooth", "energy"),
+        *_decay_cost(3.0),
+        _turning_points,
+        "m=2,A=1.74,e=0.8e6,d=0.8e11,l0=10,u=0,a0=1",
+    ),
+    "stick-slip": Sweep(
+        ("exact", "closed"),
+        lambda method, n, top: 40 * (top["eps"] / 2 + 2) + 64,
+        lambda method, n, top: 3e-6 * (top["eps"] / 2 + 1),
+        _stick_slip_eval,
+        "Omega=0.7",
+        turning_points=False,
+    ),
+    "linear": Sweep(
+        ("closed",),
+        lambda method, n, top: 64,
+        lambda method, n, top: 1e-7,
+        _linear_eval,
+        "m=1,k=14.5,v0=0.1",
+        turning_points=False,
+    ),
 }
 
 
@@ -133,60 +171,104 @@ def add_arguments(p) -> None:
     sub = p.add_subparsers(dest="model", required=True, metavar="MODEL")
     for name, how in SWEEPS.items():
         spec = MODELS[name]
-        q = sub.add_parser(name, help=f"sweep the {name} model: {spec.summary}",
-                           description=f"{spec.summary}. Axes: start:stop:count (inclusive), a "
-                           "comma list, or one value.", formatter_class=p.formatter_class)
+        q = sub.add_parser(
+            name,
+            help=f"sweep the {name} model: {spec.summary}",
+            description=f"{spec.summary}. Axes: start:stop:count (inclusive), a "
+            "comma list, or one value.",
+            formatter_class=p.formatter_class,
+        )
         add_options(q, spec, axes=True)
         initial = [x.name for x in spec.params if x.field is None]
-        q.add_argument("--set", metavar="NAME=VALUE,...",
-                       help="fixed parameters" + (f" and the initial conditions "
-                                                  f"({', '.join(initial)})" if initial else "")
-                       + f", e.g. {how.example}")
+        q.add_argument(
+            "--set",
+            metavar="NAME=VALUE,...",
+            help="fixed parameters"
+            + (f" and the initial conditions ({', '.join(initial)})" if initial else "")
+            + f", e.g. {how.example}",
+        )
         if how.turning_points:
             q.add_argument("--n", type=count, default=12, help="number of turning points")
         if len(how.methods) > 1:
             q.add_argument("--method", choices=how.methods, help="solver")
         q.set_defaults(method=how.methods[0])
         if name == "rope":
-            q.add_argument("--units", choices=("si", "technical"), default="si",
-                           help="technical: m in kG s^2/m, A in cm^2, e, b, d, T in kG/cm^2, a0 "
-                                "in cm; the results and their coordinates are SI")
-        q.add_argument("--out", metavar="CSV", type=output_path,
-                       help="write the sweep to this CSV file")
-        q.add_argument("--netcdf", metavar="NC", type=output_path,
-                       help="also write NetCDF (needs the extra vmj[xarray])")
+            q.add_argument(
+                "--units",
+                choices=("si", "technical"),
+                default="si",
+                help="technical: m in kG s^2/m, A in cm^2, e, b, d, T in kG/cm^2, a0 "
+                "in cm; the results and their coordinates are SI",
+            )
+        q.add_argument(
+            "--out", metavar="CSV", type=output_path, help="write the sweep to this CSV file"
+        )
+        q.add_argument(
+            "--netcdf",
+            metavar="NC",
+            type=output_path,
+            help="also write NetCDF (needs the extra vmj[xarray])",
+        )
         if name == "variable-mass":
-            q.add_argument("--plot", metavar="PNG", type=figure_path,
-                           help="swings until the mass sticks over (eps, mu), one panel per delta")
-            q.add_argument("--error-plot", metavar="PNG", type=figure_path,
-                           help="energy-balance error against the exact solution over the same "
-                                "grid")
-        q.add_argument("--chunk-size", type=count, default=None,
-                       help="points per compiled call (default: 16384, fewer for the smoothed "
-                            "solver, sized from the memory one point needs)")
-        q.add_argument("--scheduler", metavar="ADDRESS",
-                       help="run the chunks on a Dask cluster: tcp://HOST:8786 (a running "
-                            "`dask scheduler`), or `local` (a cluster of this machine's cores); "
-                            "needs the extra vmj[distributed]")
-        q.add_argument("--store", metavar="PATH.zarr", type=store_path,
-                       help="write every finished chunk to this Zarr store as it completes "
-                            "(needs vmj[distributed]); a rerun with --resume computes only the "
-                            "missing chunks")
-        q.add_argument("--resume", action="store_true",
-                       help="continue the sweep in an existing --store (the same definition)")
+            q.add_argument(
+                "--plot",
+                metavar="PNG",
+                type=figure_path,
+                help="swings until the mass sticks over (eps, mu), one panel per delta",
+            )
+            q.add_argument(
+                "--error-plot",
+                metavar="PNG",
+                type=figure_path,
+                help="energy-balance error against the exact solution over the same grid",
+            )
+        q.add_argument(
+            "--chunk-size",
+            type=count,
+            default=None,
+            help="points per compiled call (default: 16384, fewer for the smoothed "
+            "solver, sized from the memory one point needs)",
+        )
+        q.add_argument(
+            "--scheduler",
+            metavar="ADDRESS",
+            help="run the chunks on a Dask cluster: tcp://HOST:8786 (a running "
+            "`dask scheduler`), or `local` (a cluster of this machine's cores); "
+            "needs the extra vmj[distributed]",
+        )
+        q.add_argument(
+            "--store",
+            metavar="PATH.zarr",
+            type=store_path,
+            help="write every finished chunk to this Zarr store as it completes "
+            "(needs vmj[distributed]); a rerun with --resume computes only the "
+            "missing chunks",
+        )
+        q.add_argument(
+            "--resume",
+            action="store_true",
+            help="continue the sweep in an existing --store (the same definition)",
+        )
         q.add_argument("--progress", action="store_true", help="always show the progress bar")
-        q.add_argument("--force", action="store_true",
-                       help=f"run a sweep estimated above {MAX_BYTES / 2**30:g} GiB of results or "
-                            f"{MAX_SECONDS:g} s, or an axis of more than {MAX_AXIS:.0e} values")
+        q.add_argument(
+            "--force",
+            action="store_true",
+            help=f"run a sweep estimated above {MAX_BYTES / 2**30:g} GiB of results or "
+            f"{MAX_SECONDS:g} s, or an axis of more than {MAX_AXIS:.0e} values",
+        )
         add_global_options(q, nested=True)
 
 
 def _engine(args) -> dict:
     """Where the chunks run and where they are kept: `vmj.sweep`'s `client`, `store`,
     `resume` and `progress`."""
-    return {"client": args.scheduler, "store": args.store, "resume": args.resume,
-            "chunk_size": args.chunk_size,
-            "progress": True if (args.progress or args.scheduler) else None}
+    return {
+        "client": args.scheduler,
+        "store": args.store,
+        "resume": args.resume,
+        "chunk_size": args.chunk_size,
+        "progress": True if (args.progress or args.scheduler) else None,
+    }
 
 
 def gather(spec, args, force: bool):
@@ -202,8 +284,9 @@ def gather(spec, args, force: bool):
             raise ValueError(f"--set: {e}") from None
         if p.name in raw:
             raise ValueError(f"--set gives {p.name} twice")
-        values = parse_axis(f"--set {name}", text, 1, f"--set takes one value; give --{p.name} "
-                            "for an axis")
+        values = parse_axis(
+            f"--set {name}", text, 1, f"--set takes one value; give --{p.name} for an axis"
+        )
         raw[p.name] = (values[0], f"--set {name}")
     for p in spec.fields:  # the axes in the order of the table
         text = getattr(args, p.name)
@@ -212,16 +295,22 @@ def gather(spec, args, force: bool):
         flag = f"--{p.name}"
         if p.name in raw:
             raise ValueError(f"{p.name} is given both as {flag} and in --set")
-        values = parse_axis(flag, text, None if force else MAX_AXIS,
-                            f"refused above {MAX_AXIS:.0e} (give --force to run it anyway)")
+        values = parse_axis(
+            flag,
+            text,
+            None if force else MAX_AXIS,
+            f"refused above {MAX_AXIS:.0e} (give --force to run it anyway)",
+        )
         axes[p.name] = [p.check(v, flag, technical) for v in values]
         raw[p.name] = (values[0], flag)
     if not axes:
         example = next(p.name for p in spec.fields)
         raise ValueError(f"give at least one axis, e.g. --{example} START:STOP:COUNT")
-    scalars = spec.resolve(raw, technical,
-                           spell=lambda n: f"--set {n}=" if spec.param(n).field is None
-                           else f"--{n}/--set {n}=")
+    scalars = spec.resolve(
+        raw,
+        technical,
+        spell=lambda n: f"--set {n}=" if spec.param(n).field is None else f"--{n}/--set {n}=",
+    )
     return scalars, axes
 
 
@@ -234,16 +323,21 @@ def run(args) -> int:
     scalars, axes = gather(spec, args, args.force)
     plots = getattr(args, "plot", None) or getattr(args, "error_plot", None)
     if plots and (list(axes)[:2] != ["eps", "mu"] or len(axes) > 3):
-        raise ValueError("--plot and --error-plot need the axes --eps and --mu, and optionally "
-                         f"--delta (got {', '.join('--' + k for k in axes)})")
+        raise ValueError(
+            "--plot and --error-plot need the axes --eps and --mu, and optionally "
+            f"--delta (got {', '.join('--' + k for k in axes)})"
+        )
     if (args.scheduler or args.store) and importlib.util.find_spec("dask") is None:
-        raise ValueError("--scheduler and --store need Dask and Zarr: pip install "
-                         "'vmj[distributed]'")
+        raise ValueError(
+            "--scheduler and --store need Dask and Zarr: pip install 'vmj[distributed]'"
+        )
     if args.resume and not args.store:
         raise ValueError("--resume needs --store PATH.zarr (the store to continue)")
     if args.store and plots:
-        raise ValueError("--store cannot be combined with --plot/--error-plot (write the store, "
-                         "then draw from it)")
+        raise ValueError(
+            "--store cannot be combined with --plot/--error-plot (write the store, "
+            "then draw from it)"
+        )
     if args.netcdf and importlib.util.find_spec("xarray") is None:
         raise ValueError("--netcdf needs xarray and netCDF4: pip install 'vmj[xarray]'")
     if plots and min(len(axes["eps"]), len(axes["mu"])) < 2:
@@ -252,16 +346,29 @@ def run(args) -> int:
     points = math.prod(len(v) for v in axes.values())
     top = {name: max(abs(x) for x in axes.get(name, [scalars.get(name, 0.0)])) for name in scalars}
     n = getattr(args, "n", 1)
-    runs = 1 + bool(getattr(args, "error_plot", None) and args.method != "exact") + \
-        bool(getattr(args, "error_plot", None) and args.method != "energy")
+    runs = (
+        1
+        + bool(getattr(args, "error_plot", None) and args.method != "exact")
+        + bool(getattr(args, "error_plot", None) and args.method != "energy")
+    )
     size = points * how.bytes(args.method, n, top) * runs
     seconds = points * how.seconds(args.method, n, top) * runs
     shape = " x ".join(f"{name} {len(v)}" for name, v in axes.items())
     if not args.force:
-        refuse_above(f"the sweep of {points:.4g} points ({shape}) holds about {size / 2**30:.3g} "
-                     "GiB of results", size / 2**30, MAX_BYTES / 2**30, "GiB")
-        refuse_above(f"the sweep of {points:.4g} points ({shape}) takes about {seconds:.3g} s "
-                     f"with --method {args.method}", seconds, MAX_SECONDS, "s")
+        refuse_above(
+            f"the sweep of {points:.4g} points ({shape}) holds about {size / 2**30:.3g} "
+            "GiB of results",
+            size / 2**30,
+            MAX_BYTES / 2**30,
+            "GiB",
+        )
+        refuse_above(
+            f"the sweep of {points:.4g} points ({shape}) takes about {seconds:.3g} s "
+            f"with --method {args.method}",
+            seconds,
+            MAX_SECONDS,
+            "s",
+        )
     if seconds > 10:
         print(f"vmj: sweep of {points} points, estimated {seconds:.0f} s", file=sys.stderr)
 
@@ -289,15 +396,19 @@ def run(args) -> int:
             plot_swings(result, args.plot, title=f"{args.method}: ")
         if args.error_plot:
             with traced_checks():
-                other = {m: result if args.method == m else _turning_points(args, g, scalars, m)
-                         for m in ("exact", "energy")}
+                other = {
+                    m: result if args.method == m else _turning_points(args, g, scalars, m)
+                    for m in ("exact", "energy")
+                }
             plot_energy_error(other["exact"], other["energy"], scalars["a0"], args.error_plot)
     summary, failed_codes = (_decay_summary if how.turning_points else _cycle_summary)(args, result)
     head = f"sweep: {points} points ({shape}), method {args.method}"
     if how.turning_points:
         head += f", {args.n} swings"
-    print("; ".join([f"{head}, {elapsed:.2f} s"] + summary)
-          + "".join(f"; wrote {p}" for p in (args.out, args.netcdf) if p))
+    print(
+        "; ".join([f"{head}, {elapsed:.2f} s"] + summary)
+        + "".join(f"; wrote {p}" for p in (args.out, args.netcdf) if p)
+    )
     codes, counts = np.unique(failed_codes, return_counts=True)
     for code, k in zip(codes, counts):
         print(f"  {k} points: {vmj.RESULTS(int(code)).message}")

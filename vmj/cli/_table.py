@@ -12,8 +12,12 @@ __all__ = ["add_arguments", "run"]
 def add_arguments(p) -> None:
     p.add_argument("N", type=int, choices=(1, 2, 3, 4), help="table number of the paper")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", metavar="PATH", type=figure_path,
-                   help="write a figure to PATH (format from the extension: png, pdf, svg, ...)")
+    p.add_argument(
+        "--plot",
+        metavar="PATH",
+        type=figure_path,
+        help="write a figure to PATH (format from the extension: png, pdf, svg, ...)",
+    )
 
 
 def _star(crossed: bool) -> str:
@@ -29,13 +33,24 @@ def run(args) -> int:
 
         plot_table(args.N, rows, args.plot)
     if args.json:
-        keys = ("k", "mu", "eps", "delta", "paper_energy_cm", "paper_monograph_cm", "energy_cm",
-                "exact_cm", "exact_crossed")
+        keys = (
+            "k",
+            "mu",
+            "eps",
+            "delta",
+            "paper_energy_cm",
+            "paper_monograph_cm",
+            "energy_cm",
+            "exact_cm",
+            "exact_crossed",
+        )
         print(json.dumps({"table": args.N, "rows": [{k: r[k] for k in keys} for r in rows]}))
         return 0
-    lines = [f"Table {args.N} (amplitudes in cm; * = the swing did not pass x = 0)",
-             f"{'mu':>4} {'eps':>4} {'k':>3} | {'paper EB':>9} {'vmj EB':>9} | "
-             f"{'monograph':>10} {'vmj exact':>10}"]
+    lines = [
+        f"Table {args.N} (amplitudes in cm; * = the swing did not pass x = 0)",
+        f"{'mu':>4} {'eps':>4} {'k':>3} | {'paper EB':>9} {'vmj EB':>9} | "
+        f"{'monograph':>10} {'vmj exact':>10}",
+    ]
     for r in sorted(rows, key=lambda r: (r["mu"], r["eps"], r["k"])):
         pe = f"{r['paper_energy_cm']:.3f}{'*' if r['paper_energy_star'] else ' '}"
         pm = f"{r['paper_monograph_cm']:.3f}{'*' if r['paper_monograph_star'] else ' '}"
@@ -57,7 +72,9 @@ def run(args) -> int:
     ]
     for r in rows:
         if r["note"]:
-            lines.append(f"! mu={r['mu']:g} eps={r['eps']:g} k={r['k']}: {r['note']}; "
-                         f"vmj exact {r['exact_cm']:.4f}{_star(r['exact_crossed'])}")
+            lines.append(
+                f"! mu={r['mu']:g} eps={r['eps']:g} k={r['k']}: {r['note']}; "
+                f"vmj exact {r['exact_cm']:.4f}{_star(r['exact_crossed'])}"
+            )
     print("\n".join(lines))
     return 0
