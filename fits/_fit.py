@@ -467,7 +467,8 @@ def _make_job(index, prob, space, label, free, hold, bounds, headline):
     for rec, g, dec, fx in zip(prob.records, prob.givens, prob.decs, fixed):
         guess = starting_guess(space, rec, {**fx, **{k: v for k, v in g.items()
                                                      if k in space.names}}, dec)
-        st = {**guess, **fx}
+        defaults = {n: space.default(n, rec) for n in free if n in space.defaults}
+        st = {**{n: v for n, v in defaults.items() if v is not None}, **guess, **fx}
         for name in free:
             if name not in st:
                 raise ValueError(f"no starting value for {name}: give one with --set "
