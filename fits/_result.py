@@ -235,7 +235,9 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     if n_dof < 3:
         warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not "
                     f"reliable")
-        converged = False if n_dof < 1 else converged
+        converged = False if n_dof < 2 else converged
+    if any(active[s] and not np.isfinite(se_c[s]) for s in range(q)):
+        converged = False  # a parameter without a standard error is not determined
     # intervals
     intervals = {}
     s2 = job.rss / max(n_dof, 1)
