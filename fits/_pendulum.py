@@ -31,9 +31,11 @@ compared with the variants as asked. The headline result is the variant with the
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import jax.numpy as jnp
+import numpy as np
 
 import vmj
 
@@ -87,27 +89,55 @@ def _predictor(sine: bool):
     return predict
 
 
+def _losses(amplitudes: np.ndarray) -> tuple[float, float, float]:
+    """`(xF, zeta, cq)` from the amplitude lost per half-swing, `a_k - a_{k+1} = 2 xF +
+    pi zeta a + (4/3) cq a^2` (the linear oscillator's half-swing losses of the three laws,
+    `a` the mean amplitude of the pair), by non-negative least squares; `None` where too few
+    swings."""
+    a = amplitudes
+    if a.size < 6:
+        return None
+    mean, loss = 0.5 * (a[:-1] + a[1:]), a[:-1] - a[1:]
+    design = np.stack([2 * np.ones_like(mean), np.pi * mean, 4 / 3 * mean**2], axis=1)
+    best, coef = np.inf, np.zeros(3)
+    for subset in itertools.product((False, True), repeat=3):  # non-negative least squares
+        cols = np.nonzero(subset)[0]
+        c = np.zeros(3)
+        if cols.size:
+            c[cols] = np.linalg.lstsq(design[:, cols], loss, rcond=None)[0]
+        rss = float(np.sum((design @ c - loss) ** 2))
+        if np.all(c >= 0) and rss < best:
+            best, coef = rss, c
+    return float(coef[0]), float(coef[1]), float(coef[2])
+
+
 def _start(record: Record, given: dict, dec: dict) -> dict:
     """Starting values: the sensor's offset and gain from the centres of successive extrema
-    (`fits.sensor_start`), damping and frequency from the decrement method on the corrected
-    record, the rest 0."""
+    ([`fits.sensor_start`][]); the three laws' levels from the amplitude lost per half-swing
+    (`_losses`, on the amplitudes corrected for the gain); the frequency from the mean
+    half-period, corrected for the sine's amplitude dependence; `b2`, `b3`, `xS` 0."""
     sensor = sensor_start(record) if record.sides_known else {"offset": dec["centre"],
                                                               "asym": 0.0}
-    offset, asym = float(given.get("offset", sensor["offset"])), float(sensor["asym"])
-    asym = min(max(asym, -0.2), 0.2)
+    offset = float(given.get("offset", sensor["offset"]))
+    asym = min(max(float(given.get("asym", sensor["asym"])), -0.2), 0.2)
+    side = np.sign(record.positions - offset)
+    amplitudes = np.abs(record.positions - offset) / (1 + asym * side)
+    consecutive = record.k[-1] - record.k[0] == len(record) - 1
+    a0 = float(amplitudes[0]) if record.k[0] == 0 else float(np.max(amplitudes))
+    losses = _losses(amplitudes) if consecutive else None
     dec = decrement(record, offset)
-    a0 = abs(float(record.positions[0]) - offset) if record.k[0] == 0 else float(
-        max(record.amplitudes))
-    a0 /= 1 + asym * (1 if float(record.positions[0]) > offset else -1)
-    zeta = min(max(dec["zeta"], 1e-4), 0.5)
-    xF = max(dec["xF"], 1e-3 * a0)
-    omega = dec["omega"] or 1.0
+    if losses is None:
+        xF, zeta, cq = dec["xF"], dec["zeta"], 0.0
+    else:
+        xF, zeta, cq = losses
     u = float(given.get("angle_unit", DEGREE))
-    # the sine's frequency falls with the amplitude: the mean half-period is that of about
-    # two thirds of the release amplitude, where the sine's frequency is 1 - A^2/16
+    omega = dec["omega"] or 1.0
+    # the sine's frequency falls with the amplitude: the mean half-period is about that of
+    # 0.6 of the release amplitude, where the sine's frequency is 1 - A^2/16
     omega /= 1 - (0.6 * a0 * u) ** 2 / 16
-    return {"omega": omega, "zeta": zeta, "xF": xF, "xS": 0.0, "cq": 0.0, "b2": 0.0,
-            "b3": 0.0, "a0": a0, "offset": offset, "asym": asym, "angle_unit": u}
+    return {"omega": omega, "zeta": min(max(zeta, 1e-4), 0.5), "xF": max(xF, 1e-4 * a0),
+            "xS": 0.0, "cq": max(cq, 1e-4 / a0), "b2": 0.0, "b3": 0.0, "a0": a0,
+            "offset": offset, "asym": asym, "angle_unit": u}
 
 
 def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) -> Space:

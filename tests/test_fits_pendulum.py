@@ -9,6 +9,7 @@ over the seeds: one compiled solve per restoring law.
 """
 
 import math
+import os
 import time
 import warnings
 from importlib.resources import files
@@ -23,15 +24,16 @@ from fits._pendulum import DEGREE, FREE, PENDULUM, PENDULUM_LINEAR
 FS = 259.6  #: the logger's sampling rate [Hz]
 RELEASE = 27.0  #: release amplitude of the simulations [deg]
 DURATION = 12.0  #: length of the records [s]
-SENSOR = {"offset": 4.0, "asym": 0.02}
-BASE = {"omega": 21.7, "b2": -0.1}
+SENSOR = {"offset": 4.0, "asym": 0.03}
+BASE = {"omega": 21.7, "b2": -0.2}
 #: the dissipation law sets and their true values (xF [deg], cq [1/deg])
 DISSIPATION = {
-    "viscous": {"zeta": 0.006},
-    "coulomb": {"xF": 0.08},
-    "viscous+coulomb": {"zeta": 0.004, "xF": 0.04},
-    "viscous+coulomb+quadratic": {"zeta": 0.003, "xF": 0.03, "cq": 3e-4},
+    "viscous": {"zeta": 0.008},
+    "coulomb": {"xF": 0.15},
+    "viscous+coulomb": {"zeta": 0.005, "xF": 0.06},
+    "viscous+coulomb+quadratic": {"zeta": 0.003, "xF": 0.04, "cq": 4e-4},
 }
+MAX_STEPS = 200  #: Levenberg-Marquardt steps per solve
 DAMPING = ("zeta", "xF", "cq")  #: within 10 %; every other parameter within 3 %
 
 
@@ -84,13 +86,15 @@ def write_raw(path, ts, angles, seed: int):
 
 def truth_of_record(record, truth: dict, turning) -> dict:
     """The true parameters as the record sees them: its `k = 0` is a turning point of the
-    simulation (the release of the fitted model), found by its reading."""
+    simulation (the release of the fitted model), found by its reading; `b2` in the model's
+    coordinate (released at `-a0`), whose sign is the record's orientation times the
+    simulation's."""
     times, angles = turning
     a = np.abs(angles[:4])
     first = float(record.positions[0]) - SENSOR["offset"]
     first /= 1 + SENSOR["asym"] * np.sign(first)
     j = int(np.argmin(np.abs(a - abs(first))))
-    return {**truth, **SENSOR, "a0": float(a[j])}
+    return {**truth, **SENSOR, "a0": float(a[j]), "b2": record.orientation * truth["b2"]}
 
 
 LAW_SETS = [(sine, label) for sine in (True, False) for label in DISSIPATION]
@@ -100,13 +104,19 @@ def label(sine: bool, dissipation: str) -> str:
     return ("sine" if sine else "linear") + ":" + dissipation
 
 
+class Trajectories(dict):
+    """The simulated law sets, each simulated once when first asked for."""
+
+    def __missing__(self, key):
+        sine, diss = key
+        truth = {**BASE, **DISSIPATION[diss]}
+        self[key] = (truth, *simulate(truth, sine))
+        return self[key]
+
+
 @pytest.fixture(scope="module")
 def trajectories():
-    out = {}
-    for sine, diss in LAW_SETS:
-        truth = {**BASE, **DISSIPATION[diss]}
-        out[sine, diss] = (truth, *simulate(truth, sine))
-    return out
+    return Trajectories()
 
 
 def records_for(trajectories, tmp_path, sine, diss, seeds):
@@ -126,7 +136,7 @@ def fit_law_set(trajectories, tmp_path, sine, diss, seeds):
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        results = fits.fit_batch(recs, "pendulum", FREE, intervals=False)
+        results = fits.fit_batch(recs, "pendulum", FREE, intervals=False, max_steps=MAX_STEPS)
     return recs, truths, results, time.perf_counter() - t0
 
 
@@ -167,14 +177,68 @@ def test_units_convert_between_degrees_and_radians():
     assert PENDULUM_LINEAR.name != PENDULUM.name
 
 
-@pytest.mark.parametrize("sine,diss", [(True, "viscous+coulomb+quadratic"),
-                                       (False, "viscous+coulomb")])
-def test_synthetic_law_sets_are_recovered(trajectories, tmp_path, sine, diss):
-    """Default suite: one seed of two law sets (every law set and 50 seeds: the slow test)."""
+def within(err: dict) -> bool:
+    return all(e < (0.10 if name in DAMPING else 0.03) for name, e in err.items())
+
+
+def test_synthetic_law_set_is_recovered(trajectories, tmp_path):
+    """Default suite: one seed of the richest law set (every law set over 50 seeds: the slow
+    test below)."""
+    sine, diss = True, "viscous+coulomb+quadratic"
     _, truths, results, _ = fit_law_set(trajectories, tmp_path, sine, diss, [1])
     res, truth = results[0], truths[0]
     assert res.label == label(sine, diss), res.model_comparison
-    err = errors(res, truth)
-    for name, e in err.items():
-        limit = 0.10 if name in DAMPING else (0.03 if name != "b2" else 0.05)
-        assert e < limit, (name, res.params[name], truth.get(name), err)
+    assert res.converged
+    assert within(errors(res, truth)), (res.params, truth)
+    others = [v["bic"] for k, v in res.model_comparison.items()
+              if isinstance(v, dict) and k != res.label]
+    assert len(others) == 7 and min(others) > res.bic
+
+
+#: seeds of the slow test (the environment variable VMJ_PENDULUM_SEEDS runs fewer)
+SEEDS = int(os.environ.get("VMJ_PENDULUM_SEEDS", "50"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sine,diss", LAW_SETS)
+def test_law_sets_over_seeds(trajectories, tmp_path, sine, diss):
+    """Issue 11's acceptance: over 50 seeded records of each law set the true law set is the
+    BIC choice in at least 90 %, and every parameter of the fit is within 3 % (damping within
+    10 %) in at least 90 % of them."""
+    _, truths, results, dt = fit_law_set(trajectories, tmp_path, sine, diss, range(SEEDS))
+    chosen = [res.label == label(sine, diss) for res in results]
+    good = [within(errors(res, truth)) for res, truth in zip(results, truths)]
+    worst = {name: max(errors(res, truth)[name] for res, truth in zip(results, truths)
+                       if name in res.params) for name in results[0].params}
+    print(f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS}, all parameters within "
+          f"tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s")
+    assert sum(chosen) >= 0.9 * SEEDS
+    assert sum(good) >= 0.9 * SEEDS
+
+
+# -- the public record 80P.txt -------------------------------------------------------------
+@pytest.fixture(scope="module")
+def record_80p():
+    return fits.read_record(files("fits") / "data" / "80P.txt", series=True)
+
+
+def lag1(r) -> float:
+    r = np.asarray(r, dtype=float) - np.mean(r)
+    return float(r[1:] @ r[:-1] / (r @ r))
+
+
+def test_80p_residuals_lose_their_structure(record_80p):
+    """The pendulum model at least halves the residual lag-1 autocorrelation of the plain
+    oscillator fit (issue 11), both pooled over positions and times (the diagnostics) and
+    of the positions alone."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = fits.fit(record_80p, "oscillator", ("omega", "zeta", "xF", "a0", "offset"),
+                         intervals=False)
+        pend = fits.fit(record_80p, "pendulum", FREE, intervals=False)
+    assert plain.diagnostics["lag1"] > 0.8
+    assert pend.diagnostics["lag1"] <= 0.5 * plain.diagnostics["lag1"]
+    before, after = lag1(plain.residuals["position"]), lag1(pend.residuals["position"])
+    assert abs(after) <= 0.5 * before
+    assert pend.rms < 0.25 * plain.rms
+    assert pend.converged and "quadratic" not in pend.label or pend.params["cq"] > 0
