@@ -88,9 +88,13 @@ def decrement(record: Record, centre: float | None = None) -> dict:
     }
 
 
-def starting_guess(space_name: str, record: Record, given: dict, dec: dict) -> dict:
-    """Starting values of every parameter of a model family from the decrement estimate `dec`;
-    values in `given` (fixed parameters, or starts chosen by the user) take precedence."""
+def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
+    """Starting values of the parameters of a model family (a `fits._models.Space`) from the
+    decrement estimate `dec`; values in `given` (fixed parameters, or starts chosen by the user)
+    take precedence. A space with a `start(record, given, dec)` function supplies its own."""
+    if getattr(space, "start", None) is not None:
+        return {**space.start(record, given, dec), **{k: float(v) for k, v in given.items()}}
+    space_name = space.name
     a0 = float(abs(record.positions[0] - dec["centre"])) if record.k[0] == 0 else None
     if a0 is None:
         a0 = float(np.max(record.amplitudes))
@@ -100,6 +104,9 @@ def starting_guess(space_name: str, record: Record, given: dict, dec: dict) -> d
     if space_name == "oscillator":
         start.update(zeta=min(zeta, 0.5), xF=xF, omega=dec["omega"] or 1.0)
     elif space_name == "variable-mass":
+        if "m0" not in given or "c" not in given:
+            raise ValueError("the variable-mass fit needs m0 and c (give them with --set "
+                             "m0=VALUE,c=VALUE; a fitted one needs a starting value)")
         m0, c = given["m0"], given["c"]
         delta = given.get("delta", 0.0)
         eps = given.get("eps", 0.0)
