@@ -9,7 +9,7 @@ import numpy as np
 
 import vmj
 
-from ._io import Record, record_from_sequence
+from ._io import record_from_sequence
 
 if TYPE_CHECKING:  # names used in annotations only
     from ._fit import FitResult
@@ -23,6 +23,20 @@ def _fmt(v) -> str:
     except (TypeError, ValueError):
         return "nan"
     return "nan" if not np.isfinite(v) else f"{v:.6g}"
+
+
+def _interval(lo, hi) -> str:
+    """`[lo, hi]` with enough digits to tell the ends apart."""
+    try:
+        lo, hi = float(lo), float(hi)
+    except (TypeError, ValueError):
+        return "[nan, nan]"
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return f"[{_fmt(lo)}, {_fmt(hi)}]"
+    width, size = abs(hi - lo), max(abs(lo), abs(hi))
+    digits = 6 if width <= 0 or size <= 0 else int(min(15, max(6, np.ceil(
+        np.log10(size / width)) + 3)))
+    return f"[{lo:.{digits}g}, {hi:.{digits}g}]"
 
 
 def _short(v, digits: int) -> str:
@@ -79,8 +93,7 @@ def text_report(result: FitResult) -> str:
         if name in stderr_gn:
             line += f"  (gn +- {_fmt(stderr_gn[name])})"
         if name in intervals and intervals[name] is not None:
-            lo, hi = intervals[name]
-            line += f"  95 % [{_fmt(lo)}, {_fmt(hi)}]"
+            line += "  95 % " + _interval(*intervals[name])
         lines.append(line)
     if len(result.params) > 1:
         names = list(result.params)
@@ -93,9 +106,9 @@ def text_report(result: FitResult) -> str:
     diag = _field(result, "diagnostics", {})
     if diag:
         n_res = _field(result, "n_residuals")
-        lines.append(f"  residuals: lag-1 autocorrelation {_fmt(diag.get('lag1'))}, runs test "
-                     f"p = {_fmt(diag.get('runs_p'))}, effective sample size "
-                     f"{_fmt(diag.get('n_eff'))}" + ("" if n_res is None else f" of {n_res}"))
+        lines.append(f"  residuals: lag-1 autocorrelation {_short(diag.get('lag1'), 3)}, runs test "
+                     f"p = {_short(diag.get('runs_p'), 3)}, effective sample size "
+                     f"{_short(diag.get('n_eff'), 4)}" + ("" if not n_res else f" of {n_res}"))
     dec = result.decrement
     if dec:
         lines.append(f"  decrement method: r = {_fmt(dec.get('r'))} per half-swing, zeta = "
@@ -118,8 +131,11 @@ def text_report(result: FitResult) -> str:
             src = item.get("source") or f"record {i}"
             values = item.get("params", {})
             err = item.get("stderr", {})
+            ivs = item.get("intervals", {})
             lines.append(f"    {src}: " + ", ".join(
-                f"{n}={_fmt(v)} +- {_fmt(err.get(n))}" for n, v in values.items()))
+                f"{n}={_fmt(v)} +- {_fmt(err.get(n))}"
+                + (" " + _interval(*ivs[n]) if ivs.get(n) is not None else "")
+                for n, v in values.items()))
     clock = _field(result, "clock", None) or result.record.clock
     if clock:
         lines.append("  clock: " + str(clock.get("message") or ", ".join(
@@ -143,13 +159,16 @@ def _acf(x: np.ndarray, lags: int) -> np.ndarray:
 
 
 def _panels(result):
-    """`(record, residuals)` pairs to draw: each record of a joint fit, else the one."""
-    out = []
-    for item in _field(result, "records", []):
-        if isinstance(item, dict) and isinstance(item.get("record"), Record) \
-                and isinstance(item.get("residuals"), dict):
-            out.append((item["record"], item["residuals"], item.get("params", {})))
-    return out or [(result.record, result.residuals, {})]
+    """`(record or None, residuals, per-record parameters, source)` to draw: the first record
+    with its data; the further records of a joint fit with their residuals only (a result
+    keeps the first record's data)."""
+    items = [it for it in _field(result, "records", [])
+             if isinstance(it, dict) and isinstance(it.get("residuals"), dict)]
+    first = items[0].get("params", {}) if items else {}
+    out = [(result.record, result.residuals, first, result.record.source)]
+    out += [(None, it["residuals"], it.get("params", {}), it.get("source") or f"record {i + 1}")
+            for i, it in enumerate(items[1:])]
+    return out
 
 
 def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = None,
@@ -170,7 +189,7 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
 
     plt = pyplot()
     panels = _panels(result)
-    has_times = any(res.get("time") is not None for _, res, _ in panels)
+    has_times = any(res.get("time") is not None for _, res, _, _ in panels)
     fig = plt.figure(figsize=(16, 8.4))
     grid = fig.add_gridspec(2, 3, width_ratios=[2.2, 1.4, 1.1])
     ax_data = fig.add_subplot(grid[0, :2])
@@ -182,48 +201,45 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
     off_global = params.get("offset", 0.0)
     a_max = 0.0
     acf_n = {"position": 0, "time": 0}
-    for i, (rec, res, rec_params) in enumerate(panels):
+    joint = len(panels) > 1
+    for i, (rec, res, rec_params, source) in enumerate(panels):
         colour = f"C{i % 10}"
-        tag = f" ({rec.source})" if len(panels) > 1 and rec.source else ""
+        tag = f" ({source or i})" if joint else ""
         off = rec_params.get("offset", off_global)
         rx = np.asarray(res["position"], dtype=float)
+        k = np.asarray(res.get("k", np.arange(rx.size)))
         flagged = np.asarray(res.get("outlier", np.zeros(rx.size)), dtype=bool)
-        t_axis = rec.times is not None
-        x_axis = rec.times if t_axis else rec.k
-        if rec.sides_known:
-            data = rec.positions
-            fitted = data + rx
-        else:  # amplitude-only: the residual compares amplitudes
-            data = rec.amplitudes + off
-            fitted = data + rx
-        if rec.signal is not None:
-            s = rec.signal
-            ax_data.plot(s.t - rec.time_origin, s.y, lw=0.5, color="0.6",
-                         label="raw signal" + tag)
-        ax_data.plot(x_axis, data, "o", ms=3.5, mfc="none", color=colour,
-                     label=("turning points" if rec.sides_known else "amplitudes") + tag)
-        ax_data.plot(x_axis, fitted, "-", lw=1.0, color="C3" if len(panels) == 1 else colour,
-                     label=f"fit ({result.forward})" + tag)
-        ax_data.axhline(off, color="k", lw=0.5, ls=":")
+        # residuals against time for one record, against the swing for several
+        x_res = rec.times if rec is not None and rec.times is not None and not joint else k
         ax_rx.axhline(0, color="k", lw=0.5)
-        ax_rx.plot(x_axis, rx, ".-", lw=0.6, ms=4, color=colour, label="position" + tag)
+        ax_rx.plot(x_res, rx, ".-", lw=0.6, ms=4, color=colour, label="position" + tag)
         if flagged.any():
-            ax_rx.plot(np.asarray(x_axis)[flagged], rx[flagged], "o", ms=10, mfc="none",
-                       color="r", label="flagged outlier")
-        acf = _acf(rx, lags)
+            ax_rx.plot(np.asarray(x_res)[flagged], rx[flagged], "o", ms=10, mfc="none",
+                       color="r", label="flagged outlier" if i == 0 else None)
         acf_n["position"] += rx.size
-        ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i, acf, "o-" if i == 0 else "o--", ms=3,
-                    lw=0.8, color=colour, label="position" + tag)
+        ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i, _acf(rx, lags), "o-", ms=3, lw=0.8,
+                    color=colour, label="position" + tag)
         rt = res.get("time")
         if rt is not None and ax_rt is not None:
             rt = np.asarray(rt, dtype=float)
             ax_rt.axhline(0, color="k", lw=0.5)
-            ax_rt.plot(x_axis, rt, ".-", lw=0.6, ms=4, color=colour, label="time" + tag)
-            rt_used = rt[1:] if rec.k[0] == 0 else rt  # the release time is not a datum
-            acf_t = _acf(rt_used, lags)
+            ax_rt.plot(x_res, rt, ".-", lw=0.6, ms=4, color=colour, label="time" + tag)
+            rt_used = rt[1:] if k[0] == 0 else rt  # the release time is not a datum
             acf_n["time"] += rt_used.size
-            ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i + 0.3, acf_t, "s:", ms=3, lw=0.8,
-                        color=colour, mfc="none", label="time" + tag)
+            ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i + 0.3, _acf(rt_used, lags), "s:",
+                        ms=3, lw=0.8, color=colour, mfc="none", label="time" + tag)
+        if rec is None:
+            continue
+        x_axis = rec.times if rec.times is not None else rec.k
+        data = rec.positions if rec.sides_known else rec.amplitudes + off
+        fitted = data + rx  # amplitude-only records: the residual compares amplitudes
+        if rec.signal is not None:
+            s = rec.signal
+            ax_data.plot(s.t - rec.time_origin, s.y, lw=0.5, color="0.6", label="raw signal")
+        ax_data.plot(x_axis, data, "o", ms=3.5, mfc="none", color=colour,
+                     label=("turning points" if rec.sides_known else "amplitudes") + tag)
+        ax_data.plot(x_axis, fitted, "-", lw=1.0, color="C3", label=f"fit ({result.forward})")
+        ax_data.axhline(off, color="k", lw=0.5, ls=":")
         # decrement diagram: consecutive swings only
         amp_data = np.abs(data - off)
         amp_fit = np.abs(fitted - off)
@@ -232,17 +248,18 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
                     label="data pairs" + tag)
         order = np.argsort(amp_fit[nxt])
         ax_dec.plot(amp_fit[nxt][order], amp_fit[nxt + 1][order], "-", color="C3",
-                    label="fitted model's map" if i == 0 else None)
+                    label="fitted model's map")
         a_max = max(a_max, float(np.max(amp_data)) if amp_data.size else 0.0)
     ax_data.set_xlabel("time from the release [s]" if panels[0][0].times is not None
                        else "swing k")
     ax_data.set_ylabel("position [signal units]")
     ax_data.legend(fontsize=8, loc="upper right")
     stderr = result.stderr
-    ax_data.set_title(title or f"{result.model} fit: " + ", ".join(
+    ax_data.set_title(title or f"{result.model} fit" + (" (first record)" if joint else "")
+                      + ": " + ", ".join(
         f"{k}={_short(v, 5)}\u00b1{_short(stderr.get(k), 2)}" for k, v in result.params.items()),
         fontsize=9)
-    xlabel = ax_data.get_xlabel()
+    xlabel = "swing k" if joint else ax_data.get_xlabel()
     ax_rx.set_xlabel(xlabel)
     ax_rx.set_ylabel("fit - data [signal units]")
     ax_rx.set_title(f"position residuals (rms {_fmt(result.rms)})", fontsize=9)
@@ -258,7 +275,8 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
             ax_acf.axhspan(-band, band, color=shade, zorder=0, label=f"{kind}: \u00b11.96/\u221an")
     diag = _field(result, "diagnostics", {})
     ax_acf.set_title("residual autocorrelation" + (
-        f" (lag-1 {_fmt(diag.get('lag1'))}, runs p {_fmt(diag.get('runs_p'))})" if diag else ""),
+        f" (lag-1 {_short(diag.get('lag1'), 3)}, runs p {_short(diag.get('runs_p'), 2)})"
+        if diag else ""),
         fontsize=9)
     ax_acf.set_xlabel("lag [points]")
     ax_acf.set_ylim(-1.05, 1.05)
