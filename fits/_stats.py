@@ -183,7 +183,38 @@ def _down(X: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros_like(X[:1]), X[:-1]])
 
 
-def _block_rhos(blocks_J, blocks_r, pinv, iterations=3):
+def _root(f, lo: float, hi: float, fallback: float, tol: float = 1e-6) -> float:
+    """The root of an increasing `f` in `[lo, hi]` by the Illinois method (regula falsi);
+    an end when `f` keeps one sign there; `fallback` when `f` is not finite at the ends."""
+    f_lo, f_hi = f(lo), f(hi)
+    if not (np.isfinite(f_lo) and np.isfinite(f_hi)):
+        return fallback
+    if f_lo >= 0:
+        return lo
+    if f_hi <= 0:
+        return hi
+    side = 0
+    for _ in range(60):
+        x = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+        fx = f(x)
+        if not np.isfinite(fx):
+            return fallback
+        if fx > 0:
+            hi, f_hi = x, fx
+            if side == 1:
+                f_lo /= 2
+            side = 1
+        else:
+            lo, f_lo = x, fx
+            if side == -1:
+                f_hi /= 2
+            side = -1
+        if hi - lo < tol or fx == 0:
+            break
+    return x
+
+
+def _block_rhos(blocks_J, blocks_r, pinv, iterations=2):
     """AR(1) coefficient of each block by the method of moments on the fitted residuals.
 
     Residuals `r = (I - H) e` of a fit are less correlated than the errors `e`: the fit absorbs
@@ -193,7 +224,8 @@ def _block_rhos(blocks_J, blocks_r, pinv, iterations=3):
     fit's hat matrix `H = J (J^T J)^+ J^T`:
     `E[r_b^T A r_b] ~ tr(A R_b) - tr(A H_bb R_b) - tr(A R_b H_bb) + tr(A J_b P M P J_b^T)`,
     `E[r_b^T r_b] ~ n_b - 2 tr(P J_b^T R_b J_b) + tr(P M P J_b^T J_b)` with `P = (J^T J)^+`,
-    `M = sum_c J_c^T R_c J_c`; bisection per block, Gauss-Seidel over the blocks."""
+    `M = sum_c J_c^T R_c J_c`; Illinois root finding per block, Gauss-Seidel over the
+    blocks (two sweeps)."""
     nb = len(blocks_J)
     observed = []
     for r in blocks_r:
@@ -219,22 +251,7 @@ def _block_rhos(blocks_J, blocks_r, pinv, iterations=3):
                 den = n - 2 * np.trace(pinv @ g) + np.trace(PMP @ G0[b])
                 return num / den - observed[b] if den > 0 else float("nan")
 
-            lo, hi = -RHO_MAX, RHO_MAX
-            f_lo, f_hi = excess(lo), excess(hi)
-            if not (np.isfinite(f_lo) and np.isfinite(f_hi)):
-                continue  # keep the raw estimate
-            if f_lo >= 0:
-                rho[b] = lo
-            elif f_hi <= 0:
-                rho[b] = hi
-            else:
-                for _ in range(25):
-                    mid = 0.5 * (lo + hi)
-                    if excess(mid) < 0:
-                        lo = mid
-                    else:
-                        hi = mid
-                rho[b] = 0.5 * (lo + hi)
+            rho[b] = _root(excess, -RHO_MAX, RHO_MAX, rho[b])
             grams[b] = _ar1_cross(Jb, Jb, rho[b])
     return rho, grams
 
