@@ -115,6 +115,9 @@ def text_report(result: FitResult) -> str:
                      f"{_fmt(dec.get('zeta'))}, xF = {_fmt(dec.get('xF'))} +- "
                      f"{_fmt(dec.get('stderr_xF'))} (signal units)")
     rows = _comparison_rows(result.model_comparison or {})
+    aic, bic = _field(result, "aic"), _field(result, "bic")
+    if not rows and aic is not None and np.isfinite(aic):
+        lines.append(f"  AIC {aic:.2f}, BIC {bic:.2f}")
     if rows:
         lines.append("  model comparison (lower is better):")
         for k, c in rows:
