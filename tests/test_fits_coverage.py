@@ -150,8 +150,9 @@ def test_coverage_variable_mass_energy_balance():
 
 @pytest.mark.slow
 def test_coverage_variable_mass_exact():
-    """The default exact forward model: 79 s on 2 busy cores (68 s cold, 28 s warm alone),
-    most of it the profile-likelihood solves. Measured FT 46/50, mu 46/50 (GN 45, 45)."""
+    """The default exact forward model: 52-79 s on 2 shared cores (28 s of it with every
+    program compiled), most of it the profile-likelihood solves. Measured FT 46/50, mu 46/50
+    (Gauss-Newton 45, 45)."""
     results = _fit(_variable_mass_records("exact"), "variable-mass", tuple(VM_TRUTH), VM_GIVEN)
     _check_coverage(results, VM_TRUTH, "variable-mass exact")
 
@@ -165,8 +166,8 @@ def test_coverage_rope_fixed_length():
 
 @pytest.mark.slow
 def test_coverage_rope_lowering():
-    """The paper's rope lowered at 2 m/s, exact forward model: 87 s on 2 busy cores.
-    Measured T 48/50 (GN 48)."""
+    """The paper's rope lowered at 2 m/s, exact forward model: 77-87 s on 2 shared cores.
+    Measured T 48/50 (Gauss-Newton 48)."""
     records, given, truth = _rope_records(-2.0, "exact")
     _check_coverage(_fit(records, "rope", tuple(truth), given), truth, "rope lowering")
 
