@@ -41,10 +41,16 @@ def decrement(record: Record, centre: float | None = None) -> dict:
         raise ValueError(f"{src}need at least 3 turning points for the decrement method "
                          f"(got {len(x)})")
     amp = np.abs(x)
-    trend = np.polyfit(k.astype(float), amp, 1)[0]
-    if not trend < 0:
-        raise ValueError(f"{src}the sequence does not decay (the amplitudes grow by "
-                         f"{trend:.3g} per swing on average): nothing to identify")
+    kf = k.astype(float)
+    (trend, level), res, *_ = np.polyfit(kf, amp, 1, full=True)
+    spread = float(np.sqrt(res[0] / max(len(x) - 2, 1))) if len(res) else 0.0
+    se_trend = spread / max(float(np.std(kf)) * math.sqrt(len(x)), 1e-300)
+    drop = -trend * float(kf[-1] - kf[0])
+    if not (trend < 0 and -trend > 3 * se_trend and drop > 1e-6 * float(np.max(amp))):
+        what = "grow" if trend > 3 * se_trend else "stay constant"
+        raise ValueError(f"{src}the sequence does not decay (the amplitudes {what}: "
+                         f"{trend:.3g} +- {se_trend:.2g} per swing on average): nothing to "
+                         f"identify")
     consecutive = np.diff(k) == 1
     a_now = amp[:-1][consecutive]
     a_next = (-np.sign(x[:-1]) * x[1:])[consecutive]  # negative: did not pass the centre

@@ -379,7 +379,7 @@ def _slot_transform(space, name, bounds) -> tuple[Transform, bool, bool]:
         phi = min(phi, 1.0 - 1e-9)  # underdamped
     ulo, uhi = bounds.get(name, (-math.inf, math.inf))
     lo, hi = max(plo, ulo), min(phi, uhi)
-    return transform_for(lo, hi), ulo > plo, uhi < phi
+    return transform_for(lo, hi), name in bounds and ulo >= plo, name in bounds and uhi <= phi
 
 
 def _fixed_values(space, record, free, given, hold=None) -> dict:
@@ -452,6 +452,7 @@ class _Job:
     iterations: int = 0
     rss: float = math.inf
     bound_hit: np.ndarray = None  # slots held at a bound by the solver
+    signs: list = None  # per record: sides assumed for amplitude-only data (a start hypothesis)
 
 
 def _slot_names(job) -> list:
@@ -633,7 +634,9 @@ def _job_arrays(job, prob, shape) -> dict:
     for r, rec in enumerate(prob.records):
         m = len(rec)
         k[r, :m] = rec.k
-        x[r, :m] = rec.positions if rec.sides_known else rec.amplitudes
+        signs = None if job.signs is None else job.signs[r]
+        x[r, :m] = rec.positions if rec.sides_known else \
+            rec.amplitudes if signs is None else signs * rec.amplitudes
         if rec.times is not None:
             t[r, :m] = rec.times
         for i, name in enumerate(space.names):
@@ -649,7 +652,8 @@ def _job_arrays(job, prob, shape) -> dict:
     hi = np.array([t_.hi for t_ in job.transforms] + [np.inf] * pad)
     return dict(k=k, x=x, t=t, wx=np.stack(prob.wx), wt=np.stack(prob.wt),
                 orient=np.array([rec.orientation for rec in prob.records]),
-                absval=np.array([0.0 if rec.sides_known else 1.0 for rec in prob.records]),
+                absval=np.array([0.0 if rec.sides_known or job.signs is not None else 1.0
+                                 for rec in prob.records]),
                 fixed=fixed, M=M, code=np.concatenate([job.code, np.full(pad, HELD)]),
                 lo=lo, hi=hi, scale=np.concatenate([job.scale, np.ones(pad)]),
                 held=np.concatenate([job.held, np.zeros(pad)]),
@@ -707,7 +711,7 @@ def _fit_jobs(jobs, problems, shape):
                 job.p = out["p"][:q]
                 job.iterations += out["steps"]
                 job.rss = _rss(out)
-                near = 1e-8 if out["ok"] else 1e-4
+                near = 1e-5 if out["ok"] else 1e-4  # (value - bound) / scale
                 hit, value = at_bound(job.code, [t.lo for t in job.transforms],
                                       [t.hi for t in job.transforms], job.scale, job.p, near)
                 hit &= job.code != HELD
@@ -767,38 +771,83 @@ def _adopt(job, sub, problems, shape):
     job.iterations += out["steps"]
 
 
-def _twin(job) -> _Job:
-    """A copy of `job` (its own starting point) to solve beside it."""
-    twin = dataclasses.replace(job)
+_HYPOTHESES = (0, 1, 2, 3)  #: amplitude-only records: fits assuming the last j swings did not cross
+
+
+def _twin(job, signs=None, records=None) -> _Job:
+    """A copy of `job` (its own starting point) to solve beside it; with `signs` (per record),
+    the copy fits signed positions `signs * amplitudes` (a hypothesis on the sides)."""
+    twin = dataclasses.replace(job, signs=signs)
     for name in ("code", "held", "scale", "p", "bound_hit"):
         setattr(twin, name, np.copy(getattr(job, name)))
+    if signs is not None:  # started from the decrement method on the hypothesised sides
+        start = []
+        for r, (rec, sg) in enumerate(zip(records, signs)):
+            if sg is not None:
+                rec = dataclasses.replace(rec, positions=rec.centre + sg * rec.amplitudes,
+                                          sides_known=True)
+            guess = starting_guess(job.space, rec, job.fixed[r], decrement(rec, rec.centre))
+            start.append({**job.start[r], **guess, **job.fixed[r]})
+        twin.p = _coordinates(twin, start)
     return twin
+
+
+def _hypothesis_signs(records, j) -> list | None:
+    """Sides of each record's points if every swing crossed the centre except the last `j`
+    swings (of the amplitude-only records) (`None` when no record is amplitude-only)."""
+    if all(rec.sides_known for rec in records):
+        return None
+    out = []
+    for rec in records:
+        if rec.sides_known:
+            out.append(None)
+            continue
+        flips = np.ones(int(rec.k[-1]) + 1, dtype=bool)
+        if j:
+            flips[rec.k[-j:]] = False
+        flips[0] = False
+        out.append(-np.cumprod(np.where(flips, -1.0, 1.0))[rec.k])
+    return out
 
 
 def _fit_all(jobs, problems, shape, first_pass):
     """Every job in rounds by number of slots. On the first pass a job with a fitted nested
     sub-model is solved twice, from its own start and from the best such sub-model, and keeps
-    the better; it is never reported worse than that sub-model."""
+    the better (it is never reported worse than that sub-model); a job with amplitude-only
+    records is also solved on signed positions under the hypotheses that the last 0, 1, 2, 3
+    swings did not cross, and the best of these starts it again."""
     for q in sorted({len(j.slots) for j in jobs}):
         round_jobs = [j for j in jobs if len(j.slots) == q]
         subs, twins = {}, {}
         for job in round_jobs:
             nested = [a for a in jobs if len(a.slots) < q and a.out is not None
                       and _nested_in(a, job)]
+            mine = []
             if nested:
                 best = min(nested, key=lambda a: a.rss)
                 subs[id(job)] = best
                 if first_pass:
-                    twins[id(job)] = _twin(job)
+                    mine.append(_twin(job))
                     _start_from(job, best)
-        _fit_jobs(round_jobs + list(twins.values()), problems, shape)
+            if first_pass:
+                for j in _HYPOTHESES:
+                    signs = _hypothesis_signs(problems[job.problem].records, j)
+                    if signs is not None:
+                        mine.append(_twin(job, signs, problems[job.problem].records))
+            twins[id(job)] = mine
+        _fit_jobs(round_jobs + [t for ts in twins.values() for t in ts], problems, shape)
+        again = []
         for job in round_jobs:
-            twin = twins.get(id(job))
-            if twin is not None and twin.rss < job.rss:
+            mine = twins[id(job)]
+            best = min([job] + mine, key=lambda a: a.rss)
+            if best is not job:
                 for name in ("code", "held", "p", "bound_hit", "out", "rss"):
-                    setattr(job, name, getattr(twin, name))
-            if twin is not None:
-                job.iterations += twin.iterations
+                    setattr(job, name, getattr(best, name))
+                if best.signs is not None:
+                    again.append(job)  # a signed-hypothesis optimum: refit the amplitudes
+            job.iterations += sum(t.iterations for t in mine)
+        _fit_jobs(again, problems, shape)
+        for job in round_jobs:
             best = subs.get(id(job))
             if best is not None and not job.rss <= best.rss * (1 + 1e-9):
                 _adopt(job, best, problems, shape)
@@ -1088,9 +1137,10 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     n_model = _bucket(max(int(rec.k[-1]) for prob in problems for rec in prob.records))
     q = max(len(j.slots) for j in jobs)
     per_round = {}
-    for j in jobs:  # a job with a nested sub-model is solved twice (two starts)
-        twice = 1 + any(_nested_in(a, j) for a in jobs)
-        per_round[(len(j.slots), j.space)] = per_round.get((len(j.slots), j.space), 0) + twice
+    for j in jobs:  # extra starts on the first pass (see _fit_all)
+        amp_only = not all(rec.sides_known for rec in problems[j.problem].records)
+        starts = 1 + any(_nested_in(a, j) for a in jobs) + amp_only * len(_HYPOTHESES)
+        per_round[(len(j.slots), j.space)] = per_round.get((len(j.slots), j.space), 0) + starts
     shape = _Shape(N, q, max(n_model, 1), max(per_round.values()), settings)
     for prob in problems:
         _init_weights(prob, N)
