@@ -100,16 +100,16 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
     take precedence. A space with a `start(record, given, dec)` function supplies its own."""
     if getattr(space, "start", None) is not None:
         return {**space.start(record, given, dec), **{k: float(v) for k, v in given.items()}}
-    space_name = space.name
+    names = set(space.names)  # the family by its parameters (a variant space shares them)
     a0 = float(abs(record.positions[0] - dec["centre"])) if record.k[0] == 0 else None
     if a0 is None:
         a0 = float(np.max(record.amplitudes))
     zeta = max(dec["zeta"], 1e-3)
     xF = max(dec["xF"], 2e-3 * a0)
     start = {"a0": a0, "offset": dec["centre"]}
-    if space_name == "oscillator":
+    if {"omega", "zeta", "xF"} <= names:
         start.update(zeta=min(zeta, 0.5), xF=xF, omega=dec["omega"] or 1.0)
-    elif space_name == "variable-mass":
+    elif {"FT", "f", "mu", "m0", "c"} <= names:
         if "m0" not in given or "c" not in given:
             raise ValueError("the variable-mass fit needs m0 and c (give them with --set "
                              "m0=VALUE,c=VALUE; a fitted one needs a starting value)")
@@ -124,10 +124,14 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
         mu = max((delta - 2 * delta * eps - lam) / 2, 2e-3 * math.sqrt(c * m0))
         start.update(mu=mu, eps=min(max(eps, 0.05), 0.95), delta=delta, g=g, m0=m0, c=c,
                      FT=c * xF, f=c * xF / (g * m_mid))
-    elif space_name == "rope":
+    elif {"T", "e", "l0"} <= names:
         # the dead band xF = A T / (A e / l0): T = e xF / l0 (first-order, length at release)
         e = given.get("e", 1.0)
         start.update(T=e * xF / given.get("l0", 1.0), e=e, d=given.get("d", 0.0),
                      b=given.get("b", 0.0), u=given.get("u", 0.0))
+    if "asym" in names and record.sides_known and len(record) >= 3:
+        from ._sensor import sensor_start
+
+        start["asym"] = float(np.clip(sensor_start(record)["asym"], -0.4, 0.4))
     start.update({k: float(v) for k, v in given.items()})
     return start

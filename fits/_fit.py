@@ -34,270 +34,25 @@ import dataclasses
 import functools
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
 import numpy as np
-import optax
-import optimistix as optx
 
 import vmj
 
 from ._decrement import decrement, starting_guess
 from ._io import Record
-from ._models import FORWARDS, KIND_RANGES, SPACES, Space, theta_dict
-from ._params import HELD, check_value, warn_if_float32, INTERVAL, LOWER, REAL, Transform, apply, at_bound, derivative, \
-    inverse, transform_for
-from ._stats import RANK_RTOL, covariance, diagnostics
+from ._models import FORWARDS, KIND_RANGES, SPACES, Space
+from ._params import HELD, INTERVAL, LOWER, REAL, Transform, at_bound, check_value, inverse, \
+    transform_for, warn_if_float32
+from ._result import FitResult, _information, _result, _robust_scale, _values_of
+from ._solve import _TUNING, _job_arrays, _rss, _Shape, _solve
 
 __all__ = ["FitResult", "fit", "fit_batch", "LOSSES", "OPTIMIZERS"]
 
 LOSSES = ("l2", "huber", "cauchy")
 OPTIMIZERS = ("lm", "adam")
-_TUNING = {"huber": 1.345, "cauchy": 2.385}  #: 95 % efficiency constants of the robust losses
 _ROBUST_PASSES = 10
-_LM_RTOL, _LM_ATOL = 1e-10, 1e-12
-_CHI2_95 = 3.841458820694124  #: 95 % quantile of chi-square with 1 degree of freedom
-_PROFILE_STEPS = 8  #: root-finding iterations of a profile-likelihood end
-_PROFILE_TOL = 0.02  #: relative tolerance on the deviance at an interval end
-
-
-# -- the compiled core -------------------------------------------------------------------------
-class _Data(eqx.Module):
-    """One job's arrays (a leading batch axis when stacked): R records of N points, P
-    parameters, q free slots."""
-
-    k: jax.Array  # (R, N) swing index of each point
-    x: jax.Array  # (R, N) measured positions (amplitudes for amplitude-only records)
-    t: jax.Array  # (R, N) measured times from the release
-    wx: jax.Array  # (R, N) weights of the position residuals (0 = ignored / padding)
-    wt: jax.Array  # (R, N) weights of the time residuals
-    orient: jax.Array  # (R,) +1 if the release is below the centre
-    absval: jax.Array  # (R,) 1 for amplitude-only records
-    fixed: jax.Array  # (R, P) parameter values
-    M: jax.Array  # (q, R, P) 1 where slot s sets parameter p of record r
-    code: jax.Array  # (q,) transform code of each slot (fits._params), HELD: not moved
-    lo: jax.Array  # (q,) bounds of each slot
-    hi: jax.Array
-    scale: jax.Array  # (q,) scale of each slot's transform
-    held: jax.Array  # (q,) value of a held slot
-
-
-def _place(d: _Data, val):
-    """Parameter values (R, P) with the slots set to `val` (q,)."""
-    mask = jnp.sum(d.M, axis=0)
-    return d.fixed * (1 - mask) + jnp.einsum("q,qrp->rp", val, d.M)
-
-
-def _values(d: _Data, p):
-    return apply(d.code, d.lo, d.hi, d.scale, p, d.held)
-
-
-def _residual(space, forward, n, theta, d: _Data):
-    def one(th_row, k, x, t, wx, wt, orient, absval):
-        th = theta_dict(space, th_row)
-        times, y = space.predict(th, n, forward)
-        oy = orient * y[k]
-        dev = oy * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else oy
-        offset = th["offset"] if "offset" in th else 0.0
-        px = jnp.where(absval > 0, jnp.abs(dev), offset + dev)
-        return jnp.concatenate([wx * (px - x), wt * (times[k] - t)])
-
-    r = jax.vmap(one)(theta, d.k, d.x, d.t, d.wx, d.wt, d.orient, d.absval)
-    return r.reshape(-1)
-
-
-def _residual_and_jacobian_impl(space, forward, n, p, d):
-    """Residuals at `p` and their Jacobian with respect to the slot values (in the parameters'
-    units), from one forward-mode pass. Wrapping it as a `custom_jvp` whose tangent is that
-    materialised Jacobian keeps the solvers from tracing (and compiling) the forward model
-    again for linearisation and transposition: one compiled Jacobian serves the
-    Levenberg-Marquardt steps, Adam's gradients and the standard errors."""
-    val = _values(d, p)
-
-    def r_of(v):
-        r = _residual(space, forward, n, _place(d, v), d)
-        return r, r
-
-    # the smoothed model's diffrax solve differentiates in reverse mode only
-    jacobian = jax.jacrev if forward == "smooth" else jax.jacfwd
-    J, r = jacobian(r_of, has_aux=True)(val)
-    return r, J
-
-
-_residual_and_jacobian = jax.custom_jvp(_residual_and_jacobian_impl, nondiff_argnums=(0, 1, 2))
-
-
-@_residual_and_jacobian.defjvp
-def _residual_and_jacobian_jvp(space, forward, n, primals, tangents):
-    p, d = primals
-    dp, _ = tangents  # never differentiated with respect to the data
-    r, J = _residual_and_jacobian(space, forward, n, p, d)
-    dv = derivative(d.code, d.lo, d.hi, d.scale, p)
-    return (r, J), (J @ (dv * dp), jnp.zeros_like(J))
-
-
-@eqx.filter_jit
-def _solve_lm(space, forward, n, max_steps, d, p0):
-    def one(d, p0):
-        def fn(p, d):
-            r, J = _residual_and_jacobian(space, forward, n, p, d)
-            return r, (r, J)
-
-        sol = optx.least_squares(fn, optx.LevenbergMarquardt(_LM_RTOL, _LM_ATOL), p0, d,
-                                 has_aux=True, max_steps=max_steps, throw=False)
-        r, J = sol.aux  # at the returned point: no second compiled copy of the Jacobian
-        ok = sol.result == optx.RESULTS.successful
-        return sol.value, _place(d, _values(d, sol.value)), J, r, ok, sol.stats["num_steps"]
-
-    return jax.vmap(one)(d, p0)
-
-
-def _rho(loss, u):
-    if loss == "l2":
-        return 0.5 * u * u
-    c = _TUNING[loss]
-    if loss == "huber":
-        return optax.losses.huber_loss(u, jnp.zeros_like(u), delta=c)
-    return 0.5 * c * c * jnp.log1p((u / c) ** 2)
-
-
-@eqx.filter_jit
-def _solve_adam(space, forward, n, steps, loss, d, p0):
-    def one(d, p0):
-        def objective(p):
-            r, _ = _residual_and_jacobian(space, forward, n, p, d)
-            return jnp.sum(_rho(loss, r))
-
-        opt = optax.adam(optax.cosine_decay_schedule(0.02, steps, alpha=1e-3))
-        grad = jax.value_and_grad(objective)
-
-        def body(carry, _):
-            p, state = carry
-            _, g = grad(p)
-            updates, state = opt.update(g, state, p)
-            return (optax.apply_updates(p, updates), state), None
-
-        (p, _), _ = jax.lax.scan(body, (p0, opt.init(p0)), None, length=steps)
-        value, g = grad(p)
-        ok = jnp.max(jnp.abs(g)) <= 1e-4 * jnp.maximum(1.0, value)
-        r, J = _residual_and_jacobian(space, forward, n, p, d)
-        return p, _place(d, _values(d, p)), J, r, ok, jnp.asarray(steps)
-
-    return jax.vmap(one)(d, p0)
-
-
-# -- results -----------------------------------------------------------------------------------
-@dataclass
-class FitResult:
-    """The outcome of a fit.
-
-    **Fields:**
-
-    - `model` (the model family of the headline fit), `label` (its label in the model
-      comparison, e.g. `"both"`), `forward`, `loss`, `optimizer`.
-    - `params` (the free parameters, in the order fitted; for a joint fit the shared ones) and
-      `fixed` (the others), in SI units or the signal's units (`units`: `{name: unit}`).
-    - `stderr`: standard errors corrected for serially correlated residuals (the Gauss-Newton
-      ones times the square root of an inflation >= 1); `stderr_gn`: the Gauss-Newton ones;
-      `None` (JSON null) for a parameter the data do not identify, never 0.
-    - `intervals`: `{name: (lo, hi)}` 95 % profile-likelihood intervals (Wald where a profile
-      failed, said in the warnings).
-    - `correlation`: correlation matrix of `params`; `converged`: the optimiser converged AND
-      the Jacobian has full rank AND no parameter sits at a bound the user did not set;
-      `iterations` (solver steps over all passes).
-    - `rms` (RMS position residual, data units), `rms_time` [s]; `rss` (weighted residual sum of
-      squares), `n_residuals`, `aic`, `bic`.
-    - `diagnostics`: `{"lag1", "runs_p", "n_eff", "warnings"}` (see `fits._stats`); `warnings`
-      (the same list).
-    - `model_comparison`: `{label: {"aic", "bic", "rss", "params", "converged"}, "best_aic",
-      "best_bic"}` over the sub-models fitted beside the headline (empty when none).
-    - `residuals` (per point of the first record: `k`, `position`, `time`, `standardized`,
-      `outlier`); `outliers` (the flagged `k`); `decrement` (the decrement-method estimate);
-      `record`; `records` (joint fits: per record `source`, `params`, `stderr`, `stderr_gn`,
-      `intervals`, `rms`, `outliers`); `clock` (the sample-clock report of a raw signal).
-    """
-
-    model: str
-    forward: str
-    loss: str
-    optimizer: str
-    params: dict
-    fixed: dict
-    stderr: dict
-    correlation: list
-    converged: bool
-    iterations: int
-    rms: float
-    rms_time: float | None
-    model_comparison: dict
-    residuals: dict
-    outliers: list
-    warnings: list
-    decrement: dict
-    record: Record = field(repr=False)
-    prediction: dict = field(default_factory=dict, repr=False)
-    stderr_gn: dict = field(default_factory=dict)
-    intervals: dict = field(default_factory=dict)
-    diagnostics: dict = field(default_factory=dict)
-    aic: float = math.nan
-    bic: float = math.nan
-    rss: float = math.nan
-    n_residuals: int = 0
-    records: list = field(default_factory=list)
-    clock: dict | None = None
-    units: dict = field(default_factory=dict)
-    label: str = ""
-
-    def to_json(self) -> dict:
-        """The command line's JSON object: `model`, `params`, `stderr`, `stderr_gn`,
-        `intervals` (`{name: [lo, hi]}`), `correlation`, `converged`, `iterations`, `rms`,
-        `diagnostics`, `model_comparison`, then `records` (joint fits), `clock` (raw signals)
-        and `units`; NaN becomes `null`."""
-        out = {
-            "model": self.model,
-            "params": self.params,
-            "stderr": self.stderr,
-            "stderr_gn": self.stderr_gn,
-            "intervals": {k: list(v) for k, v in self.intervals.items()},
-            "correlation": self.correlation,
-            "converged": self.converged,
-            "iterations": self.iterations,
-            "rms": self.rms,
-            "diagnostics": self.diagnostics,
-            "model_comparison": self.model_comparison,
-        }
-        if self.records:
-            out["records"] = [{k: v for k, v in r.items() if k != "residuals"}
-                              for r in self.records]
-        if self.clock is not None:
-            out["clock"] = self.clock
-        out["units"] = self.units
-        return _jsonable(out)
-
-    def report(self) -> str:
-        from ._report import text_report
-
-        return text_report(self)
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {k: _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
-
 
 # -- input checks ------------------------------------------------------------------------------
 _RANGES = {
@@ -409,7 +164,6 @@ def _fixed_values(space, record, free, given, hold=None) -> dict:
                          f"--set NAME=VALUE or fit them")
     return out
 
-
 # -- jobs --------------------------------------------------------------------------------------
 @dataclass
 class _Problem:
@@ -455,10 +209,6 @@ class _Job:
     signs: list = None  # per record: sides assumed for amplitude-only data (a start hypothesis)
 
 
-def _slot_names(job) -> list:
-    return [nm if r is None else f"{nm}[{r}]" for nm, r in job.slots]
-
-
 def _make_job(index, prob, space, label, free, hold, bounds, headline):
     R = len(prob.records)
     fixed = [_fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names},
@@ -467,7 +217,8 @@ def _make_job(index, prob, space, label, free, hold, bounds, headline):
     for rec, g, dec, fx in zip(prob.records, prob.givens, prob.decs, fixed):
         guess = starting_guess(space, rec, {**fx, **{k: v for k, v in g.items()
                                                      if k in space.names}}, dec)
-        st = {**guess, **fx}
+        defaults = {n: space.default(n, rec) for n in free if n in space.defaults}
+        st = {**{n: v for n, v in defaults.items() if v is not None}, **guess, **fx}
         for name in free:
             if name not in st:
                 raise ValueError(f"no starting value for {name}: give one with --set "
@@ -549,15 +300,7 @@ def _bucket(n: int) -> int:
     """Round a length up to a multiple of 8, so records of similar length share a compilation."""
     return max(8, -(-n // 8) * 8)
 
-
 # -- weights -----------------------------------------------------------------------------------
-def _robust_scale(r, floor):
-    r = r[np.isfinite(r)]
-    if r.size == 0:
-        return floor
-    return max(1.4826 * float(np.median(np.abs(r - np.median(r)))), floor)
-
-
 def _psi_weight(loss, u):
     """IRLS weight `psi(u)/u` of a robust loss."""
     if loss == "l2":
@@ -611,87 +354,6 @@ def _reweight(prob, job, loss, N):
                 prob.robust_t[i][:m] = np.nan_to_num(_psi_weight(loss, rt / prob.st[i]), nan=0.0)
     _set_weights(prob, N)
 
-
-# -- batched solves ----------------------------------------------------------------------------
-@dataclass
-class _Shape:
-    N: int  # points per record (bucketed)
-    q: int  # slots
-    n_model: int  # turning points predicted
-    B: int  # jobs per compiled solve
-    settings: dict
-
-
-def _job_arrays(job, prob, shape) -> dict:
-    R, N, q = len(prob.records), shape.N, shape.q
-    space = job.space
-    P = len(space.names)
-    k = np.zeros((R, N), dtype=int)
-    x = np.zeros((R, N))
-    t = np.zeros((R, N))
-    fixed = np.zeros((R, P))
-    M = np.zeros((q, R, P))
-    for r, rec in enumerate(prob.records):
-        m = len(rec)
-        k[r, :m] = rec.k
-        signs = None if job.signs is None else job.signs[r]
-        x[r, :m] = rec.positions if rec.sides_known else \
-            rec.amplitudes if signs is None else signs * rec.amplitudes
-        if rec.times is not None:
-            t[r, :m] = rec.times
-        for i, name in enumerate(space.names):
-            fixed[r, i] = job.fixed[r].get(name, job.start[r].get(name, 0.0))
-    for s, (name, r) in enumerate(job.slots):
-        i = space.index(name)
-        if r is None:
-            M[s, :, i] = 1.0
-        else:
-            M[s, r, i] = 1.0
-    pad = q - len(job.slots)
-    lo = np.array([t_.lo for t_ in job.transforms] + [-np.inf] * pad)
-    hi = np.array([t_.hi for t_ in job.transforms] + [np.inf] * pad)
-    return dict(k=k, x=x, t=t, wx=np.stack(prob.wx), wt=np.stack(prob.wt),
-                orient=np.array([rec.orientation for rec in prob.records]),
-                absval=np.array([0.0 if rec.sides_known or job.signs is not None else 1.0
-                                 for rec in prob.records]),
-                fixed=fixed, M=M, code=np.concatenate([job.code, np.full(pad, HELD)]),
-                lo=lo, hi=hi, scale=np.concatenate([job.scale, np.ones(pad)]),
-                held=np.concatenate([job.held, np.zeros(pad)]),
-                p=np.concatenate([job.p, np.zeros(pad)]))
-
-
-def _solve(space, items, shape, optimizer=None):
-    """Solve the jobs `items` (dicts of `_job_arrays`) of one space in chunks of `shape.B`
-    (the last one padded with copies); returns per item a dict of numpy outputs."""
-    s = shape.settings
-    steps = s["max_steps"]
-    optimizer = optimizer or s["optimizer"]
-    outs = []
-    for c0 in range(0, len(items), shape.B):
-        chunk = items[c0:c0 + shape.B]
-        chunk = chunk + [chunk[0]] * (shape.B - len(chunk))
-        stacked = {k: np.stack([it[k] for it in chunk]) for k in chunk[0]}
-        p0 = jnp.asarray(stacked.pop("p"), dtype=float)
-        d = _Data(**{k: jnp.asarray(v) if k in ("k", "code") else jnp.asarray(v, dtype=float)
-                     for k, v in stacked.items()})
-        with vmj.assume_valid():
-            if optimizer == "lm":
-                res = _solve_lm(space, s["forward"], shape.n_model, steps, d, p0)
-            else:
-                res = _solve_adam(space, s["forward"], shape.n_model, s["adam_steps"], s["loss"],
-                                  d, p0)
-        p, theta, J, r, ok, st = (np.asarray(v) for v in res)
-        for j in range(min(shape.B, len(items) - c0)):
-            outs.append({"p": p[j], "theta": theta[j], "J": J[j], "r": r[j], "ok": bool(ok[j]),
-                         "steps": int(st[j])})
-    return outs
-
-
-def _rss(out, q_used=None):
-    r = out["r"]
-    return float(np.sum(r * r)) if np.all(np.isfinite(r)) else math.inf
-
-
 def _fit_jobs(jobs, problems, shape):
     """Solve `jobs` (one round) grouped by space; a slot that runs into a bound is held there
     and the job solved again."""
@@ -741,12 +403,6 @@ def _nested_in(a: _Job, b: _Job) -> bool:
         if not b.transforms[s].contains(a.fixed[rr][name]):
             return False
     return True
-
-
-def _values_of(job) -> list:
-    """Per record {name: value} at the job's last solution."""
-    th = job.out["theta"]
-    return [dict(zip(job.space.names, th[r].tolist())) for r in range(th.shape[0])]
 
 
 def _start_from(job, sub):
@@ -851,260 +507,6 @@ def _fit_all(jobs, problems, shape, first_pass):
             best = subs.get(id(job))
             if best is not None and not job.rss <= best.rss * (1 + 1e-9):
                 _adopt(job, best, problems, shape)
-
-
-# -- per-job statistics ------------------------------------------------------------------------
-def _used(job, prob, N):
-    """Indices of the residuals that count, and the blocks (slices of them) in record order."""
-    idx, blocks, at = [], [], 0
-    for r in range(len(prob.records)):
-        for kind, w in ((0, prob.wx[r]), (1, prob.wt[r])):
-            sel = np.nonzero(w > 0)[0] + r * 2 * N + kind * N
-            if sel.size:
-                idx.append(sel)
-                blocks.append(slice(at, at + sel.size))
-                at += sel.size
-    return np.concatenate(idx), blocks
-
-
-def _information(job, prob, N):
-    idx, _ = _used(job, prob, N)
-    n = idx.size
-    q = int(np.sum(job.code != HELD))
-    rss = job.rss
-    ll = n * math.log(max(rss, 1e-300) / n)
-    return {"aic": ll + 2 * q, "bic": ll + q * math.log(n), "rss": rss, "n": n, "q": q}
-
-
-# -- profile likelihood ------------------------------------------------------------------------
-def _profiles(job, prob, shape, est, se, inflation, s2):
-    """95 % profile-likelihood intervals of the job's active slots: all slots and both sides
-    solved together per root-finding iteration, warm-started at the optimum."""
-    active = [s for s in range(len(job.slots)) if job.code[s] != HELD]
-    target = _CHI2_95 * max(inflation, 1.0)
-    ends = {}
-    state = []
-    for s in active:
-        t = job.transforms[s]
-        width = 1.96 * se[s] * math.sqrt(max(inflation, 1.0)) if np.isfinite(se[s]) and se[s] > 0 \
-            else 0.1 * max(abs(est[s]), job.scale[s])
-        for side in (-1, 1):
-            v = est[s] + side * width
-            state.append({"slot": s, "side": side, "v": v, "done": False, "ok": False,
-                          "step": width, "bound": t.lo if side < 0 else t.hi})
-    base = _job_arrays(job, prob, shape)
-    for _ in range(_PROFILE_STEPS):
-        live = [st for st in state if not st["done"]]
-        if not live:
-            break
-        items = []
-        for st in live:
-            lo_b, hi_b = job.transforms[st["slot"]].lo, job.transforms[st["slot"]].hi
-            st["v"] = min(max(st["v"], lo_b), hi_b)
-            it = {k: np.copy(v) for k, v in base.items()}
-            it["code"][st["slot"]] = HELD
-            it["held"][st["slot"]] = st["v"]
-            items.append(it)
-        outs = _solve(job.space, items, shape, optimizer="lm")  # profiles need exact minima
-        for st, out in zip(live, outs):
-            dev = (_rss(out) - job.rss) / s2
-            st["dev"] = dev
-            if not np.isfinite(dev):
-                st["done"] = True
-                continue
-            at_edge = st["v"] == st["bound"]
-            if at_edge and dev < target:
-                st["done"], st["ok"] = True, True  # the bound is inside the 95 % region
-                continue
-            if abs(dev / target - 1) < _PROFILE_TOL:
-                st["done"], st["ok"] = True, True
-                continue
-            s = st["slot"]
-            dist = st["v"] - est[s]
-            if dev <= 1e-3 * target:
-                st["v"] = est[s] + 4 * dist
-            else:
-                st["v"] = est[s] + dist * math.sqrt(target / dev)
-    for st in state:
-        if st["ok"]:
-            ends.setdefault(st["slot"], {})[st["side"]] = st["v"]
-    return ends
-
-
-# -- results -----------------------------------------------------------------------------------
-def _result(job, prob, jobs, shape, outlier_sigma):
-    space, settings = job.space, shape.settings
-    N = shape.N
-    names = _slot_names(job)
-    q = len(job.slots)
-    idx, blocks = _used(job, prob, N)
-    J = job.out["J"][:, :q][idx]
-    r = job.out["r"][idx]
-    info = _information(job, prob, N)
-    active = job.code != HELD
-    warn = []
-    # covariance over the slots the solver moved; held slots have none
-    cov_c = np.full((q, q), np.nan)
-    cov_gn = np.full((q, q), np.nan)
-    inflation = 1.0
-    full_rank = True
-    if active.any():
-        Ja = J[:, active]
-        c_c, c_gn, inflation = covariance(Ja, r, blocks)
-        sel = np.ix_(active, active)
-        cov_c[sel], cov_gn[sel] = c_c, c_gn
-        norms = np.linalg.norm(Ja, axis=0)
-        if np.any(norms == 0) or not np.all(np.isfinite(Ja)):
-            full_rank = False
-        else:
-            sv = np.linalg.svd(Ja / norms, compute_uv=False)
-            full_rank = bool(sv[-1] > RANK_RTOL * sv[0])
-    if not np.isfinite(inflation):
-        inflation = 1.0
-    vals = _values_of(job)
-    est = np.array([vals[0 if rr is None else rr][name] for name, rr in job.slots])
-    se_c = np.sqrt(np.where(np.diag(cov_c) > 0, np.diag(cov_c), np.nan))
-    se_gn = np.sqrt(np.where(np.diag(cov_gn) > 0, np.diag(cov_gn), np.nan))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = cov_c / np.outer(se_c, se_c)
-    for s, nm in enumerate(names):
-        if job.bound_hit[s]:
-            t = job.transforms[s]
-            user = (job.user_lo[s] and job.held[s] == t.lo) or (job.user_hi[s]
-                                                                 and job.held[s] == t.hi)
-            if not user:
-                warn.append(f"{nm} ran into its bound {job.held[s]:.6g} "
-                            f"[{space.unit(job.slots[s][0])}]: held there (a sub-model fits "
-                            f"as well; see model_comparison)")
-        elif not np.isfinite(se_c[s]):
-            warn.append(f"{nm} is not identified by these data: no standard error")
-        elif not se_c[s] < abs(est[s]):
-            warn.append(f"{nm} is not identifiable from these data: its standard error "
-                        f"{se_c[s]:.3g} is not below its value {est[s]:.3g}")
-    for a in range(q):
-        for b in range(a + 1, q):
-            if np.isfinite(corr[a, b]) and abs(corr[a, b]) > 0.99:
-                warn.append(f"{names[a]} and {names[b]} are not separately identifiable: "
-                            f"correlation {corr[a, b]:.4f}")
-    if not full_rank:
-        warn.append("the Jacobian is rank-deficient (relative singular-value tolerance "
-                    f"{RANK_RTOL:g}): some parameters are not determined by the data")
-    at_unset_bound = any(job.bound_hit[s] and not (
-        (job.user_lo[s] and job.held[s] == job.transforms[s].lo)
-        or (job.user_hi[s] and job.held[s] == job.transforms[s].hi)) for s in range(q))
-    if not job.out["ok"]:
-        warn.append("the optimiser did not converge (step limit or no progress)")
-    converged = bool(job.out["ok"] and full_rank and not at_unset_bound)
-    # residual diagnostics
-    std_blocks = [r[b] for b in blocks]
-    diag = diagnostics(std_blocks, int(np.sum(active)))
-    n_dof = info["n"] - info["q"]
-    if n_dof < 3:
-        warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not "
-                    f"reliable")
-        converged = False if n_dof < 1 else converged
-    # intervals
-    intervals = {}
-    s2 = job.rss / max(n_dof, 1)
-    ends = _profiles(job, prob, shape, est, se_gn, inflation, s2) if active.any() and \
-        converged and settings["intervals"] else {}
-    for s, nm in enumerate(names):
-        if not active[s]:
-            intervals[nm] = (math.nan, math.nan)
-            continue
-        got = ends.get(s, {})
-        wald = 1.96 * se_c[s]
-        lo = got.get(-1, est[s] - wald)
-        hi = got.get(1, est[s] + wald)
-        t = job.transforms[s]
-        lo, hi = max(lo, t.lo), min(hi, t.hi)
-        if len(got) < 2 and np.isfinite(wald) and settings["intervals"]:
-            warn.append(f"{nm}: the profile likelihood failed; the interval is the Wald "
-                        f"interval +- 1.96 stderr")
-        intervals[nm] = (float(lo), float(hi))
-    warn += diag["warnings"]
-    diag = {**diag, "warnings": warn}
-    # per-record residuals in data units
-    per_record = []
-    R = len(prob.records)
-    r_all = job.out["r"].reshape(R, 2, N)
-    for i, rec in enumerate(prob.records):
-        m = len(rec)
-        wx, wt = prob.wx[i][:m], prob.wt[i][:m]
-        res_x = r_all[i, 0, :m] / np.where(wx > 0, wx, 1.0)
-        floor = 1e-4 * float(np.max(rec.amplitudes))
-        z = res_x / _robust_scale(res_x, floor)
-        flagged = np.abs(z) > outlier_sigma
-        res_t = None
-        if rec.times is not None:
-            res_t = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
-            res_t[wt == 0] = 0.0
-            z_t = res_t / _robust_scale(res_t[wt > 0], 1e-12)
-            flagged |= np.abs(z_t) > outlier_sigma
-        per_record.append({
-            "residuals": {"k": rec.k.tolist(), "position": res_x.tolist(),
-                          "time": None if res_t is None else res_t.tolist(),
-                          "standardized": z.tolist(), "outlier": flagged.tolist()},
-            "rms": float(np.sqrt(np.mean(res_x ** 2))),
-            "rms_time": None if res_t is None else float(np.sqrt(np.mean(res_t[1:] ** 2))),
-            "outliers": [int(kk) for kk in rec.k[flagged]],
-        })
-    top = [s for s, (nm, rr) in enumerate(job.slots) if rr is None]
-
-    def pick(arr, sel):
-        return {names[s]: (float(arr[s]) if np.isfinite(arr[s]) else None) for s in sel}
-
-    params = {names[s]: float(est[s]) for s in top}
-    records = []
-    if R > 1:
-        for i, rec in enumerate(prob.records):
-            sel = [s for s, (nm, rr) in enumerate(job.slots) if rr == i]
-            records.append({
-                "source": rec.source,
-                "params": {job.slots[s][0]: float(est[s]) for s in sel},
-                "stderr": {job.slots[s][0]: pick(se_c, [s])[names[s]] for s in sel},
-                "stderr_gn": {job.slots[s][0]: pick(se_gn, [s])[names[s]] for s in sel},
-                "intervals": {job.slots[s][0]: intervals[names[s]] for s in sel},
-                "fixed": {k: v for k, v in vals[i].items() if k not in job.free},
-                **{k: per_record[i][k] for k in ("rms", "rms_time", "outliers", "residuals")},
-            })
-    comparison = {}
-    mine = [j for j in jobs if j.problem == job.problem]
-    if len(mine) > 1:
-        for j in mine:
-            inf_j = _information(j, prob, N)
-            vj = _values_of(j)
-            comparison[j.label] = {
-                "aic": inf_j["aic"], "bic": inf_j["bic"], "rss": inf_j["rss"],
-                "params": {nm: vj[0 if rr is None else rr][nm] for nm, rr in j.slots},
-                "converged": bool(j.out["ok"]),
-            }
-        labels = [j.label for j in mine]
-        comparison["best_aic"] = min(labels, key=lambda k: comparison[k]["aic"])
-        comparison["best_bic"] = min(labels, key=lambda k: comparison[k]["bic"])
-    rec0 = prob.records[0]
-    dec = prob.decs[0]
-    corr_top = corr[np.ix_(top, top)] if top else np.zeros((0, 0))
-    result = FitResult(
-        model=space.name, forward=settings["forward"], loss=settings["loss"],
-        optimizer=settings["optimizer"], params=params,
-        fixed={k: v for k, v in vals[0].items() if k not in job.free},
-        stderr=pick(se_c, top), correlation=np.where(np.isfinite(corr_top), corr_top,
-                                                     np.nan).tolist(),
-        converged=converged, iterations=int(sum(j.iterations for j in mine)),
-        rms=per_record[0]["rms"] if R == 1 else float(np.sqrt(np.mean(np.concatenate(
-            [np.asarray(p["residuals"]["position"]) ** 2 for p in per_record])))),
-        rms_time=per_record[0]["rms_time"], model_comparison=comparison,
-        residuals=per_record[0]["residuals"], outliers=per_record[0]["outliers"],
-        warnings=warn, decrement={k: v for k, v in dec.items() if k != "pairs"}, record=rec0,
-        stderr_gn=pick(se_gn, top), intervals={names[s]: intervals[names[s]] for s in top},
-        diagnostics=diag, aic=info["aic"], bic=info["bic"], rss=info["rss"],
-        n_residuals=info["n"], records=records, clock=rec0.clock,
-        units={nm: space.unit(nm) for nm in space.names}, label=job.label,
-    )
-    result.decrement["pairs"] = dec["pairs"]
-    return result
-
 
 # -- the driver --------------------------------------------------------------------------------
 def _problem(space, records, givens, free, shared):

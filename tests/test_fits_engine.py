@@ -219,3 +219,56 @@ def test_joint_fit_narrows_the_shared_intervals():
         for s in singles:
             assert width < s.intervals[name][1] - s.intervals[name][0], name
     assert len(joint.correlation) == 3
+
+
+def test_joint_fit_from_the_command_line(tmp_path, capsys):
+    paths = []
+    for i, (a0, off, s) in enumerate(((10.0, 1.0, 1), (8.0, -0.5, 2), (6.0, 0.3, 3))):
+        rec = _release(a0, off, s)
+        paths.append(_csv(tmp_path / f"r{i}.csv", [rec.times, rec.positions], "time,position"))
+    assert main(["fit", *paths, "--model", "oscillator", "--shared", "omega,zeta,xF",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["params"]) == {"omega", "zeta", "xF"} and len(out["records"]) == 3
+    assert set(out["records"][2]["params"]) == {"a0", "offset"}
+    assert abs(out["records"][0]["params"]["offset"] - 1.0) < 0.05
+    assert abs(out["params"]["zeta"] / OSC["zeta"] - 1) < 0.05
+
+
+# -- sensor asymmetry and model selection -----------------------------------------------------
+def test_select_reports_the_bic_preferred_variant(viscous_decay, monkeypatch):
+    """A space with `select=True` (as the pendulum's) reports the variant BIC prefers."""
+    import dataclasses
+
+    path, plain, _ = viscous_decay
+    space = dataclasses.replace(SPACES["oscillator"], name="oscillator-select", select=True)
+    monkeypatch.setitem(SPACES, space.name, space)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(fits.read_record(path, series=True), space.name,
+                     ("omega", "zeta", "xF", "a0", "offset"))
+    assert r.label == "viscous" and set(r.params) == {"omega", "zeta", "a0", "offset"}
+    assert r.converged
+    assert r.params["zeta"] == pytest.approx(plain.params["zeta"], rel=1e-6)
+
+
+def test_sensor_asymmetry_is_fitted():
+    """Readings `offset + y (1 + asym sign(y))`: asym and offset recovered beside the friction."""
+    seq = vmj.turning_points(vmj.Oscillator.linear(OSC["omega"], OSC["zeta"], OSC["xF"]), 10.0,
+                             40)
+    n = int(seq.count)
+    y = np.concatenate([[-10.0], np.asarray(seq.positions)[:n]])
+    times = np.concatenate([[0.0], np.asarray(seq.times)[:n]])
+    rng = np.random.default_rng(4)
+    reading = 1.0 + y * (1 + 0.05 * np.sign(y)) + rng.normal(0, 0.005, n + 1)
+    rec = fits.record_from_sequence(positions=reading, times=times)
+    rec = fits.Record(k=rec.k, positions=rec.positions, times=rec.times, centre=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(rec, "oscillator", ("omega", "zeta", "xF", "a0", "offset", "asym"),
+                     compare=False)
+    assert r.converged
+    for name, true in (("asym", 0.05), ("offset", 1.0), ("zeta", OSC["zeta"]),
+                       ("xF", OSC["xF"])):
+        lo, hi = r.intervals[name]
+        assert lo < true < hi, (name, r.params[name], r.intervals[name])

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import fits
-from fits._fit import (_bucket, _Data, _init_weights, _job_arrays, _make_job, _problem,
-                       _residual_and_jacobian, _Shape, _values)
+from fits._fit import _bucket, _init_weights, _make_job, _problem
+from fits._solve import _Data, _job_arrays, _residual_and_jacobian, _Shape, _values
 from fits._models import SPACES
 from fits._params import HELD, derivative
 from vmj.cli import main
