@@ -214,3 +214,8 @@ SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR, ROPE)}
 
 def theta_dict(space: Space, theta) -> dict:
     return {name: theta[..., i] for i, name in enumerate(space.names)}
+
+
+from ._pendulum import PENDULUM  # noqa: E402  (issue 11; imports Space and Variant from here)
+
+SPACES[PENDULUM.name] = PENDULUM

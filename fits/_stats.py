@@ -45,11 +45,31 @@ def _rho(x: np.ndarray, debias: bool = False) -> float:
     return float(np.clip(rho, -RHO_MAX, RHO_MAX))
 
 
-def _runs(blocks) -> tuple[float, int]:
-    """Two-sided Wald-Wolfowitz runs test on the signs of the residuals, pooled over blocks
-    (runs, their expectation and variance given each block's numbers of positive and negative
-    residuals, summed; normal approximation). Zero residuals are dropped. Returns `(p, n)`."""
-    runs = mean = var = 0.0
+def _chi2_sf(x: float, k: int) -> float:
+    """Survival function of the chi-square distribution with integer `k` degrees of freedom."""
+    if x <= 0:
+        return 1.0
+    if k % 2 == 0:  # exp(-x/2) sum_{j < k/2} (x/2)^j / j!
+        term = total = math.exp(-x / 2)
+        for j in range(1, k // 2):
+            term *= (x / 2) / j
+            total += term
+        return min(1.0, total)
+    total = math.erfc(math.sqrt(x / 2))  # k = 1, then the odd terms
+    term = math.sqrt(2 * x / math.pi) * math.exp(-x / 2)
+    for j in range(1, (k + 1) // 2):
+        total += term
+        term *= x / (2 * j + 1)
+    return min(1.0, total)
+
+
+def _runs(blocks) -> float:
+    """Two-sided Wald-Wolfowitz runs test on the signs of the residuals: per block the runs'
+    z-score given its numbers of positive and negative residuals (normal approximation), the
+    blocks combined by `sum z_b^2 ~ chi^2(B)` (too many runs in one block and too few in
+    another do not cancel). Zero residuals are dropped; a block of one sign tells nothing about
+    the order. Every block one-signed: the chance of that under random signs."""
+    zs = []
     n_total = 0
     for b in blocks:
         s = np.sign(np.asarray(b, dtype=float))
@@ -58,17 +78,18 @@ def _runs(blocks) -> tuple[float, int]:
         n_total += n
         n1 = int(np.sum(s > 0))
         n2 = n - n1
-        if n1 == 0 or n2 == 0:
-            continue  # no information about the order given the counts
-        runs += 1 + int(np.sum(s[1:] != s[:-1]))
-        mean += 1 + 2.0 * n1 * n2 / n
-        var += 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1.0))
-    if var > 0:
-        z = (runs - mean) / math.sqrt(var)
-        return math.erfc(abs(z) / math.sqrt(2.0)), n_total
-    if n_total >= 2:  # every block one-signed: the chance of that under random signs
-        return min(1.0, 2.0 * 0.5**n_total), n_total
-    return float("nan"), n_total
+        if n1 == 0 or n2 == 0 or n < 3:
+            continue
+        runs = 1 + int(np.sum(s[1:] != s[:-1]))
+        mean = 1 + 2.0 * n1 * n2 / n
+        var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1.0))
+        if var > 0:
+            zs.append((runs - mean) / math.sqrt(var))
+    if zs:
+        return _chi2_sf(float(np.sum(np.square(zs))), len(zs))
+    if n_total >= 2:
+        return min(1.0, 2.0 * 0.5**n_total)
+    return float("nan")
 
 
 def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
@@ -83,38 +104,47 @@ def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
 
     **Returns:** a dict with
 
-    - `lag1` [-]: pooled lag-1 autocorrelation, `sum_b sum_t r_t r_{t+1} / sum_b sum_t r_t^2`
-      over the blocks (not demeaned).
+    - `lag1` [-]: pooled lag-1 autocorrelation, `sum_b |sum_t r_t r_{t+1}| / sum_b sum_t r_t^2`
+      over the blocks (not demeaned) with the sign of `sum_b sum_t r_t r_{t+1}`: blocks of
+      opposite sign (alternating position residuals, drifting time residuals) do not cancel.
+      For one block, its lag-1 autocorrelation.
     - `runs_p` [-]: two-sided p-value of the Wald-Wolfowitz runs test on the residuals' signs,
-      pooled over the blocks (NaN with fewer than two non-zero residuals).
+      the blocks' z-scores combined as `sum z_b^2 ~ chi^2(B)` (NaN with fewer than two
+      non-zero residuals).
     - `n_eff` [-]: effective sample size, `n_b (1 - |rho_b|) / (1 + |rho_b|)` per block with
       `rho_b` its lag-1 autocorrelation (debiased as in `covariance`, clipped to `RHO_MAX`),
       summed and clipped to `[n_params + 1, n]`. `|rho|`, because signed turning-point
       residuals alternate with the swing, so a smooth model error shows as a *negative* lag-1
       correlation. (On white noise `|rho_b| ~ 0.8 / sqrt(n_b)`: `n_eff` averages ~0.9 `n`.)
-    - `warnings`: a sentence when `|lag1| > LAG1_WARN` or `runs_p < RUNS_P_WARN` (structured
-      residuals: the model does not explain the data).
+    - `warnings`: a sentence when `|lag1|` or the lag-1 autocorrelation of a block of at
+      least 10 residuals exceeds `LAG1_WARN` (0.5) in size, or `runs_p < RUNS_P_WARN` (1e-3):
+      structured residuals, the model does not explain the data.
     """
     blocks = [np.asarray(b, dtype=float).ravel() for b in blocks]
     blocks = [b[np.isfinite(b)] for b in blocks]
     n = sum(b.size for b in blocks)
-    num = den = 0.0
+    num = mag = den = 0.0
     n_eff = 0.0
+    worst = 0.0  # the largest |lag-1| of a block of at least 10 residuals
     for b in blocks:
         if b.size == 0:
             continue
         bn, bd = _lag1(b)
         num += bn
+        mag += abs(bn)
         den += bd
         r = abs(_rho(b, debias=True))
         n_eff += b.size * (1 - r) / (1 + r)
-    lag1 = num / den if den > 0 else float("nan")
-    runs_p, _ = _runs(blocks)
+        if b.size >= 10 and bd > 0 and abs(bn / bd) > abs(worst):
+            worst = bn / bd
+    lag1 = math.copysign(mag / den, num) if den > 0 else float("nan")
+    runs_p = _runs(blocks)
     n_eff = float(min(max(n_eff, n_params + 1), max(n, n_params + 1)))
     warnings = []
     structured = []
-    if np.isfinite(lag1) and abs(lag1) > LAG1_WARN:
-        structured.append(f"residual lag-1 autocorrelation {lag1:.2f}")
+    if abs(worst) > LAG1_WARN or (np.isfinite(lag1) and abs(lag1) > LAG1_WARN):
+        shown = worst if abs(worst) > abs(lag1) else lag1
+        structured.append(f"residual lag-1 autocorrelation {shown:.2f}")
     if np.isfinite(runs_p) and runs_p < RUNS_P_WARN:
         structured.append(f"runs test p = {runs_p:.2g}")
     if structured:
@@ -125,21 +155,105 @@ def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
     return {"lag1": float(lag1), "runs_p": float(runs_p), "n_eff": n_eff, "warnings": warnings}
 
 
-def _ar1_gram(J: np.ndarray, rho: float) -> np.ndarray:
-    """`J^T R J` with `R_ij = rho^|i-j|` (AR(1) correlation), in O(n q^2): with the forward
-    sums `S_i = rho S_{i-1} + J_i`, `J^T R J = sum_i J_i^T (S_i + B_i - J_i)`, `B` the
-    backward sums."""
-    S = np.empty_like(J)
-    B = np.empty_like(J)
-    acc = np.zeros(J.shape[1])
-    for i in range(J.shape[0]):
-        acc = rho * acc + J[i]
-        S[i] = acc
-    acc = np.zeros(J.shape[1])
-    for i in range(J.shape[0] - 1, -1, -1):
-        acc = rho * acc + J[i]
-        B[i] = acc
-    return J.T @ (S + B - J)
+def _ar1_sums(X: np.ndarray, rho: float) -> np.ndarray:
+    """Forward sums `S_i = rho S_{i-1} + X_i` along the rows (a doubling scan: log2(n)
+    vectorised steps)."""
+    S = np.array(X, dtype=float, copy=True)
+    a, d = rho, 1
+    while d < S.shape[0] and a != 0.0:
+        S[d:] = S[d:] + a * S[:-d]
+        a, d = a * a, 2 * d
+    return S
+
+
+def _ar1_cross(X: np.ndarray, Y: np.ndarray, rho: float) -> np.ndarray:
+    """`X^T R Y` with `R_ij = rho^|i-j|` (AR(1) correlation), in O(n q^2 log n):
+    `R Y = S + B - Y` with `S`, `B` the forward and backward sums of `Y`."""
+    RY = _ar1_sums(Y, rho) + _ar1_sums(Y[::-1], rho)[::-1] - Y
+    return X.T @ RY
+
+
+def _up(X: np.ndarray) -> np.ndarray:
+    """`A X` for the lag-1 operator `A` (`r^T A r = sum_t r_t r_{t+1}`): row t is `X_{t+1}`."""
+    return np.concatenate([X[1:], np.zeros_like(X[:1])])
+
+
+def _down(X: np.ndarray) -> np.ndarray:
+    """`A^T X`: row t is `X_{t-1}`."""
+    return np.concatenate([np.zeros_like(X[:1]), X[:-1]])
+
+
+def _root(f, lo: float, hi: float, fallback: float, tol: float = 1e-6) -> float:
+    """The root of an increasing `f` in `[lo, hi]` by the Illinois method (regula falsi);
+    an end when `f` keeps one sign there; `fallback` when `f` is not finite at the ends."""
+    f_lo, f_hi = f(lo), f(hi)
+    if not (np.isfinite(f_lo) and np.isfinite(f_hi)):
+        return fallback
+    if f_lo >= 0:
+        return lo
+    if f_hi <= 0:
+        return hi
+    side = 0
+    for _ in range(60):
+        x = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+        fx = f(x)
+        if not np.isfinite(fx):
+            return fallback
+        if fx > 0:
+            hi, f_hi = x, fx
+            if side == 1:
+                f_lo /= 2
+            side = 1
+        else:
+            lo, f_lo = x, fx
+            if side == -1:
+                f_hi /= 2
+            side = -1
+        if hi - lo < tol or fx == 0:
+            break
+    return x
+
+
+def _block_rhos(blocks_J, blocks_r, pinv, iterations=2):
+    """AR(1) coefficient of each block by the method of moments on the fitted residuals.
+
+    Residuals `r = (I - H) e` of a fit are less correlated than the errors `e`: the fit absorbs
+    their slow part (with a smooth error and parameters that shape the amplitudes, the raw
+    lag-1 correlation of `r` is far below that of `e`). `rho_b` solves
+    `E[r_b^T A r_b] / E[r_b^T r_b] = observed`, both expectations under AR(1) errors with the
+    fit's hat matrix `H = J (J^T J)^+ J^T`:
+    `E[r_b^T A r_b] ~ tr(A R_b) - tr(A H_bb R_b) - tr(A R_b H_bb) + tr(A J_b P M P J_b^T)`,
+    `E[r_b^T r_b] ~ n_b - 2 tr(P J_b^T R_b J_b) + tr(P M P J_b^T J_b)` with `P = (J^T J)^+`,
+    `M = sum_c J_c^T R_c J_c`; Illinois root finding per block, Gauss-Seidel over the
+    blocks (two sweeps)."""
+    nb = len(blocks_J)
+    observed = []
+    for r in blocks_r:
+        num, den = _lag1(r)
+        observed.append(num / den if den > 0 and r.size >= 3 else 0.0)
+    rho = [float(np.clip(o, -RHO_MAX, RHO_MAX)) for o in observed]
+    grams = [_ar1_cross(Jb, Jb, rh) for Jb, rh in zip(blocks_J, rho)]
+    G0 = [Jb.T @ Jb for Jb in blocks_J]
+    G1 = [Jb.T @ _up(Jb) for Jb in blocks_J]
+    for _ in range(iterations if nb > 1 else 1):
+        for b, (Jb, rb) in enumerate(zip(blocks_J, blocks_r)):
+            n = rb.size
+            if n < 3:
+                continue
+            others = sum((g for c, g in enumerate(grams) if c != b), np.zeros_like(pinv))
+
+            def excess(rh, b=b, Jb=Jb, n=n, others=others):
+                RJ = _ar1_sums(Jb, rh) + _ar1_sums(Jb[::-1], rh)[::-1] - Jb  # R_b J_b
+                g = Jb.T @ RJ
+                PMP = pinv @ (others + g) @ pinv
+                num = ((n - 1) * rh - np.trace(pinv @ (RJ.T @ _up(Jb)))
+                       - np.trace(pinv @ (_down(Jb).T @ RJ)) + np.trace(PMP @ G1[b]))
+                den = n - 2 * np.trace(pinv @ g) + np.trace(PMP @ G0[b])
+                return num / den - observed[b] if den > 0 else float("nan")
+
+            rho[b] = _root(excess, -RHO_MAX, RHO_MAX, rho[b])
+            grams[b] = _ar1_cross(Jb, Jb, rho[b])
+    return rho, grams
 
 
 def covariance(J: np.ndarray, r: np.ndarray,
@@ -162,8 +276,10 @@ def covariance(J: np.ndarray, r: np.ndarray,
     - `inflation >= 1` [-]: the largest ratio, over the identified parameters, of the variance
       under AR(1) residuals to the Gauss-Newton variance: the sandwich
       `(J^T J)^-1 (sum_b J_b^T R_b J_b) (J^T J)^-1` with `R_b` the AR(1) correlation matrix
-      `rho_b^|i-j|` of block `b`, `rho_b` its residuals' lag-1 autocorrelation debiased by
-      `(1 + 3 |rho|)/n_b` away from 0 and clipped to `[-RHO_MAX, RHO_MAX]`, and the noise
+      `rho_b^|i-j|` of block `b`; `rho_b` in `[-RHO_MAX, RHO_MAX]` is the AR(1) coefficient
+      whose expected residual lag-1 autocorrelation, after the fit (hat matrix of `J`) has
+      absorbed what it can, equals the observed one (method of moments; the raw residual
+      correlation would understate it badly when the parameters shape the error); the noise
       variance `rss / (n - tr((J^T J)^-1 sum_b J_b^T R_b J_b))` (the expected residual sum of
       squares under those correlations). For smooth regressors this is the familiar
       `(1 + rho)/(1 - rho)`; unlike that factor it is right for alternating regressors too
@@ -206,10 +322,9 @@ def covariance(J: np.ndarray, r: np.ndarray,
     rss = float(np.dot(r[used], r[used]))
     s2 = rss / (n - q)
     cov_gn = s2 * pinv
-    meat = np.zeros((q, q))
-    for idx in rows:
-        if idx.size:
-            meat += _ar1_gram(J[idx], _rho(r[idx], debias=True))
+    nonempty = [idx for idx in rows if idx.size]
+    _, grams = _block_rhos([J[idx] for idx in nonempty], [r[idx] for idx in nonempty], pinv)
+    meat = sum(grams, np.zeros((q, q)))
     # E[rss] = sigma^2 (n - tr(H R)) under correlated residuals, tr(H R) = tr((J^T J)^+ meat)
     s2_ar = rss / max(n - float(np.trace(pinv @ meat)), 1.0)
     sandwich = s2_ar * pinv @ meat @ pinv
