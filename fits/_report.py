@@ -55,6 +55,8 @@ def _field(result, name, default=None):
 
 def _unit(result, name: str) -> str:
     unit = _field(result, "units", {}).get(name)
+    if unit == "signal":
+        unit = "signal units"
     return f" [{unit}]" if unit and unit != "-" else ""
 
 
