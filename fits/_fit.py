@@ -42,7 +42,7 @@ import vmj
 
 from ._decrement import decrement, starting_guess
 from ._io import Record
-from ._models import FORWARDS, KIND_RANGES, SPACES, Space
+from ._models import FORWARDS, SPACES, Space
 from ._params import HELD, INTERVAL, LOWER, REAL, Transform, at_bound, check_value, inverse, \
     transform_for, warn_if_float32
 from ._result import FitResult, _information, _result, _robust_scale, _values_of
@@ -130,8 +130,6 @@ def _slot_transform(space, name, bounds) -> tuple[Transform, bool, bool]:
     """The transform of a free parameter: its physical range intersected with the user's
     bounds; and whether its lower / upper end was set by the user."""
     plo, phi = _physical_range(space, name)
-    if name == "zeta" and KIND_RANGES.get(space.kinds[space.index(name)]) == (0.0, 1.0):
-        phi = min(phi, 1.0 - 1e-9)  # underdamped
     ulo, uhi = bounds.get(name, (-math.inf, math.inf))
     lo, hi = max(plo, ulo), min(phi, uhi)
     return transform_for(lo, hi), name in bounds and ulo >= plo, name in bounds and uhi <= phi
@@ -163,6 +161,7 @@ def _fixed_values(space, record, free, given, hold=None) -> dict:
         raise ValueError(f"the {space.name} model needs {', '.join(missing)}: give them with "
                          f"--set NAME=VALUE or fit them")
     return out
+
 
 # -- jobs --------------------------------------------------------------------------------------
 @dataclass

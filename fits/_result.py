@@ -67,7 +67,6 @@ class FitResult:
     warnings: list
     decrement: dict
     record: Record = field(repr=False)
-    prediction: dict = field(default_factory=dict, repr=False)
     stderr_gn: dict = field(default_factory=dict)
     intervals: dict = field(default_factory=dict)
     diagnostics: dict = field(default_factory=dict)
@@ -165,6 +164,12 @@ def _information(job, prob, N):
     return {"aic": ll + 2 * q, "bic": ll + q * math.log(n), "rss": rss, "n": n, "q": q}
 
 # -- results -----------------------------------------------------------------------------------
+def _at_user_bound(job, s) -> bool:
+    """Whether slot `s` is held at a bound the user set (`bounds=`, `--bounds`)."""
+    t = job.transforms[s]
+    return bool((job.user_lo[s] and job.held[s] == t.lo) or (job.user_hi[s] and job.held[s] == t.hi))
+
+
 def _result(job, prob, jobs, shape, outlier_sigma):
     space, settings = job.space, shape.settings
     N = shape.N
@@ -202,10 +207,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         corr = cov_c / np.outer(se_c, se_c)
     for s, nm in enumerate(names):
         if job.bound_hit[s]:
-            t = job.transforms[s]
-            user = (job.user_lo[s] and job.held[s] == t.lo) or (job.user_hi[s]
-                                                                 and job.held[s] == t.hi)
-            if not user:
+            if not _at_user_bound(job, s):
                 warn.append(f"{nm} ran into its bound {job.held[s]:.6g} "
                             f"[{space.unit(job.slots[s][0])}]: held there (a sub-model fits "
                             f"as well; see model_comparison)")
@@ -222,9 +224,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     if not full_rank:
         warn.append("the Jacobian is rank-deficient (relative singular-value tolerance "
                     f"{RANK_RTOL:g}): some parameters are not determined by the data")
-    at_unset_bound = any(job.bound_hit[s] and not (
-        (job.user_lo[s] and job.held[s] == job.transforms[s].lo)
-        or (job.user_hi[s] and job.held[s] == job.transforms[s].hi)) for s in range(q))
+    at_unset_bound = any(job.bound_hit[s] and not _at_user_bound(job, s) for s in range(q))
     if not job.out["ok"]:
         warn.append("the optimiser did not converge (step limit or no progress)")
     converged = bool(job.out["ok"] and full_rank and not at_unset_bound)
@@ -235,12 +235,14 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     if n_dof < 3:
         warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not "
                     f"reliable")
-        converged = False if n_dof < 1 else converged
+        converged = False if n_dof < 2 else converged
+    if any(active[s] and not np.isfinite(se_c[s]) for s in range(q)):
+        converged = False  # a parameter without a standard error is not determined
     # intervals
     intervals = {}
     s2 = job.rss / max(n_dof, 1)
-    ends = _profiles(job, prob, shape, est, se_gn, inflation, s2) if active.any() and \
-        converged and settings["intervals"] else {}
+    profiled = bool(active.any() and job.out["ok"] and full_rank and settings["intervals"])
+    ends = _profiles(job, prob, shape, est, se_gn, inflation, s2) if profiled else {}
     for s, nm in enumerate(names):
         if not active[s]:
             intervals[nm] = (math.nan, math.nan)
@@ -251,7 +253,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         hi = got.get(1, est[s] + wald)
         t = job.transforms[s]
         lo, hi = max(lo, t.lo), min(hi, t.hi)
-        if len(got) < 2 and np.isfinite(wald) and settings["intervals"]:
+        if len(got) < 2 and np.isfinite(wald) and profiled:
             warn.append(f"{nm}: the profile likelihood failed; the interval is the Wald "
                         f"interval +- 1.96 stderr")
         intervals[nm] = (float(lo), float(hi))
@@ -309,7 +311,8 @@ def _result(job, prob, jobs, shape, outlier_sigma):
             vj = _values_of(j)
             comparison[j.label] = {
                 "aic": inf_j["aic"], "bic": inf_j["bic"], "rss": inf_j["rss"],
-                "params": {nm: vj[0 if rr is None else rr][nm] for nm, rr in j.slots},
+                "params": {sn: vj[0 if rr is None else rr][nm]
+                           for sn, (nm, rr) in zip(_slot_names(j), j.slots)},
                 "converged": bool(j.out["ok"]),
             }
         labels = [j.label for j in mine]

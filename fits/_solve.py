@@ -234,18 +234,27 @@ def _solve(space, items, shape, optimizer=None):
     return outs
 
 
-def _rss(out, q_used=None):
+def _rss(out) -> float:
+    """Residual sum of squares of a solve's output (infinite when not finite)."""
     r = out["r"]
     return float(np.sum(r * r)) if np.all(np.isfinite(r)) else math.inf
 
 # -- profile likelihood ------------------------------------------------------------------------
 def _profiles(job, prob, shape, est, se, inflation, s2):
     """95 % profile-likelihood intervals of the job's active slots: all slots and both sides
-    solved together per root-finding iteration, warm-started at the optimum."""
+    solved together per root-finding iteration (one batched solve, chunked by the call's batch
+    size), each warm-started at its previous point (first at the optimum).
+
+    The profile deviance `(rss(v) - rss) / s2` is scaled by the residual-autocorrelation
+    `inflation` through the target, `3.84 inflation`; each end is found by the iteration
+    `v <- est + (v - est) sqrt(target / deviance(v))` (exact for a quadratic profile), started
+    at the Wald end. An end whose bound lies inside the region is the bound. Returns
+    `{slot: {-1: lo, +1: hi}}` for the ends found; the others failed."""
     active = [s for s in range(len(job.slots)) if job.code[s] != HELD]
     target = _CHI2_95 * max(inflation, 1.0)
     ends = {}
     state = []
+    base = _job_arrays(job, prob, shape)
     for s in active:
         t = job.transforms[s]
         width = 1.96 * se[s] * math.sqrt(max(inflation, 1.0)) if np.isfinite(se[s]) and se[s] > 0 \
@@ -253,8 +262,7 @@ def _profiles(job, prob, shape, est, se, inflation, s2):
         for side in (-1, 1):
             v = est[s] + side * width
             state.append({"slot": s, "side": side, "v": v, "done": False, "ok": False,
-                          "step": width, "bound": t.lo if side < 0 else t.hi})
-    base = _job_arrays(job, prob, shape)
+                          "p": base["p"], "bound": t.lo if side < 0 else t.hi})
     for _ in range(_PROFILE_STEPS):
         live = [st for st in state if not st["done"]]
         if not live:
@@ -266,11 +274,12 @@ def _profiles(job, prob, shape, est, se, inflation, s2):
             it = {k: np.copy(v) for k, v in base.items()}
             it["code"][st["slot"]] = HELD
             it["held"][st["slot"]] = st["v"]
+            it["p"] = np.copy(st["p"])
             items.append(it)
         outs = _solve(job.space, items, shape, optimizer="lm")  # profiles need exact minima
         for st, out in zip(live, outs):
             dev = (_rss(out) - job.rss) / s2
-            st["dev"] = dev
+            st["p"] = out["p"]
             if not np.isfinite(dev):
                 st["done"] = True
                 continue

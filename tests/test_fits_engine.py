@@ -160,10 +160,13 @@ def _amplitude_record(law, delta, mu):
     return fits.record_from_sequence(amplitudes=amps, source=f"{law} delta={delta} mu={mu}")
 
 
-@pytest.mark.parametrize("law", ["FT", "f"])
-def test_amplitude_only_records(law):
-    """Constant, growing and shrinking mass; for FT also table 1 (mu = 2, eps = 0, delta = 3)
-    without its `crossed` column (issue 12's case; one batched solve)."""
+@pytest.fixture(scope="module", params=["FT", "f"])
+def variable_mass_batch(request):
+    """The module's variable-mass records of one friction law in one batched solve: constant,
+    growing and shrinking mass as amplitude-only records; for FT also table 1 (mu = 2,
+    eps = 0, delta = 3) without its `crossed` column (issue 12's case) and a record of three
+    swings (degenerate)."""
+    law = request.param
     cases = AMPLITUDE_CASES[law]
     records = [_amplitude_record(law, d, mu) for d, mu in cases]
     given = [{"m0": PAPER["m0"], "c": PAPER["c"], "delta": d, "a0": PAPER["a0"]}
@@ -172,16 +175,38 @@ def test_amplitude_only_records(law):
     if law == "FT":
         col = next(c for c in fits.paper_records(1) if c["mu"] == 2 and c["eps"] == 0)
         rec = col["record"]
-        records.append(fits.record_from_sequence(amplitudes=rec.amplitudes, k=rec.k))
+        records.append(fits.record_from_sequence(amplitudes=rec.amplitudes, k=rec.k,
+                                                 source="table 1 without crossed"))
         given.append(col["given"])
         truth.append(2.0)
-    assert not any(r.sides_known for r in records)
+        records.append(fits.record_from_sequence(amplitudes=[0.06, 0.05, 0.041],
+                                                 crossed=[1, 1, 1], source="three swings"))
+        given.append({"m0": PAPER["m0"], "c": PAPER["c"]})
+        truth.append(None)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         results = fits.fit_batch(records, "variable-mass", (law, "mu"), given)
-    for rec, mu, r in zip(records, truth, results):
+    return law, records, truth, results
+
+
+def test_amplitude_only_records(variable_mass_batch):
+    law, records, truth, results = variable_mass_batch
+    amplitude_only = [(rec, mu, r) for rec, mu, r in zip(records, truth, results) if mu]
+    assert len(amplitude_only) == (4 if law == "FT" else 3)
+    for rec, mu, r in amplitude_only:
+        assert not rec.sides_known
         assert abs(r.params[law] / PAPER[law] - 1) < 0.03, (rec.source, r.params)
         assert abs(r.params["mu"] / mu - 1) < 0.15, (rec.source, r.params)
+
+
+def test_three_swings_are_flagged(variable_mass_batch):
+    law, records, _, results = variable_mass_batch
+    if law != "FT":
+        pytest.skip("one degenerate record is enough")
+    r = results[-1]
+    assert records[-1].source == "three swings"
+    assert r.converged is False and r.stderr == {"FT": None, "mu": None}
+    assert any("degrees of freedom" in w for w in r.warnings)
 
 
 # -- joint fits --------------------------------------------------------------------------------
