@@ -17,7 +17,8 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import fits  # noqa: E402
-from fits._pendulum import FREE  # noqa: E402
+
+FREE = ("omega", "zeta", "xF", "cq", "b2", "a0", "offset", "asym")
 
 record = fits.read_record(files("fits") / "data" / "80P.txt", series=True)
 print(f"{len(record)} turning points extracted (noise {record.noise:.3g} deg); clock: "

@@ -42,7 +42,7 @@ import vmj
 from ._decrement import decrement
 from ._io import Record
 from ._models import Space, Variant, first_amplitude, record_centre
-from ._sensor import sensor_start
+from ._sensor import _opposite, sensor_start
 
 __all__ = ["PENDULUM", "PENDULUM_LINEAR", "DEGREE", "DISSIPATION_SETS", "FREE"]
 
@@ -111,15 +111,43 @@ def _losses(amplitudes: np.ndarray) -> tuple[float, float, float]:
     return float(coef[0]), float(coef[1]), float(coef[2])
 
 
+def _centres(record: Record, u: float) -> dict | None:
+    """`offset`, `asym` and `b2` from the centres of successive extrema: the centre `c` of a
+    pair at amplitude `d` [signal units] moves as `c = offset + asym d + gamma d^2`, the gain
+    giving the linear term and an even restoring term `b2` the quadratic one (the turning
+    points of `r = theta + b2 theta^2` at amplitude `A` [rad] both shift by `-b2 A^2 / 3`, so
+    `gamma = -o b2 u / 3`, `o` the record's orientation, `u` [rad per signal unit]). Least
+    squares over the local centres of [`fits.sensor_start`][]'s interpolation; `None` with
+    fewer than 8 centres or amplitudes that change by less than a factor 1.5."""
+    if not record.sides_known or record.k[-1] - record.k[0] != len(record) - 1:
+        return None
+    x = np.asarray(record.positions, dtype=float)
+    if x.size < 10:
+        return None
+    opposite = _opposite(x)[1:-1]
+    c, d = (x[1:-1] + opposite) / 2, np.abs(x[1:-1] - opposite) / 2
+    if np.max(d) < 1.5 * np.min(d):
+        return None
+    design = np.stack([np.ones_like(d), d, d * d], axis=1)
+    offset, asym, gamma = np.linalg.lstsq(design, c, rcond=None)[0]
+    return {"offset": float(offset), "asym": float(asym),
+            "b2": float(-3 * gamma / (record.orientation * u))}
+
+
 def _start(record: Record, given: dict, dec: dict) -> dict:
-    """Starting values: the sensor's offset and gain from the centres of successive extrema
-    ([`fits.sensor_start`][]); the three laws' levels from the amplitude lost per half-swing
-    (`_losses`, on the amplitudes corrected for the gain); the frequency from the mean
-    half-period, corrected for the sine's amplitude dependence; `b2`, `b3`, `xS` 0."""
-    sensor = sensor_start(record) if record.sides_known else {"offset": dec["centre"],
-                                                              "asym": 0.0}
+    """Starting values: the sensor's offset and gain and the even restoring term from the
+    centres of successive extrema (`_centres`; [`fits.sensor_start`][] where too few); the
+    three laws' levels from the amplitude lost per half-swing (`_losses`, on the amplitudes
+    corrected for the gain); the frequency from the mean half-period, corrected for the sine's
+    amplitude dependence; `b3`, `xS` 0."""
+    u = float(given.get("angle_unit", DEGREE))
+    sensor = _centres(record, u)
+    if sensor is None:
+        sensor = {**(sensor_start(record) if record.sides_known else
+                     {"offset": dec["centre"], "asym": 0.0}), "b2": 0.0}
     offset = float(given.get("offset", sensor["offset"]))
     asym = min(max(float(given.get("asym", sensor["asym"])), -0.2), 0.2)
+    b2 = float(given.get("b2", sensor["b2"]))
     side = np.sign(record.positions - offset)
     amplitudes = np.abs(record.positions - offset) / (1 + asym * side)
     consecutive = record.k[-1] - record.k[0] == len(record) - 1
@@ -130,13 +158,12 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
         xF, zeta, cq = dec["xF"], dec["zeta"], 0.0
     else:
         xF, zeta, cq = losses
-    u = float(given.get("angle_unit", DEGREE))
     omega = dec["omega"] or 1.0
     # the sine's frequency falls with the amplitude: the mean half-period is about that of
     # 0.6 of the release amplitude, where the sine's frequency is 1 - A^2/16
     omega /= 1 - (0.6 * a0 * u) ** 2 / 16
     return {"omega": omega, "zeta": min(max(zeta, 1e-4), 0.5), "xF": max(xF, 1e-4 * a0),
-            "xS": 0.0, "cq": max(cq, 1e-4 / a0), "b2": 0.0, "b3": 0.0, "a0": a0,
+            "xS": 0.0, "cq": max(cq, 1e-4 / a0), "b2": b2, "b3": 0.0, "a0": a0,
             "offset": offset, "asym": asym, "angle_unit": u}
 
 
