@@ -1,24 +1,31 @@
-"""`vmj fit FILE ...`: identify friction and damping from a measured decay.
+"""`vmj fit FILE [FILE ...] ...`: identify friction and damping from measured decays.
 
 The command belongs to fits; the `vmj` command line names this module in its list of commands and
-imports it only when `vmj fit` is run (`add_arguments(parser)`, `run(args)`).
+imports it only when `vmj fit` is run (`add_arguments(parser)`, `run(args)`). Nothing here
+imports JAX before `run` (`vmj fit --help` stays fast).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 from vmj.cli import figure_path, input_file, number, parse_set
 
-__all__ = ["add_arguments", "run"]
+__all__ = ["add_arguments", "run", "MODELS"]
+
+#: the model families (kept equal to `fits._models.SPACES` by a test)
+MODELS = ("variable-mass", "rope", "oscillator", "pendulum")
 
 _DEFAULT_FREE = {
     "variable-mass": "FT,mu",
     "oscillator": "omega,zeta,xF,a0,offset",
     "rope": "T",
+    "pendulum": "omega,zeta,xF,cq,b2,a0,offset,asym",  # fits._pendulum.FREE (a test checks)
 }
+_ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180}
 
 
 def _settings(text: str) -> dict:
@@ -31,26 +38,76 @@ def _settings(text: str) -> dict:
     return out
 
 
+def _bounds(text: str | None) -> dict:
+    """`NAME=LO:HI[,NAME=LO:HI...]` of `--bounds` as `{name: (lo, hi)}` (`LO`/`HI` may be
+    empty or `inf` for an open end)."""
+    out = {}
+    for item in filter(None, (s.strip() for s in (text or "").split(","))):
+        name, sep, rng = item.partition("=")
+        name = name.strip()
+        lo_t, colon, hi_t = rng.partition(":")
+        if not sep or not colon or not name:
+            raise ValueError(f"--bounds takes NAME=LO:HI pairs separated by commas (got {item!r})")
+        try:
+            lo = -math.inf if lo_t.strip() in ("", "-inf") else float(lo_t)
+            hi = math.inf if hi_t.strip() in ("", "inf", "+inf") else float(hi_t)
+        except ValueError:
+            raise ValueError(f"--bounds {name}: LO and HI must be numbers (got {rng!r})") from None
+        if math.isnan(lo) or math.isnan(hi) or not lo < hi:
+            raise ValueError(f"--bounds {name}: need LO < HI (got {rng!r})")
+        if name in out:
+            raise ValueError(f"--bounds gives {name} twice")
+        out[name] = (lo, hi)
+    return out
+
+
+def _names(text: str | None, option: str) -> tuple:
+    names = tuple(n.strip() for n in (text or "").split(",") if n.strip())
+    if len(set(names)) != len(names):
+        raise ValueError(f"{option}: a name is listed twice ({text!r})")
+    return names
+
+
 def add_arguments(p):
-    p.add_argument("FILE", type=input_file,
+    p.add_argument("FILE", type=input_file, nargs="+",
                    help="peak-sequence CSV (k|time, amplitude|position[, crossed]) or, with "
-                        "--series, a raw signal")
-    p.add_argument("--model", choices=("variable-mass", "rope", "oscillator"),
-                   default="variable-mass")
+                        "--series, a raw signal; several files are fitted jointly "
+                        "(see --shared)")
+    p.add_argument("--model", choices=MODELS, default="variable-mass",
+                   help="model family (default: %(default)s)")
     p.add_argument("--fit", metavar="NAME[,NAME...]",
                    help="parameters to fit (default: variable-mass FT,mu; oscillator "
-                        "omega,zeta,xF,a0,offset, without omega for records without times; rope T)")
+                        "omega,zeta,xF,a0,offset, without omega for records without times; rope T;"
+                        " pendulum omega,zeta,xF,cq,b2,a0,offset,asym)")
     p.add_argument("--set", metavar="NAME=VALUE,...", default="",
-                   help="fixed parameter values (SI units, or the signal's units for the "
-                        "oscillator's xF, a0, offset); for fitted names, the starting value")
+                   help="fixed parameter values (SI units: FT N, mu and delta kg/s, m0 kg, c N/m, "
+                        "g m/s^2, omega rad/s; the signal's units for xF, a0, offset); for "
+                        "fitted names, the starting value. A parameter neither fitted nor set "
+                        "takes its physical default (friction terms 0, g 9.81, a0 the first "
+                        "point, offset the record's centre) or is an error")
+    p.add_argument("--bounds", metavar="NAME=LO:HI,...",
+                   help="bounds of parameters, in their units (an empty LO or HI is open); a "
+                        "fitted value at a bound set here is not flagged")
+    p.add_argument("--shared", metavar="NAME[,NAME...]",
+                   help="several FILEs: fitted parameters with one value for all records (the "
+                        "others, e.g. offset and a0, one per record)")
     p.add_argument("--series", action="store_true", help="FILE is a raw signal: extract the "
                                                          "turning points first")
     p.add_argument("--time-col", help="raw signal: time column (name or 0-based index)")
     p.add_argument("--signal-col", help="raw signal: signal column (name or 0-based index)")
-    p.add_argument("--forward", choices=("exact", "smooth", "energy"), default="exact")
-    p.add_argument("--loss", choices=("l2", "huber", "cauchy"), default="l2")
-    p.add_argument("--optimizer", choices=("lm", "adam"), default="lm")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--angle-unit", choices=tuple(_ANGLE_UNITS),
+                   help="unit of an angle signal, for models with an angle_unit parameter "
+                        "(default: deg)")
+    p.add_argument("--forward", choices=("exact", "smooth", "energy"), default="exact",
+                   help="forward model (default: %(default)s)")
+    p.add_argument("--loss", choices=("l2", "huber", "cauchy"), default="l2",
+                   help="loss (default: %(default)s)")
+    p.add_argument("--optimizer", choices=("lm", "adam"), default="lm",
+                   help="optimizer (default: %(default)s)")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object: model, params, stderr, stderr_gn, intervals, "
+                        "correlation, converged, iterations, rms, diagnostics, "
+                        "model_comparison[, records, clock], units")
     p.add_argument("--plot", metavar="PATH", type=figure_path,
                    help="write a figure (PNG) to PATH")
 
@@ -59,17 +116,30 @@ def run(args) -> int:
     import warnings
 
     import fits
+    from fits._models import SPACES
 
-    record = fits.read_record(args.FILE, series=args.series, time_col=args.time_col,
-                              signal_col=args.signal_col)
+    space = SPACES[args.model]
+    given = _settings(args.set)
+    bounds = _bounds(args.bounds)
+    shared = _names(args.shared, "--shared")
+    if shared and len(args.FILE) < 2:
+        raise ValueError("--shared needs several FILEs")
+    if "angle_unit" in space.names:
+        given["angle_unit"] = _ANGLE_UNITS[args.angle_unit or "deg"]
+    elif args.angle_unit is not None:
+        raise ValueError(f"--angle-unit applies only to models with an angle_unit parameter "
+                         f"(the {args.model} model has none)")
+    records = [fits.read_record(path, series=args.series, time_col=args.time_col,
+                                signal_col=args.signal_col) for path in args.FILE]
     free = args.fit or _DEFAULT_FREE[args.model]
-    if args.fit is None and args.model == "oscillator" and record.times is None:
+    if args.fit is None and args.model == "oscillator" and any(r.times is None for r in records):
         free = "zeta,xF,a0,offset"
-    names = tuple(n.strip() for n in free.split(",") if n.strip())
+    names = _names(free, "--fit")
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
-        result = fits.fit(record, args.model, names, _settings(args.set), forward=args.forward,
-                          loss=args.loss, optimizer=args.optimizer)
+        result = fits.fit(records if len(records) > 1 else records[0], args.model, names, given,
+                          shared=shared, bounds=bounds, forward=args.forward, loss=args.loss,
+                          optimizer=args.optimizer)
     if args.plot:
         fits.plot_fit(result, args.plot)
     if args.json:

@@ -41,10 +41,16 @@ def decrement(record: Record, centre: float | None = None) -> dict:
         raise ValueError(f"{src}need at least 3 turning points for the decrement method "
                          f"(got {len(x)})")
     amp = np.abs(x)
-    trend = np.polyfit(k.astype(float), amp, 1)[0]
-    if not trend < 0:
-        raise ValueError(f"{src}the sequence does not decay (the amplitudes grow by "
-                         f"{trend:.3g} per swing on average): nothing to identify")
+    kf = k.astype(float)
+    (trend, level), res, *_ = np.polyfit(kf, amp, 1, full=True)
+    spread = float(np.sqrt(res[0] / max(len(x) - 2, 1))) if len(res) else 0.0
+    se_trend = spread / max(float(np.std(kf)) * math.sqrt(len(x)), 1e-300)
+    drop = -trend * float(kf[-1] - kf[0])
+    if not (trend < 0 and -trend > 3 * se_trend and drop > 1e-6 * float(np.max(amp))):
+        what = "grow" if trend > 3 * se_trend else "stay constant"
+        raise ValueError(f"{src}the sequence does not decay (the amplitudes {what}: "
+                         f"{trend:.3g} +- {se_trend:.2g} per swing on average): nothing to "
+                         f"identify")
     consecutive = np.diff(k) == 1
     a_now = amp[:-1][consecutive]
     a_next = (-np.sign(x[:-1]) * x[1:])[consecutive]  # negative: did not pass the centre
@@ -88,18 +94,25 @@ def decrement(record: Record, centre: float | None = None) -> dict:
     }
 
 
-def starting_guess(space_name: str, record: Record, given: dict, dec: dict) -> dict:
-    """Starting values of every parameter of a model family from the decrement estimate `dec`;
-    values in `given` (fixed parameters, or starts chosen by the user) take precedence."""
+def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
+    """Starting values of the parameters of a model family (a `fits._models.Space`) from the
+    decrement estimate `dec`; values in `given` (fixed parameters, or starts chosen by the user)
+    take precedence. A space with a `start(record, given, dec)` function supplies its own."""
+    if getattr(space, "start", None) is not None:
+        return {**space.start(record, given, dec), **{k: float(v) for k, v in given.items()}}
+    names = set(space.names)  # the family by its parameters (a variant space shares them)
     a0 = float(abs(record.positions[0] - dec["centre"])) if record.k[0] == 0 else None
     if a0 is None:
         a0 = float(np.max(record.amplitudes))
     zeta = max(dec["zeta"], 1e-3)
     xF = max(dec["xF"], 2e-3 * a0)
     start = {"a0": a0, "offset": dec["centre"]}
-    if space_name == "oscillator":
+    if {"omega", "zeta", "xF"} <= names:
         start.update(zeta=min(zeta, 0.5), xF=xF, omega=dec["omega"] or 1.0)
-    elif space_name == "variable-mass":
+    elif {"FT", "f", "mu", "m0", "c"} <= names:
+        if "m0" not in given or "c" not in given:
+            raise ValueError("the variable-mass fit needs m0 and c (give them with --set "
+                             "m0=VALUE,c=VALUE; a fitted one needs a starting value)")
         m0, c = given["m0"], given["c"]
         delta = given.get("delta", 0.0)
         eps = given.get("eps", 0.0)
@@ -111,10 +124,14 @@ def starting_guess(space_name: str, record: Record, given: dict, dec: dict) -> d
         mu = max((delta - 2 * delta * eps - lam) / 2, 2e-3 * math.sqrt(c * m0))
         start.update(mu=mu, eps=min(max(eps, 0.05), 0.95), delta=delta, g=g, m0=m0, c=c,
                      FT=c * xF, f=c * xF / (g * m_mid))
-    elif space_name == "rope":
+    elif {"T", "e", "l0"} <= names:
         # the dead band xF = A T / (A e / l0): T = e xF / l0 (first-order, length at release)
         e = given.get("e", 1.0)
         start.update(T=e * xF / given.get("l0", 1.0), e=e, d=given.get("d", 0.0),
                      b=given.get("b", 0.0), u=given.get("u", 0.0))
+    if "asym" in names and record.sides_known and len(record) >= 3:
+        from ._sensor import sensor_start
+
+        start["asym"] = float(np.clip(sensor_start(record)["asym"], -0.4, 0.4))
     start.update({k: float(v) for k, v in given.items()})
     return start

@@ -1,256 +1,70 @@
 """Least-squares identification of friction and damping from turning-point sequences.
 
-The residuals compare SIGNED turning-point positions (and times, when the record has them)
-with the forward model. A model that sticks early repeats its last turning point
-(`vmj.DecaySequence` padding), and a swing that does not pass the centre keeps its sign, so the
-objective is continuous in the parameters.
+The residuals compare the model's readings of the turning points with the record: SIGNED
+positions when the record knows the sides (signed positions, or amplitudes with a `crossed`
+column), the distances `|reading - offset|` when it gives amplitudes only (the model decides
+whether a swing passes the centre), and times when the record has them. A model that sticks
+early repeats its last turning point (`vmj.DecaySequence` padding) and a swing that does not
+pass the centre keeps its sign, so the objective is continuous in the parameters.
 
-One compiled solver serves every fit of a model family, forward method and record length:
-which parameters are free, their fixed values, the data and the weights are all array data, so
-the Coulomb-only / viscous-only / both comparison, robust reweighting passes and batches of
-records (`jax.vmap`) reuse it.
+**Parameters.** Each free parameter is a *slot*: one value for every record (a single record,
+or a parameter shared by a joint fit) or one per record. A slot's value is its unconstrained
+coordinate through a bijection of `fits._params` (`Real`, `LowerBound`, `UpperBound`,
+`Interval`), the physical range of the parameter intersected with the user's bounds; a slot
+that runs into a bound is held there (an active constraint) and the fit repeated.
+
+**One compiled solve** serves every fit of a model family, forward method, record shape and
+batch size: which parameters are free, their bounds and fixed values, the data and the weights
+are array data. Jobs (sub-models, records of a batch, profile-likelihood points) are solved
+`jax.vmap`-batched in chunks of one batch size per call.
+
+**Sub-models** (`Space.variants`, e.g. Coulomb-only and viscous-only) are fitted in rounds by
+their number of free parameters; a fit starts from the best (lowest residual sum of squares)
+sub-model nested in it that is already fitted, and is never reported worse than it.
+
+**Uncertainty.** `stderr_gn`: Gauss-Newton standard errors; `stderr`: corrected for serially
+correlated residuals (`fits._stats.covariance`); `intervals`: 95 % profile-likelihood
+intervals, the deviance scaled by the same inflation (the Wald interval, flagged, where a
+profile fails).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
 import numpy as np
-import optax
-import optimistix as optx
 
 import vmj
-from vmj._checks import check, nonnegative, positive, unit_interval, warn_if_float32
 
 from ._decrement import decrement, starting_guess
 from ._io import Record
-from ._models import FORWARDS, KIND_CODES, SPACES, Space, theta_dict
+from ._models import FORWARDS, SPACES, Space
+from ._params import HELD, INTERVAL, LOWER, REAL, Transform, at_bound, check_value, inverse, \
+    transform_for, warn_if_float32
+from ._result import FitResult, _information, _result, _robust_scale, _values_of
+from ._solve import _TUNING, _job_arrays, _rss, _Shape, _solve
 
 __all__ = ["FitResult", "fit", "fit_batch", "LOSSES", "OPTIMIZERS"]
 
 LOSSES = ("l2", "huber", "cauchy")
 OPTIMIZERS = ("lm", "adam")
-_TUNING = {"huber": 1.345, "cauchy": 2.385}  #: 95 % efficiency constants of the robust losses
 _ROBUST_PASSES = 10
-_LM_RTOL, _LM_ATOL = 1e-10, 1e-12
-
-
-# -- the compiled core -------------------------------------------------------------------------
-class _Data(eqx.Module):
-    k: jax.Array  # (N,) swing index of each point
-    x: jax.Array  # (N,) measured positions
-    t: jax.Array  # (N,) measured times from the release
-    wx: jax.Array  # (N,) weights of the position residuals (0 = ignored / padding)
-    wt: jax.Array  # (N,) weights of the time residuals
-    orient: jax.Array  # () +1 if the release is below the centre
-    fixed: jax.Array  # (P + 1,) parameter values (last slot: a dummy for unused free slots)
-    free: jax.Array  # (q,) indices of the free parameters in `fixed`
-    code: jax.Array  # (q,) transform of each free slot: KIND_CODES, or 3 = held at its bound
-    scale: jax.Array  # (P + 1,) scale of each parameter's transform
-
-
-_HELD = 3  #: a free slot held at its bound (an active constraint): not moved by the solver
-
-
-def _theta(space, p, d: _Data):
-    code, sc = d.code, d.scale[d.free]
-    val = jnp.where(code == 0, sc * p, jnp.where(code == 1, sc * p * p, jnp.sin(p) ** 2))
-    return d.fixed.at[d.free].set(jnp.where(code == _HELD, d.fixed[d.free], val))
-
-
-def _to_p(space, theta, d_free, scale):
-    """Inverse of `_theta` for the starting values (NumPy)."""
-    out = []
-    for i in d_free:
-        if i >= len(space.kinds):
-            out.append(0.0)
-            continue
-        kind, v, s = space.kinds[i], theta[i], scale[i]
-        if kind == "real":
-            out.append(v / s)
-        elif kind == "positive":
-            out.append(math.sqrt(max(v, 0.0) / s))
-        else:
-            out.append(math.asin(math.sqrt(min(max(v, 0.02), 0.98))))
-    return np.asarray(out)
-
-
-def _residual(space, forward, n, theta, d: _Data):
-    th = theta_dict(space, theta[:-1])
-    times, positions = space.predict(th, n, forward)
-    px = th["offset"] + d.orient * positions[d.k]
-    return jnp.concatenate([d.wx * (px - d.x), d.wt * (times[d.k] - d.t)])
-
-
-def _dtheta_dp(space, p, d):
-    code, sc = d.code, d.scale[d.free]
-    dv = jnp.where(code == 0, sc, jnp.where(code == 1, 2 * sc * p, jnp.sin(2 * p)))
-    return jnp.where(code == _HELD, 0.0, dv)
-
-
-def _residual_and_jacobian_impl(space, forward, n, p, d):
-    """Residuals at `p` and their Jacobian with respect to the free parameters (in their
-    physical units), from one forward-mode pass. Wrapping it as a `custom_jvp` whose tangent
-    is that materialised Jacobian keeps the solvers from tracing (and compiling) the forward
-    model again for linearisation and transposition: one compiled Jacobian serves the
-    Levenberg-Marquardt steps, Adam's gradients and the standard errors."""
-    theta = _theta(space, p, d)
-
-    def r_of(values):
-        r = _residual(space, forward, n, theta.at[d.free].set(values), d)
-        return r, r
-
-    # the smoothed model's diffrax solve differentiates in reverse mode only
-    jacobian = jax.jacrev if forward == "smooth" else jax.jacfwd
-    J, r = jacobian(r_of, has_aux=True)(theta[d.free])
-    return r, J
-
-
-_residual_and_jacobian = jax.custom_jvp(_residual_and_jacobian_impl, nondiff_argnums=(0, 1, 2))
-
-
-@_residual_and_jacobian.defjvp
-def _residual_and_jacobian_jvp(space, forward, n, primals, tangents):
-    p, d = primals
-    dp, _ = tangents  # never differentiated with respect to the data
-    r, J = _residual_and_jacobian(space, forward, n, p, d)
-    return (r, J), (J @ (_dtheta_dp(space, p, d) * dp), jnp.zeros_like(J))
-
-
-@eqx.filter_jit
-def _solve_lm(space, forward, n, max_steps, d, p0):
-    def one(d, p0):
-        def fn(p, d):
-            r, J = _residual_and_jacobian(space, forward, n, p, d)
-            return r, (r, J)
-
-        sol = optx.least_squares(fn, optx.LevenbergMarquardt(_LM_RTOL, _LM_ATOL), p0, d,
-                                 has_aux=True, max_steps=max_steps, throw=False)
-        r, J = sol.aux  # at the returned point: no second compiled copy of the Jacobian
-        ok = sol.result == optx.RESULTS.successful
-        return sol.value, _theta(space, sol.value, d), J, r, ok, sol.stats["num_steps"]
-
-    return jax.vmap(one)(d, p0)
-
-
-def _rho(loss, u):
-    if loss == "l2":
-        return 0.5 * u * u
-    c = _TUNING[loss]
-    if loss == "huber":
-        return optax.losses.huber_loss(u, jnp.zeros_like(u), delta=c)
-    return 0.5 * c * c * jnp.log1p((u / c) ** 2)
-
-
-@eqx.filter_jit
-def _solve_adam(space, forward, n, steps, loss, d, p0):
-    def one(d, p0):
-        def objective(p):
-            r, _ = _residual_and_jacobian(space, forward, n, p, d)
-            return jnp.sum(_rho(loss, r))
-
-        opt = optax.adam(optax.cosine_decay_schedule(0.02, steps, alpha=1e-3))
-        grad = jax.value_and_grad(objective)
-
-        def body(carry, _):
-            p, state = carry
-            _, g = grad(p)
-            updates, state = opt.update(g, state, p)
-            return (optax.apply_updates(p, updates), state), None
-
-        (p, _), _ = jax.lax.scan(body, (p0, opt.init(p0)), None, length=steps)
-        value, g = grad(p)
-        ok = jnp.max(jnp.abs(g)) <= 1e-4 * jnp.maximum(1.0, value)
-        r, J = _residual_and_jacobian(space, forward, n, p, d)
-        return p, _theta(space, p, d), J, r, ok, jnp.asarray(steps)
-
-    return jax.vmap(one)(d, p0)
-
-
-# -- results -----------------------------------------------------------------------------------
-@dataclass
-class FitResult:
-    """The outcome of a fit.
-
-    **Fields:** `model`, `forward`, `loss`, `optimizer`; `params` (free parameters, in the
-    order fitted) and `fixed` (the others) in SI units or the signal's units; `stderr`
-    (Gauss-Newton standard errors of the free parameters); `correlation` (their correlation
-    matrix); `converged`; `iterations` (solver steps over all passes); `rms` (RMS position
-    residual) and `rms_time` [s]; `model_comparison` (Coulomb-only / viscous-only / both by
-    AIC and BIC, when both kinds of friction are free); `residuals` (per point: `k`,
-    `position`, `time`, `standardized`, `outlier`); `outliers` (the flagged `k`); `warnings`
-    (identifiability); `decrement` (the decrement-method estimate); `record`.
-    """
-
-    model: str
-    forward: str
-    loss: str
-    optimizer: str
-    params: dict
-    fixed: dict
-    stderr: dict
-    correlation: list
-    converged: bool
-    iterations: int
-    rms: float
-    rms_time: float | None
-    model_comparison: dict
-    residuals: dict
-    outliers: list
-    warnings: list
-    decrement: dict
-    record: Record = field(repr=False)
-    prediction: dict = field(default_factory=dict, repr=False)
-
-    def to_json(self) -> dict:
-        """The command line's JSON object (`params`, `stderr`, `correlation`, `converged`,
-        `iterations`, `rms`, `model_comparison`); NaN becomes `null`."""
-        return _jsonable({
-            "params": self.params,
-            "stderr": self.stderr,
-            "correlation": self.correlation,
-            "converged": self.converged,
-            "iterations": self.iterations,
-            "rms": self.rms,
-            "model_comparison": self.model_comparison,
-        })
-
-    def report(self) -> str:
-        from ._report import text_report
-
-        return text_report(self)
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {k: _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
-
 
 # -- input checks ------------------------------------------------------------------------------
 _RANGES = {
-    "real": (lambda x: x == x, "a real number"),
-    "positive": (nonnegative, ">= 0"),
-    "unit": (unit_interval, "in [0, 1]"),
-    "damping": (lambda x: (x >= 0) & (x < 1), "in [0, 1) (an underdamped oscillator)"),
+    "real": (lambda x: True, "a real number"),
+    "positive": (lambda x: x >= 0, ">= 0"),
+    "unit": (lambda x: 0 <= x <= 1, "in [0, 1]"),
+    "damping": (lambda x: 0 <= x < 1, "in [0, 1) (an underdamped oscillator)"),
 }
+_STRICTLY_POSITIVE = ("m0", "c", "g", "omega", "m", "A", "l0")
 
 
-def _check_inputs(space, free, given, forward, loss, optimizer):
+def _check_inputs(space, free, shared, given, bounds, forward, loss, optimizer):
     if forward not in FORWARDS:
         raise ValueError(f"forward must be one of {list(FORWARDS)} (got {forward!r})")
     if loss not in LOSSES:
@@ -259,146 +73,233 @@ def _check_inputs(space, free, given, forward, loss, optimizer):
         raise ValueError(f"optimizer must be one of {list(OPTIMIZERS)} (got {optimizer!r})")
     free = tuple(free)
     if not free:
-        raise ValueError("give at least one parameter to fit")
-    for name in list(free) + list(given):
+        raise ValueError("give at least one parameter to fit (--fit NAME[,NAME...]): with every "
+                         "parameter fixed there is nothing to identify")
+    for name in free:
+        if name not in space.names:
+            raise ValueError(f"unknown parameter {name!r} for the {space.name} model "
+                             f"(parameters: {', '.join(space.names)})")
+    for name in given:
+        if name == "angle_unit" and name not in space.names:
+            raise ValueError(f"--angle-unit applies only to models with an angle_unit parameter "
+                             f"(the {space.name} model has none)")
         if name not in space.names:
             raise ValueError(f"unknown parameter {name!r} for the {space.name} model "
                              f"(parameters: {', '.join(space.names)})")
     if len(set(free)) != len(free):
         raise ValueError(f"a parameter is listed twice in {free}")
+    for name in shared:
+        if name not in free:
+            raise ValueError(f"--shared {name}: only fitted parameters can be shared "
+                             f"(fitted: {', '.join(free)})")
+    for name, (lo, hi) in bounds.items():
+        if name not in space.names:
+            raise ValueError(f"--bounds: unknown parameter {name!r} for the {space.name} model "
+                             f"(parameters: {', '.join(space.names)})")
+        if not (isinstance(lo, (int, float)) and isinstance(hi, (int, float))) or not lo < hi \
+                or math.isnan(lo) or math.isnan(hi):
+            raise ValueError(f"--bounds {name}: need LO < HI (got {lo}:{hi})")
+        plo, phi = _physical_range(space, name)
+        if max(lo, plo) >= min(hi, phi):
+            raise ValueError(f"--bounds {name}={lo}:{hi} leaves nothing of its physical range "
+                             f"[{plo}, {phi}] [{space.unit(name)}]")
     for name, value in given.items():
         kind = space.kinds[space.index(name)]
-        unit = space.units[space.index(name)]
+        unit = space.unit(name)
         ok, allowed = _RANGES[kind]
-        if name in ("m0", "c", "g", "omega") or (name == "a0" and name not in free):
-            ok, allowed = positive, "> 0"
-        check(name, value, ok, f"{allowed} [{unit}]")
-    missing = [n for n in space.required if n not in given and n not in free]
-    if missing:
-        raise ValueError(f"the {space.name} model needs {', '.join(missing)} "
-                         f"(give them with --set / given=)")
+        if name in _STRICTLY_POSITIVE or (name == "a0" and name not in free):
+            ok, allowed = (lambda x: x > 0), "> 0"
+        value = check_value(name, value, ok, f"{allowed} [{unit}]")
+        if name in bounds and name not in free:
+            lo, hi = bounds[name]
+            if not lo <= value <= hi:
+                raise ValueError(f"--set {name}={value} is outside --bounds {name}={lo}:{hi} "
+                                 f"[{unit}]")
     return free
 
 
-def _defaults(space: Space, record: Record, free, given) -> dict:
-    """Fixed values of the parameters neither fitted nor given."""
-    out = {}
+def _physical_range(space, name):
+    t = space.transform(name)
+    lo, hi = t.lo, t.hi
+    if name in _STRICTLY_POSITIVE:
+        lo = max(lo, 0.0)
+    return lo, hi
+
+
+def _slot_transform(space, name, bounds) -> tuple[Transform, bool, bool]:
+    """The transform of a free parameter: its physical range intersected with the user's
+    bounds; and whether its lower / upper end was set by the user."""
+    plo, phi = _physical_range(space, name)
+    ulo, uhi = bounds.get(name, (-math.inf, math.inf))
+    lo, hi = max(plo, ulo), min(phi, uhi)
+    return transform_for(lo, hi), name in bounds and ulo >= plo, name in bounds and uhi <= phi
+
+
+def _fixed_values(space, record, free, given, hold=None) -> dict:
+    """Values of every parameter not fitted: held (sub-model), given, or the physical default;
+    a parameter with none of these is an error naming it."""
+    hold = hold or {}
+    out, missing = {}, []
     for name in space.names:
-        if name in free or name in given:
+        if name in hold:
+            out[name] = float(hold[name])
+        elif name in given:
+            out[name] = float(given[name])
+        elif name in free:
             continue
-        if name == "offset":
-            out[name] = 0.0 if space.name != "oscillator" else record.centre
-        elif name == "g":
-            out[name] = 9.81
-        elif name == "a0":
-            if record.k[0] != 0:
-                raise ValueError("the record has no k = 0 row: give a0 or fit it")
-            out[name] = abs(float(record.positions[0]) - 0.0)
-        elif name == "omega":
-            out[name] = 1.0
         else:
-            out[name] = 0.0
+            value = space.default(name, record)
+            if value is None:
+                missing.append(name)
+            else:
+                out[name] = float(value)
+    if missing:
+        if len(missing) == 1:
+            nm = missing[0]
+            raise ValueError(f"the {space.name} model needs {nm}: give {nm} with --set {nm}=VALUE "
+                             f"or fit it")
+        raise ValueError(f"the {space.name} model needs {', '.join(missing)}: give them with "
+                         f"--set NAME=VALUE or fit them")
     return out
 
 
-# -- the driver --------------------------------------------------------------------------------
+# -- jobs --------------------------------------------------------------------------------------
+@dataclass
+class _Problem:
+    """One fit asked for: a record, or several records fitted jointly."""
+
+    records: list
+    givens: list
+    free: tuple
+    shared: tuple
+    decs: list
+    wx: list = None  # per record: position weights (N,)
+    wt: list = None
+    robust_x: list = None  # per record: robust (IRLS) weights
+    robust_t: list = None
+    sx: list = None  # per record: noise scale of positions [data units]
+    st: list = None  # per record: noise scale of times [s]
+
+
 @dataclass
 class _Job:
-    record: Record
+    """One least-squares problem: a problem's model or one of its sub-models."""
+
+    problem: int
+    space: Space
+    label: str
     free: tuple
-    start: dict
-    fixed_values: dict
-    leader: int  # index of the job whose weights this one shares
-    variant: str  # "fit", "coulomb", "viscous"
+    hold: dict
+    slots: list  # (name, record index or None for every record)
+    transforms: list
+    user_lo: list
+    user_hi: list
+    fixed: list  # per record {name: value} of the non-free parameters
+    start: list  # per record {name: value} of every parameter
+    headline: bool
+    code: np.ndarray = None
+    held: np.ndarray = None
+    scale: np.ndarray = None
+    p: np.ndarray = None
+    out: dict = None  # theta, J, r, ok, steps of the last solve
+    iterations: int = 0
+    rss: float = math.inf
+    bound_hit: np.ndarray = None  # slots held at a bound by the solver
+    signs: list = None  # per record: sides assumed for amplitude-only data (a start hypothesis)
 
 
-def _robust_scale(r, floor):
-    r = r[np.isfinite(r)]
-    if r.size == 0:
-        return floor
-    return max(1.4826 * float(np.median(np.abs(r - np.median(r)))), floor)
+def _make_job(index, prob, space, label, free, hold, bounds, headline):
+    R = len(prob.records)
+    fixed = [_fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names},
+                           hold) for rec, g in zip(prob.records, prob.givens)]
+    start = []
+    for rec, g, dec, fx in zip(prob.records, prob.givens, prob.decs, fixed):
+        guess = starting_guess(space, rec, {**fx, **{k: v for k, v in g.items()
+                                                     if k in space.names}}, dec)
+        defaults = {n: space.default(n, rec) for n in free if n in space.defaults}
+        st = {**{n: v for n, v in defaults.items() if v is not None}, **guess, **fx}
+        for name in free:
+            if name not in st:
+                raise ValueError(f"no starting value for {name}: give one with --set "
+                                 f"{name}=VALUE")
+        start.append(st)
+    slots = []
+    for name in free:
+        if R == 1 or name in prob.shared:
+            slots.append((name, None))
+        else:
+            slots.extend((name, r) for r in range(R))
+    transforms, ulo, uhi = [], [], []
+    for name, _ in slots:
+        t, lo_user, hi_user = _slot_transform(space, name, bounds)
+        transforms.append(t)
+        ulo.append(lo_user)
+        uhi.append(hi_user)
+    job = _Job(index, space, label, tuple(free), dict(hold), slots, transforms, ulo, uhi, fixed,
+               start, headline)
+    q = len(slots)
+    job.code = np.array([t.code for t in transforms])
+    job.held = np.zeros(q)
+    job.bound_hit = np.zeros(q, dtype=bool)
+    job.scale = np.array([_scale(slots[s][0], t, _slot_start(job, s), prob.records)
+                          for s, t in enumerate(transforms)])
+    job.p = _coordinates(job, [dict(s) for s in start])
+    return job
 
 
-def _prepare(space, records, free, givens, compare):
-    jobs = []
-    decs = []
-    for rec, given in zip(records, givens):
-        if not isinstance(rec, Record):
-            raise ValueError("records must be fits.Record objects (see fits.read_record)")
-        if len(rec) <= len(free):
-            raise ValueError(f"{rec.source or 'record'}: {len(rec)} turning points are too few for "
-                             f"{len(free)} free parameters (need at least {len(free) + 1})")
-        if "omega" in free and rec.times is None:
-            raise ValueError("omega can only be fitted from a record with times")
-        centre = rec.centre if space.name == "oscillator" else 0.0
-        dec = decrement(rec, centre)
-        decs.append(dec)
-        start = starting_guess(space.name, rec, given, dec)
-        fixed = {**_defaults(space, rec, free, given), **{k: float(v) for k, v in given.items()}}
-        leader = len(jobs)
-        jobs.append(_Job(rec, free, start, fixed, leader, "fit"))
-        dry = [n for n in free if n in space.dry]
-        visc = [n for n in free if n in space.viscous]
-        if compare and dry and visc:
-            for variant, zero in (("coulomb", visc), ("viscous", dry)):
-                jobs.append(_Job(rec, tuple(n for n in free if n not in zero), start,
-                                 {**fixed, **{n: 0.0 for n in zero}}, leader, variant))
-    return jobs, decs
+def _slot_start(job, s):
+    name, r = job.slots[s]
+    if r is not None:
+        return float(job.start[r][name])
+    return float(np.mean([st[name] for st in job.start]))
+
+
+def _scale(name, t: Transform, start: float, records) -> float:
+    """The scale of a slot's transform: its starting distance from its bound (1 for an interval;
+    the records' largest amplitude for `offset`, at least 1 for other real parameters)."""
+    if t.code == INTERVAL:
+        return 1.0
+    if t.code == REAL:
+        if name == "offset":
+            return max(float(np.max(np.concatenate([rec.amplitudes for rec in records]))), 1e-300)
+        return max(abs(start), 1.0)
+    ref = t.lo if t.code == LOWER else t.hi
+    s = abs(start - ref)
+    return s if s > 0 else (abs(start) if start != 0 else 1.0)
+
+
+def _coordinates(job, values: list) -> np.ndarray:
+    """The slots' coordinates for parameter values `values` (per record dicts)."""
+    p = np.zeros(len(job.slots))
+    for s, ((name, r), t) in enumerate(zip(job.slots, job.transforms)):
+        v = values[r][name] if r is not None else float(np.mean([val[name] for val in values]))
+        v = min(max(v, t.lo), t.hi)
+        p[s] = 0.0 if job.code[s] == HELD else inverse(t.code, t.lo, t.hi, job.scale[s], v)
+    return p
+
+
+def _jobs_for(index, prob, space, bounds, compare) -> list:
+    jobs = [_make_job(index, prob, space, space.label, prob.free, {}, bounds, True)]
+    if not compare:
+        return jobs
+    for v in space.variants:
+        vs = v.space or space
+        hold = dict(v.hold)
+        free_v = tuple(n for n in prob.free if n in vs.names and n not in hold)
+        if not free_v:
+            continue
+        if v.space is None and not set(hold) & set(prob.free):
+            continue
+        b = {k: val for k, val in bounds.items() if k in vs.names}
+        jobs.append(_make_job(index, prob, vs, v.label, free_v, hold, b, False))
+    return jobs
 
 
 def _bucket(n: int) -> int:
     """Round a length up to a multiple of 8, so records of similar length share a compilation."""
     return max(8, -(-n // 8) * 8)
 
-
-def _arrays(space, jobs, q, sigma_x, sigma_t):
-    P = len(space.names)
-    N = _bucket(max(len(j.record) for j in jobs))
-    cols = {k: [] for k in ("k", "x", "t", "wx", "wt", "orient", "fixed", "free", "code", "scale",
-                            "p0")}
-    for job, sx, st in zip(jobs, sigma_x, sigma_t):
-        rec = job.record
-        m = len(rec)
-        pad = N - m
-        theta = np.zeros(P + 1)
-        scale = np.ones(P + 1)
-        for i, name in enumerate(space.names):
-            theta[i] = job.fixed_values.get(name, job.start.get(name, 0.0))
-            s0 = abs(job.start.get(name, 0.0))
-            scale[i] = s0 if s0 > 0 else 1.0
-            if space.kinds[i] == "real" and name == "offset":
-                scale[i] = max(float(np.max(rec.amplitudes)), 1e-300)
-            elif space.kinds[i] == "real":
-                scale[i] = max(s0, 1.0)
-        for name in job.free:
-            theta[space.index(name)] = job.start[name]
-        free_idx = [space.index(nm) for nm in job.free] + [P] * (q - len(job.free))
-        cols["k"].append(np.pad(rec.k, (0, pad)))
-        cols["x"].append(np.pad(rec.positions, (0, pad)))
-        times = rec.times if rec.times is not None else np.zeros(m)
-        cols["t"].append(np.pad(times, (0, pad)))
-        cols["wx"].append(np.pad(np.broadcast_to(1.0 / sx, (m,)), (0, pad)))
-        wt = np.zeros(m) if rec.times is None else np.broadcast_to(1.0 / st, (m,)).copy()
-        if rec.times is not None and rec.k[0] == 0:
-            wt[0] = 0.0  # the release time is zero by definition
-        cols["wt"].append(np.pad(wt, (0, pad)))
-        cols["orient"].append(rec.orientation)
-        cols["fixed"].append(theta)
-        cols["free"].append(np.asarray(free_idx))
-        cols["code"].append(np.asarray([KIND_CODES[space.kinds[i]] if i < P else 0
-                                        for i in free_idx]))
-        cols["scale"].append(scale)
-        cols["p0"].append(_to_p(space, theta, free_idx, scale))
-    arr = {k: np.stack(v) for k, v in cols.items()}
-    n_model = _bucket(int(max(int(j.record.k[-1]) for j in jobs)))
-    d = _Data(k=jnp.asarray(arr["k"]), x=jnp.asarray(arr["x"], dtype=float),
-              t=jnp.asarray(arr["t"], dtype=float), wx=jnp.asarray(arr["wx"], dtype=float),
-              wt=jnp.asarray(arr["wt"], dtype=float), orient=jnp.asarray(arr["orient"], dtype=float),
-              fixed=jnp.asarray(arr["fixed"], dtype=float), free=jnp.asarray(arr["free"]),
-              code=jnp.asarray(arr["code"]), scale=jnp.asarray(arr["scale"], dtype=float))
-    return d, jnp.asarray(arr["p0"], dtype=float), max(n_model, 1), N
-
-
+# -- weights -----------------------------------------------------------------------------------
 def _psi_weight(loss, u):
     """IRLS weight `psi(u)/u` of a robust loss."""
     if loss == "l2":
@@ -409,12 +310,289 @@ def _psi_weight(loss, u):
     return 1.0 / (1.0 + (u / c) ** 2)
 
 
+def _init_weights(prob, N):
+    prob.sx = [max(rec.noise or 0.0, 1e-3 * float(np.max(rec.amplitudes))) for rec in prob.records]
+    prob.st = [1e-3 * float(np.median(np.diff(rec.times))) if rec.times is not None else 1.0
+               for rec in prob.records]
+    prob.robust_x = [np.ones(N) for _ in prob.records]
+    prob.robust_t = [np.ones(N) for _ in prob.records]
+    _set_weights(prob, N)
+
+
+def _set_weights(prob, N):
+    prob.wx, prob.wt = [], []
+    for r, rec in enumerate(prob.records):
+        m = len(rec)
+        on = np.zeros(N)
+        on[:m] = 1.0
+        prob.wx.append(on * np.sqrt(prob.robust_x[r]) / prob.sx[r])
+        if rec.times is None:
+            prob.wt.append(np.zeros(N))
+        else:
+            ont = on.copy()
+            if rec.k[0] == 0:
+                ont[0] = 0.0  # the release time is zero by definition
+            prob.wt.append(ont * np.sqrt(prob.robust_t[r]) / prob.st[r])
+
+
+def _reweight(prob, job, loss, N):
+    """Re-estimate each record's noise scales (and the robust weights) from `job`'s residuals."""
+    r_all = job.out["r"].reshape(len(prob.records), 2, N)
+    for i, rec in enumerate(prob.records):
+        m = len(rec)
+        wx, wt = prob.wx[i][:m], prob.wt[i][:m]
+        rx = r_all[i, 0, :m] / np.where(wx > 0, wx, 1.0)
+        amp = float(np.max(rec.amplitudes))
+        prob.sx[i] = _robust_scale(rx[wx > 0], 1e-6 * amp)
+        if rec.times is not None:
+            rt = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
+            prob.st[i] = _robust_scale(rt[wt > 0], 1e-9)
+        if loss != "l2":
+            prob.robust_x[i][:m] = np.nan_to_num(_psi_weight(loss, rx / prob.sx[i]), nan=0.0)
+            if rec.times is not None:
+                prob.robust_t[i][:m] = np.nan_to_num(_psi_weight(loss, rt / prob.st[i]), nan=0.0)
+    _set_weights(prob, N)
+
+def _fit_jobs(jobs, problems, shape):
+    """Solve `jobs` (one round) grouped by space; a slot that runs into a bound is held there
+    and the job solved again."""
+    pending = list(jobs)
+    for _ in range(2 * shape.q + 2):
+        if not pending:
+            break
+        by_space = {}
+        for job in pending:
+            by_space.setdefault(job.space, []).append(job)
+        again = []
+        for space, group in by_space.items():
+            items = [_job_arrays(job, problems[job.problem], shape) for job in group]
+            for job, out in zip(group, _solve(space, items, shape)):
+                q = len(job.slots)
+                job.out = out
+                job.p = out["p"][:q]
+                job.iterations += out["steps"]
+                job.rss = _rss(out)
+                near = 1e-5 if out["ok"] else 1e-4  # (value - bound) / scale
+                hit, value = at_bound(job.code, [t.lo for t in job.transforms],
+                                      [t.hi for t in job.transforms], job.scale, job.p, near)
+                hit &= job.code != HELD
+                if hit.any():
+                    job.code = np.where(hit, HELD, job.code)
+                    job.held = np.where(hit, value, job.held)
+                    job.bound_hit |= hit
+                    again.append(job)
+        pending = again
+
+
+def _nested_in(a: _Job, b: _Job) -> bool:
+    """Whether sub-model `a` is nested in `b` (same problem and space, fewer free parameters,
+    the same values of the parameters fixed in both, and a's held values inside b's range)."""
+    if a is b or a.problem != b.problem or a.space != b.space or len(a.slots) >= len(b.slots):
+        return False
+    if not set(a.free) < set(b.free):
+        return False
+    for r, fb in enumerate(b.fixed):
+        for name, v in fb.items():
+            if a.fixed[r].get(name) != v:
+                return False
+    for s, (name, r) in enumerate(b.slots):
+        if name in a.free:
+            continue
+        rr = 0 if r is None else r
+        if not b.transforms[s].contains(a.fixed[rr][name]):
+            return False
+    return True
+
+
+def _start_from(job, sub):
+    """Start `job` from the solution of its nested sub-model `sub`."""
+    job.p = _coordinates(job, _values_of(sub))
+
+
+def _adopt(job, sub, problems, shape):
+    """`job` ended worse than its nested sub-model: take the sub-model's solution (the slots it
+    holds held at its values) and evaluate it."""
+    vals = _values_of(sub)
+    for s, (name, r) in enumerate(job.slots):
+        if name not in sub.free:
+            rr = 0 if r is None else r
+            job.code[s] = HELD
+            job.held[s] = vals[rr][name]
+            t = job.transforms[s]
+            job.bound_hit[s] = job.held[s] in (t.lo, t.hi)
+    job.p = _coordinates(job, vals)
+    out = _solve(job.space, [_job_arrays(job, problems[job.problem], shape)], shape)[0]
+    job.out, job.p, job.rss = out, out["p"][:len(job.slots)], _rss(out)
+    job.iterations += out["steps"]
+
+
+_HYPOTHESES = (0, 1, 2, 3)  #: amplitude-only records: fits assuming the last j swings did not cross
+
+
+def _twin(job, signs=None, records=None) -> _Job:
+    """A copy of `job` (its own starting point) to solve beside it; with `signs` (per record),
+    the copy fits signed positions `signs * amplitudes` (a hypothesis on the sides)."""
+    twin = dataclasses.replace(job, signs=signs)
+    for name in ("code", "held", "scale", "p", "bound_hit"):
+        setattr(twin, name, np.copy(getattr(job, name)))
+    if signs is not None:  # started from the decrement method on the hypothesised sides
+        start = []
+        for r, (rec, sg) in enumerate(zip(records, signs)):
+            if sg is not None:
+                rec = dataclasses.replace(rec, positions=rec.centre + sg * rec.amplitudes,
+                                          sides_known=True)
+            guess = starting_guess(job.space, rec, job.fixed[r], decrement(rec, rec.centre))
+            start.append({**job.start[r], **guess, **job.fixed[r]})
+        twin.p = _coordinates(twin, start)
+    return twin
+
+
+def _hypothesis_signs(records, j) -> list | None:
+    """Sides of each record's points if every swing crossed the centre except the last `j`
+    swings (of the amplitude-only records) (`None` when no record is amplitude-only)."""
+    if all(rec.sides_known for rec in records):
+        return None
+    out = []
+    for rec in records:
+        if rec.sides_known:
+            out.append(None)
+            continue
+        flips = np.ones(int(rec.k[-1]) + 1, dtype=bool)
+        if j:
+            flips[rec.k[-j:]] = False
+        flips[0] = False
+        out.append(-np.cumprod(np.where(flips, -1.0, 1.0))[rec.k])
+    return out
+
+
+def _fit_all(jobs, problems, shape, first_pass):
+    """Every job in rounds by number of slots. On the first pass a job with a fitted nested
+    sub-model is solved twice, from its own start and from the best such sub-model, and keeps
+    the better (it is never reported worse than that sub-model); a job with amplitude-only
+    records is also solved on signed positions under the hypotheses that the last 0, 1, 2, 3
+    swings did not cross, and the best of these starts it again."""
+    for q in sorted({len(j.slots) for j in jobs}):
+        round_jobs = [j for j in jobs if len(j.slots) == q]
+        subs, twins = {}, {}
+        for job in round_jobs:
+            nested = [a for a in jobs if len(a.slots) < q and a.out is not None
+                      and _nested_in(a, job)]
+            mine = []
+            if nested:
+                best = min(nested, key=lambda a: a.rss)
+                subs[id(job)] = best
+                if first_pass:
+                    mine.append(_twin(job))
+                    _start_from(job, best)
+            if first_pass:
+                for j in _HYPOTHESES:
+                    signs = _hypothesis_signs(problems[job.problem].records, j)
+                    if signs is not None:
+                        mine.append(_twin(job, signs, problems[job.problem].records))
+            twins[id(job)] = mine
+        _fit_jobs(round_jobs + [t for ts in twins.values() for t in ts], problems, shape)
+        again = []
+        for job in round_jobs:
+            mine = twins[id(job)]
+            best = min([job] + mine, key=lambda a: a.rss)
+            if best is not job:
+                for name in ("code", "held", "p", "bound_hit", "out", "rss"):
+                    setattr(job, name, getattr(best, name))
+                if best.signs is not None:
+                    again.append(job)  # a signed-hypothesis optimum: refit the amplitudes
+            job.iterations += sum(t.iterations for t in mine)
+        _fit_jobs(again, problems, shape)
+        for job in round_jobs:
+            best = subs.get(id(job))
+            if best is not None and not job.rss <= best.rss * (1 + 1e-9):
+                _adopt(job, best, problems, shape)
+
+# -- the driver --------------------------------------------------------------------------------
+def _problem(space, records, givens, free, shared):
+    recs = []
+    for rec in records:
+        if not isinstance(rec, Record):
+            raise ValueError("records must be fits.Record objects (see fits.read_record)")
+        recs.append(rec)
+    for rec, given in zip(recs, givens):
+        _fixed_values(space, rec, free, given)  # a parameter without a value: its name first
+    decs = []
+    for rec in recs:
+        per_record = len(free) if len(recs) == 1 else len(free) - len(shared)
+        if len(rec) <= per_record:
+            raise ValueError(f"{rec.source or 'record'}: {len(rec)} turning points are too few "
+                             f"for {per_record} free parameters (need at least "
+                             f"{per_record + 1})")
+        if "omega" in free and rec.times is None:
+            raise ValueError("omega can only be fitted from a record with times")
+        centre = rec.centre if "offset" in space.names else 0.0
+        decs.append(decrement(rec, centre))
+    return _Problem(recs, [dict(g) for g in givens], tuple(free), tuple(shared), decs)
+
+
+def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
+    jobs = []
+    for i, prob in enumerate(problems):
+        jobs.extend(_jobs_for(i, prob, space, bounds, compare))
+    N = _bucket(max(len(rec) for prob in problems for rec in prob.records))
+    n_model = _bucket(max(int(rec.k[-1]) for prob in problems for rec in prob.records))
+    q = max(len(j.slots) for j in jobs)
+    per_round = {}
+    for j in jobs:  # extra starts on the first pass (see _fit_all)
+        amp_only = not all(rec.sides_known for rec in problems[j.problem].records)
+        starts = 1 + any(_nested_in(a, j) for a in jobs) + amp_only * len(_HYPOTHESES)
+        per_round[(len(j.slots), j.space)] = per_round.get((len(j.slots), j.space), 0) + starts
+    shape = _Shape(N, q, max(n_model, 1), max(per_round.values()), settings)
+    for prob in problems:
+        _init_weights(prob, N)
+    has_times = any(rec.times is not None for prob in problems for rec in prob.records)
+    passes = 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
+    for it in range(passes):
+        _fit_all(jobs, problems, shape, first_pass=it == 0)
+        if it + 1 < passes:
+            for i, prob in enumerate(problems):
+                lead = next(j for j in jobs if j.problem == i and j.headline)
+                _reweight(prob, lead, settings["loss"], N)
+    results = []
+    for i, prob in enumerate(problems):
+        mine = [j for j in jobs if j.problem == i]
+        head = next(j for j in mine if j.headline)
+        if space.select and len(mine) > 1:
+            head = min(mine, key=lambda j: _information(j, prob, N)["bic"])
+        results.append(_result(head, prob, jobs, shape, outlier_sigma))
+    for res in results:
+        for w in res.warnings:
+            warnings.warn(w, stacklevel=4)
+    return results
+
+
+def _parse_given(given, n):
+    if given is None or isinstance(given, dict):
+        return [dict(given or {})] * n
+    givens = [dict(g) for g in given]
+    if len(givens) != n:
+        raise ValueError(f"given: {len(givens)} dicts for {n} records")
+    return givens
+
+
+def _settings(space, free, shared, givens, bounds, forward, loss, optimizer, max_steps,
+              adam_steps, intervals):
+    bounds = {k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}
+    for g in givens:
+        free = _check_inputs(space, free, shared, g, bounds, forward, loss, optimizer)
+    return free, bounds, {"forward": forward, "loss": loss, "optimizer": optimizer,
+                          "max_steps": max_steps, "adam_steps": adam_steps,
+                          "intervals": intervals}
+
+
 def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=None, *,
-              forward: str = "exact", loss: str = "l2", optimizer: str = "lm",
+              bounds=None, forward: str = "exact", loss: str = "l2", optimizer: str = "lm",
               compare: bool = True, max_steps: int = 200, adam_steps: int = 3000,
-              outlier_sigma: float = 5.0, chunk_size: int | None = None, client=None,
-              store=None, resume: bool = False, progress=None) -> list:
-    """Fit the same model to many records at once (`jax.vmap` over records; one compilation).
+              outlier_sigma: float = 5.0, intervals: bool = True,
+              chunk_size: int | None = None, client=None, store=None, resume: bool = False,
+              progress=None) -> list:
+    """Fit the same model to many records independently, at once (`jax.vmap` over records and
+    sub-models; one compilation).
 
     Arguments as in [`fits.fit`][]; `given` is one dict for every record or a list of one dict per
     record (the free parameters are the same for all). Returns a list of
@@ -428,89 +606,28 @@ def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=No
     same chunks give the same results, to the last bit, in-process and on a cluster.
     """
     warn_if_float32()
-    if model not in SPACES:
-        raise ValueError(f"model must be one of {sorted(SPACES)} (got {model!r})")
-    space = SPACES[model]
+    space = _space(model)
     records = list(records)
     if not records:
         raise ValueError("no records to fit")
-    if given is None or isinstance(given, dict):
-        givens = [dict(given or {})] * len(records)
-    else:
-        givens = [dict(g) for g in given]
-        if len(givens) != len(records):
-            raise ValueError(f"given: {len(givens)} dicts for {len(records)} records")
-    for g in givens:
-        free = _check_inputs(space, free, g, forward, loss, optimizer)
+    givens = _parse_given(given, len(records))
+    free, bounds, settings = _settings(space, free, (), givens, bounds, forward, loss, optimizer,
+                                       max_steps, adam_steps, intervals)
     if chunk_size is not None or client is not None or store is not None:
-        chunk = functools.partial(_fit_chunk, model=model, free=free, forward=forward,
-                                  loss=loss, optimizer=optimizer, compare=compare,
-                                  max_steps=max_steps, adam_steps=adam_steps,
-                                  outlier_sigma=outlier_sigma)
+        chunk = functools.partial(_fit_chunk, model=model, free=free, bounds=bounds,
+                                  forward=forward, loss=loss, optimizer=optimizer,
+                                  compare=compare, max_steps=max_steps, adam_steps=adam_steps,
+                                  outlier_sigma=outlier_sigma, intervals=intervals)
         return vmj.map_chunks(chunk, list(zip(records, givens)), chunk_size=chunk_size,
                               client=client, store=store, resume=resume, progress=progress)
-    jobs, decs = _prepare(space, records, free, givens, compare)
-    q = len(free)
-    has_times = [j.record.times is not None for j in jobs]
-    sx = [max(j.record.noise or 0.0, 1e-3 * float(np.max(j.record.amplitudes))) for j in jobs]
-    st = [1e-3 * float(np.median(np.diff(j.record.times))) if t else 1.0
-          for j, t in zip(jobs, has_times)]
-    d, p, n_model, N = _arrays(space, jobs, q, sx, st)
-    wx0 = np.asarray(d.wx) * np.asarray(sx)[:, None]  # 1 on data, 0 on padding
-    wt0 = np.asarray(d.wt) * np.asarray(st)[:, None]
-    passes = 1 + any(has_times) + (_ROBUST_PASSES if loss != "l2" else 0)
-    iterations = np.zeros(len(jobs), dtype=int)
-    weights_x = np.ones((len(jobs), N))
-    weights_t = np.ones((len(jobs), N))
-    it = 0
-    while True:
-        if optimizer == "lm":
-            out = _solve_lm(space, forward, n_model, max_steps, d, p)
-        else:
-            out = _solve_adam(space, forward, n_model, adam_steps, loss, d, p)
-        p, theta, J, r, ok, steps = (np.asarray(v) for v in out)
-        iterations += steps.astype(int)
-        it += 1
-        # a positive (or [0, 1]) parameter that ran into its bound is held there (an active
-        # constraint) and the pass repeated: the solver cannot converge onto p = 0 of sqrt(theta)
-        code = np.asarray(d.code)
-        sin2 = np.sin(p) ** 2
-        near = np.where(ok[:, None], 1e-8, 1e-4)
-        at_bound = (((code == 1) & (p * p < near))
-                    | ((code == 2) & ((sin2 < near) | (sin2 > 1 - near))))
-        if at_bound.any() and it < passes + 2 * np.asarray(d.free).shape[1]:
-            fixed = np.asarray(d.fixed).copy()
-            rows, cols_ = np.nonzero(at_bound)
-            fixed[rows, np.asarray(d.free)[rows, cols_]] = np.where(
-                code[rows, cols_] == 1, 0.0, np.round(sin2[rows, cols_]))
-            code = np.where(at_bound, _HELD, code)
-            d = eqx.tree_at(lambda z: (z.fixed, z.code), d, (jnp.asarray(fixed), jnp.asarray(code)))
-            p = jnp.asarray(p)
-            passes += 1
-            continue
-        if it >= passes:
-            break
-        # re-estimate the noise of each block and the robust weights from the leader's residuals
-        wx_now, wt_now = np.asarray(d.wx), np.asarray(d.wt)
-        rx = np.where(wx_now > 0, r[:, :N] / np.where(wx_now > 0, wx_now, 1), np.nan)
-        rt = np.where(wt_now > 0, r[:, N:] / np.where(wt_now > 0, wt_now, 1), np.nan)
-        new_wx, new_wt = wx_now.copy(), wt_now.copy()
-        for j, job in enumerate(jobs):
-            L = job.leader
-            if j == L:
-                amp = float(np.max(job.record.amplitudes))
-                sx[j] = _robust_scale(rx[j][wx0[j] > 0], 1e-6 * amp)
-                if has_times[j]:
-                    st[j] = _robust_scale(rt[j][wt0[j] > 0], 1e-9)
-                if loss != "l2":
-                    weights_x[j] = np.nan_to_num(_psi_weight(loss, rx[j] / sx[j]), nan=0.0)
-                    weights_t[j] = np.nan_to_num(_psi_weight(loss, rt[j] / st[j]), nan=0.0)
-            new_wx[j] = wx0[j] * np.sqrt(weights_x[L]) / sx[L]
-            new_wt[j] = wt0[j] * np.sqrt(weights_t[L]) / st[L]
-        d = eqx.tree_at(lambda z: (z.wx, z.wt), d, (jnp.asarray(new_wx), jnp.asarray(new_wt)))
-        p = jnp.asarray(p)
-    return _results(space, forward, loss, optimizer, jobs, decs, d, theta, J, r, ok, iterations,
-                    N, n_model, outlier_sigma)
+    problems = [_problem(space, [rec], [g], free, ()) for rec, g in zip(records, givens)]
+    return _run(space, problems, free, bounds, settings, compare, outlier_sigma)
+
+
+def _space(model) -> Space:
+    if model not in SPACES:
+        raise ValueError(f"model must be one of {sorted(SPACES)} (got {model!r})")
+    return SPACES[model]
 
 
 def _fit_chunk(items, **settings) -> list:
@@ -519,128 +636,61 @@ def _fit_chunk(items, **settings) -> list:
     return fit_batch([r for r, _ in items], given=[g for _, g in items], **settings)
 
 
-def _results(space, forward, loss, optimizer, jobs, decs, d, theta, J, r, ok, iterations, N,
-             n_model, outlier_sigma):
-    wx, wt = np.asarray(d.wx), np.asarray(d.wt)
-    stats = []
-    for j, job in enumerate(jobs):
-        rw = r[j]
-        used = np.concatenate([wx[j] > 0, wt[j] > 0])
-        n_res = int(np.sum(used))
-        rss = float(np.sum(rw[used] ** 2))
-        q = len(job.free)
-        ll = n_res * math.log(max(rss, 1e-300) / n_res)
-        stats.append({"aic": ll + 2 * q, "bic": ll + q * math.log(n_res), "rss": rss,
-                      "n": n_res, "q": q})
-    results = []
-    leaders = [j for j, job in enumerate(jobs) if job.variant == "fit"]
-    for dec, L in zip(decs, leaders):
-        job = jobs[L]
-        rec = job.record
-        q = len(job.free)
-        m = len(rec)
-        th = dict(zip(space.names, theta[L][:-1].tolist()))
-        params = {nm: th[nm] for nm in job.free}
-        fixed = {nm: v for nm, v in th.items() if nm not in job.free}
-        Jf = J[L][:, :q]
-        used = np.concatenate([wx[L] > 0, wt[L] > 0])
-        dof = max(stats[L]["n"] - q, 1)
-        s2 = stats[L]["rss"] / dof
-        cov = s2 * np.linalg.pinv(Jf[used].T @ Jf[used])
-        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            corr = cov / np.outer(se, se)
-        stderr = dict(zip(job.free, se.tolist()))
-        warn = []
-        for i, nm in enumerate(job.free):
-            if not se[i] < abs(params[nm]):
-                warn.append(f"{nm} is not identifiable from these data: its standard error "
-                            f"{se[i]:.3g} is not below its value {params[nm]:.3g}")
-        for a in range(q):
-            for b in range(a + 1, q):
-                if abs(corr[a, b]) > 0.99:
-                    warn.append(f"{job.free[a]} and {job.free[b]} are not separately identifiable:"
-                                f" correlation {corr[a, b]:.4f}")
-        # per-point residuals in the data's units
-        res_x = r[L][:m] / np.where(wx[L][:m] > 0, wx[L][:m], 1.0)
-        floor = 1e-4 * float(np.max(rec.amplitudes))
-        sig = _robust_scale(res_x, floor)
-        z = res_x / sig
-        flagged = np.abs(z) > outlier_sigma
-        res_t = None
-        z_t = None
-        if rec.times is not None:
-            res_t = r[L][N:N + m] / np.where(wt[L][:m] > 0, wt[L][:m], 1.0)
-            res_t[wt[L][:m] == 0] = 0.0
-            z_t = res_t / _robust_scale(res_t[wt[L][:m] > 0], 1e-12)
-            flagged |= np.abs(z_t) > outlier_sigma
-        comparison = {}
-        variants = [j for j, jb in enumerate(jobs) if jb.leader == L]
-        if len(variants) > 1:
-            names = {"fit": "both"}
-            for j in variants:
-                comparison[names.get(jobs[j].variant, jobs[j].variant)] = {
-                    "aic": stats[j]["aic"], "bic": stats[j]["bic"],
-                    "params": dict(zip(jobs[j].free,
-                                       [float(theta[j][space.index(nm)]) for nm in jobs[j].free])),
-                    "converged": bool(ok[j]),
-                }
-            comparison["best_aic"] = min((k for k in comparison), key=lambda k: comparison[k]["aic"])
-            comparison["best_bic"] = min((k for k in comparison if k != "best_aic"),
-                                         key=lambda k: comparison[k]["bic"])
-        results.append(FitResult(
-            model=space.name, forward=forward, loss=loss, optimizer=optimizer,
-            params=params, fixed=fixed, stderr=stderr,
-            correlation=np.where(np.isfinite(corr), corr, np.nan).tolist(),
-            converged=bool(ok[L]), iterations=int(iterations[L]),
-            rms=float(np.sqrt(np.mean(res_x**2))),
-            rms_time=None if res_t is None else float(np.sqrt(np.mean(res_t[1:] ** 2))),
-            model_comparison=comparison,
-            residuals={"k": rec.k.tolist(), "position": res_x.tolist(),
-                       "time": None if res_t is None else res_t.tolist(),
-                       "standardized": z.tolist(), "outlier": flagged.tolist()},
-            outliers=[int(k) for k in rec.k[flagged]],
-            warnings=warn, decrement={k: v for k, v in dec.items() if k != "pairs"},
-            record=rec,
-        ))
-        results[-1].decrement["pairs"] = dec["pairs"]
-        for w in warn:
-            warnings.warn(w, stacklevel=3)
-    return results
-
-
-def fit(record: Record, model: str = "variable-mass", free=("FT", "mu"), given=None, *,
-        forward: str = "exact", loss: str = "l2", optimizer: str = "lm", compare: bool = True,
-        max_steps: int = 200, adam_steps: int = 3000, outlier_sigma: float = 5.0) -> FitResult:
-    """Identify friction and damping from one measured decay.
+def fit(record, model: str = "variable-mass", free=("FT", "mu"), given=None, *,
+        shared=(), bounds=None, forward: str = "exact", loss: str = "l2",
+        optimizer: str = "lm", compare: bool = True, max_steps: int = 200,
+        adam_steps: int = 3000, outlier_sigma: float = 5.0,
+        intervals: bool = True) -> FitResult:
+    """Identify friction and damping from one measured decay, or from several jointly.
 
     **Arguments:**
 
-    - `record`: a [`fits.Record`][] (see [`fits.read_record`][], [`fits.record_from_sequence`][]).
+    - `record`: a [`fits.Record`][] (see [`fits.read_record`][],
+      [`fits.record_from_sequence`][]), or a list of records fitted jointly (one
+      least-squares solve over all their residuals).
     - `model`: `"variable-mass"` (parameters `FT` [N], `f` [-], `mu` [kg/s], `eps` [-],
       `delta` [kg/s], `a0` [m], `offset` [m], `m0` [kg], `c` [N/m], `g` [m/s^2]; `m0` and `c`
       must be given), `"oscillator"` (`omega` [rad/s], `zeta` [-], `xF`, `a0`, `offset` in the
-      signal's units) or `"rope"` (when available).
+      signal's units, `asym` [-] the sensor's side-dependent gain; `omega` must be given or
+      fitted) or `"rope"`.
     - `free`: names of the parameters to fit.
     - `given`: values of fixed parameters (and starting values of free ones, overriding the
-      decrement-method start). Unlisted parameters default to 0 (`g` 9.81, `a0` the first
-      amplitude, the oscillator's `offset` the record's centre).
+      decrement-method start), a dict or one per record. A parameter neither fitted nor given
+      takes its physical default (friction and damping terms 0, `g` 9.81 m/s^2, `asym` 0,
+      `a0` the release point's distance from the record's centre, `offset` the record's
+      centre); one without a default (`m0`, `c`, the oscillator's `omega`, ...) is an error.
+    - `shared`: with several records, the free parameters that take one value for all of them
+      (the others, e.g. `offset`, `a0`, one value per record).
+    - `bounds`: `{name: (lo, hi)}` in the parameter's units, narrowing its physical range; a
+      parameter ending at a bound set here is not flagged (one at a physical bound is).
     - `forward`: `"exact"` (default; exact turning points), `"smooth"` (smoothed ODE) or
       `"energy"` (the closed-form energy-balance recurrence).
     - `loss`: `"l2"`, or a robust `"huber"`/`"cauchy"` (iteratively reweighted, with the scale
       re-estimated from the residuals' MAD each pass).
     - `optimizer`: `"lm"` (Levenberg-Marquardt, optimistix) or `"adam"` (optax; minimises the
       loss directly for `adam_steps` steps).
-    - `compare`: when both dry and viscous parameters are free, also fit Coulomb-only and
-      viscous-only and compare by AIC/BIC.
+    - `compare`: also fit the model's sub-models (`Space.variants`: Coulomb-only and
+      viscous-only) and compare them by AIC/BIC.
     - `max_steps`: Levenberg-Marquardt step limit per pass.
     - `outlier_sigma`: residuals beyond this many robust standard deviations are flagged.
+    - `intervals`: compute 95 % profile-likelihood intervals (else Wald intervals).
 
     **Returns:** a [`fits.FitResult`][].
 
-    Raises `ValueError` for unknown parameters, values out of range, too few points for the
-    free parameters, or a record that does not decay.
+    Raises `ValueError` for unknown parameters, values out of range or outside `bounds`, a
+    parameter neither fitted, given nor defaulted, too few points for the free parameters, or a
+    record that does not decay.
     """
-    return fit_batch([record], model, free, given, forward=forward, loss=loss,
-                     optimizer=optimizer, compare=compare, max_steps=max_steps,
-                     adam_steps=adam_steps, outlier_sigma=outlier_sigma)[0]
+    warn_if_float32()
+    space = _space(model)
+    records = list(record) if isinstance(record, (list, tuple)) else [record]
+    if not records:
+        raise ValueError("no records to fit")
+    givens = _parse_given(given, len(records))
+    shared = tuple(shared)
+    if shared and len(records) < 2:
+        raise ValueError("--shared needs several records")
+    free, bounds, settings = _settings(space, free, shared, givens, bounds, forward, loss,
+                                       optimizer, max_steps, adam_steps, intervals)
+    prob = _problem(space, records, givens, free, shared)
+    return _run(space, [prob], free, bounds, settings, compare, outlier_sigma)[0]

@@ -13,25 +13,58 @@ closed-form half-swing map (what the decrement method linearises).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 
 import jax.numpy as jnp
+import numpy as np
 
 import vmj
 
-__all__ = ["Space", "SPACES", "FORWARDS"]
+from ._io import Record
+from ._params import Interval, Positive, Real, Transform, transform_for
+
+__all__ = ["Space", "Variant", "SPACES", "FORWARDS"]
 
 FORWARDS = ("exact", "smooth", "energy")
 
-#: how a parameter is kept in range: theta = scale p (real), scale p^2 (positive),
-#: sin(p)^2 (unit: [0, 1])
-KIND_CODES = {"real": 0, "positive": 1, "unit": 2, "damping": 2}  # damping: [0, 1)
+_UNDERDAMPED = 1.0 - 1e-9  #: the damping kind's upper end (an underdamped oscillator)
+#: the range of each kind of parameter (a Space's `bounds` narrows it per parameter)
+_KIND_TRANSFORMS = {"real": Real, "positive": Positive, "unit": lambda: Interval(0.0, 1.0),
+                    "damping": lambda: Interval(0.0, _UNDERDAMPED)}
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A sub-model (or an alternative model) fitted beside the one asked for and compared with
+    it by AIC/BIC: `label`; `space` (`None`: the same space); `hold`: parameters removed from
+    the free set and held at these values [their units]."""
+
+    label: str
+    space: Space | None = None
+    hold: Mapping = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class Space:
-    """A model family for fitting (static; compared by name)."""
+    """A model family for fitting (static; compared by name).
+
+    **Fields:** `name`; `names`, `kinds` (`"real"`, `"positive"`, `"unit"`, `"damping"`) and
+    `units` of its parameters; `dry` and `viscous` parameters; `required` (kept for reference:
+    the parameters without a default); `predict(theta, n, forward)` -> `(times [s], signed
+    positions)` of the release and the first `n` turning points, released from rest at `-a0`;
+    `defaults` (`{name: value or function of the Record}`: physical values of parameters
+    neither fitted nor given; a parameter with none must be given or fitted); `variants`
+    (sub-models compared with the fit); `select` (the headline result is the variant preferred
+    by BIC); `bounds` (`{name: (lo, hi)}`, narrower physical ranges than the kind's);
+    `label` (the label of the full model in the comparison); `start(record, values, dec)`
+    (optional: starting values from a record, the known values and its decrement estimate,
+    instead of `fits._decrement.starting_guess`'s).
+
+    Sensor parameters, applied by the fit when present in `names`: `offset` (the reading's
+    zero) and `asym` (side-dependent gain): the reading is
+    `offset + o y (1 + asym sign(o y))`, `y` the model's position, `o` the record's orientation.
+    """
 
     name: str
     names: tuple
@@ -41,9 +74,32 @@ class Space:
     viscous: tuple  #: viscous parameters (fixed to 0 for the Coulomb-only comparison)
     required: tuple  #: parameters that must be given when not fitted
     predict: Callable = None
+    defaults: Mapping = field(default_factory=dict)
+    variants: tuple = ()
+    select: bool = False
+    bounds: Mapping = field(default_factory=dict)
+    label: str = "both"
+    start: Callable | None = None  #: `start(record, given, dec) -> {name: value}` (optional)
 
     def index(self, name: str) -> int:
         return self.names.index(name)
+
+    def unit(self, name: str) -> str:
+        return self.units[self.index(name)]
+
+    def transform(self, name: str) -> Transform:
+        """The physical range of a parameter as a bijection (its kind, narrowed by `bounds`)."""
+        if name in self.bounds:
+            lo, hi = self.bounds[name]
+            if self.kinds[self.index(name)] == "damping":
+                hi = min(hi, _UNDERDAMPED)
+            return transform_for(lo, hi)
+        return _KIND_TRANSFORMS[self.kinds[self.index(name)]]()
+
+    def default(self, name: str, record: Record):
+        """The physical default of `name` for `record`, or `None` when it has none."""
+        value = self.defaults.get(name)
+        return value(record) if callable(value) else value
 
     def __hash__(self):
         return hash(self.name)
@@ -56,6 +112,31 @@ def _sequence(seq, a0):
     times = jnp.concatenate([jnp.zeros((1,)), seq.times])
     positions = jnp.concatenate([-jnp.reshape(a0, (1,)), seq.positions])
     return times, positions
+
+
+def record_centre(record: Record) -> float:
+    """Default `offset`: the record's centre [signal units]."""
+    return float(record.centre)
+
+
+def first_amplitude(record: Record) -> float:
+    """Default `a0`: the distance of the release point (`k = 0`) from the record's centre."""
+    if record.k[0] != 0:
+        raise ValueError("the record has no k = 0 row: give a0 with --set a0=VALUE or fit it")
+    return float(np.abs(record.positions[0] - record.centre))
+
+
+def _omega_without_times(record: Record):
+    """The oscillator's `omega` only sets the time scale: for a record without times the
+    turning points do not depend on it (1 rad/s, nominal); a record with times must give or
+    fit it (no default)."""
+    return 1.0 if record.times is None else None
+
+
+def friction_variants(dry: tuple, viscous: tuple) -> tuple:
+    """The Coulomb-only and viscous-only sub-models."""
+    return (Variant("coulomb", None, {n: 0.0 for n in viscous}),
+            Variant("viscous", None, {n: 0.0 for n in dry}))
 
 
 # -- variable-mass oscillator ------------------------------------------------------------------
@@ -76,6 +157,9 @@ VARIABLE_MASS = Space(
     viscous=("mu",),
     required=("m0", "c"),
     predict=_variable_mass,
+    defaults={"FT": 0.0, "f": 0.0, "mu": 0.0, "eps": 0.0, "delta": 0.0, "g": 9.81,
+              "a0": first_amplitude, "offset": record_centre},
+    variants=friction_variants(("FT", "f"), ("mu",)),
 )
 
 
@@ -94,13 +178,17 @@ def _oscillator(theta: dict, n: int, forward: str):
 
 OSCILLATOR = Space(
     name="oscillator",
-    names=("omega", "zeta", "xF", "a0", "offset"),
-    kinds=("positive", "damping", "positive", "positive", "real"),
-    units=("rad/s", "-", "signal", "signal", "signal"),
+    names=("omega", "zeta", "xF", "a0", "offset", "asym"),
+    kinds=("positive", "damping", "positive", "positive", "real", "real"),
+    units=("rad/s", "-", "signal", "signal", "signal", "-"),
     dry=("xF",),
     viscous=("zeta",),
-    required=(),
+    required=("omega",),
     predict=_oscillator,
+    defaults={"zeta": 0.0, "xF": 0.0, "asym": 0.0, "a0": first_amplitude,
+              "offset": record_centre, "omega": _omega_without_times},
+    variants=friction_variants(("xF",), ("zeta",)),
+    bounds={"asym": (-0.5, 0.5)},
 )
 
 # -- mass on a rope of varying length (Osinski) ------------------------------------------------
@@ -120,6 +208,8 @@ ROPE = Space(
     viscous=(),
     required=("m", "A", "e", "l0"),
     predict=_rope,
+    defaults={"T": 0.0, "d": 0.0, "b": 0.0, "u": 0.0, "a0": first_amplitude,
+              "offset": record_centre},
 )
 
 SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR, ROPE)}
@@ -127,3 +217,8 @@ SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR, ROPE)}
 
 def theta_dict(space: Space, theta) -> dict:
     return {name: theta[..., i] for i, name in enumerate(space.names)}
+
+
+from ._pendulum import PENDULUM  # noqa: E402  (issue 11; imports Space and Variant from here)
+
+SPACES[PENDULUM.name] = PENDULUM

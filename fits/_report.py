@@ -18,95 +18,284 @@ __all__ = ["text_report", "plot_fit", "paper_records"]
 
 
 def _fmt(v) -> str:
-    return "nan" if v is None or not np.isfinite(v) else f"{v:.6g}"
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return "nan"
+    return "nan" if not np.isfinite(v) else f"{v:.6g}"
+
+
+def _interval(lo, hi) -> str:
+    """`[lo, hi]` with enough digits to tell the ends apart."""
+    try:
+        lo, hi = float(lo), float(hi)
+    except (TypeError, ValueError):
+        return "[nan, nan]"
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return f"[{_fmt(lo)}, {_fmt(hi)}]"
+    width, size = abs(hi - lo), max(abs(lo), abs(hi))
+    digits = 6 if width <= 0 or size <= 0 else int(min(15, max(6, np.ceil(
+        np.log10(size / width)) + 3)))
+    return f"[{lo:.{digits}g}, {hi:.{digits}g}]"
+
+
+def _short(v, digits: int) -> str:
+    return "nan" if v is None or not np.isfinite(v) else f"{v:.{digits}g}"
+
+
+def _corr(v) -> str:
+    return "nan" if v is None or not np.isfinite(v) else f"{v:+.3f}"
+
+
+def _field(result, name, default=None):
+    """A field of the result, `default` when this result does not carry it."""
+    value = getattr(result, name, None)
+    return default if value is None else value
+
+
+def _unit(result, name: str) -> str:
+    unit = _field(result, "units", {}).get(name)
+    if unit == "signal":
+        unit = "signal units"
+    return f" [{unit}]" if unit and unit != "-" else ""
+
+
+def _comparison_rows(comparison: dict) -> list:
+    return [(k, v) for k, v in comparison.items() if isinstance(v, dict) and "aic" in v]
+
+
+def _warnings(result) -> list:
+    seen = []
+    for w in list(_field(result, "warnings", [])) + list(
+            _field(result, "diagnostics", {}).get("warnings", [])):
+        if w not in seen:
+            seen.append(w)
+    return seen
 
 
 def text_report(result: FitResult) -> str:
-    """A readable summary of a [`fits.FitResult`][]."""
-    lines = [f"model {result.model} (forward {result.forward}, loss {result.loss}, "
-             f"optimizer {result.optimizer}), {len(result.record)} turning points"]
+    """A readable summary of a [`fits.FitResult`][]: each fitted parameter with its unit, its
+    standard error corrected for residual autocorrelation (`+-`), the Gauss-Newton standard
+    error (`gn`) and the 95 % interval; correlations; convergence; residual RMS and
+    diagnostics (lag-1 autocorrelation, runs test, effective sample size); the decrement
+    method; the model comparison by AIC/BIC; per-record values of a joint fit; the sample
+    clock of a raw signal; every warning."""
+    label = _field(result, "label", "")
+    records = _field(result, "records", [])
+    what = (f"{len(records)} records" if len(records) > 1
+            else f"{len(result.record)} turning points")
+    lines = [f"model {result.model}" + (f" ({label})" if label else "")
+             + f", forward {result.forward}, loss {result.loss}, optimizer {result.optimizer}, "
+             + what]
+    intervals = _field(result, "intervals", {})
+    stderr_gn = _field(result, "stderr_gn", {})
     for name, value in result.params.items():
-        lines.append(f"  {name:>7} = {_fmt(value):>12} +- {_fmt(result.stderr[name])}")
+        line = (f"  {name:>7} = {_fmt(value):>12} +- {_fmt(result.stderr.get(name)):<10}"
+                f"{_unit(result, name)}")
+        if name in stderr_gn:
+            line += f"  (gn +- {_fmt(stderr_gn[name])})"
+        if name in intervals and intervals[name] is not None:
+            line += "  95 % " + _interval(*intervals[name])
+        lines.append(line)
     if len(result.params) > 1:
         names = list(result.params)
         lines.append("  correlation: " + "; ".join(
-            f"{a}/{b} {result.correlation[i][j]:+.3f}" for i, a in enumerate(names)
+            f"{a}/{b} {_corr(result.correlation[i][j])}" for i, a in enumerate(names)
             for j, b in enumerate(names) if j > i))
     lines.append(f"  converged: {result.converged} after {result.iterations} iterations; "
                  f"rms {_fmt(result.rms)}" + ("" if result.rms_time is None
                                              else f", time rms {_fmt(result.rms_time)} s"))
+    diag = _field(result, "diagnostics", {})
+    if diag:
+        n_res = _field(result, "n_residuals")
+        lines.append(f"  residuals: lag-1 autocorrelation {_short(diag.get('lag1'), 3)}, runs test "
+                     f"p = {_short(diag.get('runs_p'), 3)}, effective sample size "
+                     f"{_short(diag.get('n_eff'), 4)}" + ("" if not n_res else f" of {n_res}"))
     dec = result.decrement
-    lines.append(f"  decrement method: r = {dec['r']:.6g} per half-swing, zeta = {dec['zeta']:.4g}, "
-                 f"xF = {dec['xF']:.4g} +- {dec['stderr_xF']:.2g} (signal units)")
-    if result.model_comparison:
+    if dec:
+        lines.append(f"  decrement method: r = {_fmt(dec.get('r'))} per half-swing, zeta = "
+                     f"{_fmt(dec.get('zeta'))}, xF = {_fmt(dec.get('xF'))} +- "
+                     f"{_fmt(dec.get('stderr_xF'))} (signal units)")
+    rows = _comparison_rows(result.model_comparison or {})
+    aic, bic = _field(result, "aic"), _field(result, "bic")
+    if not rows and aic is not None and np.isfinite(aic):
+        lines.append(f"  AIC {aic:.2f}, BIC {bic:.2f}")
+    if rows:
         lines.append("  model comparison (lower is better):")
-        for k in ("coulomb", "viscous", "both"):
-            c = result.model_comparison[k]
-            lines.append(f"    {k:>8}: AIC {c['aic']:10.2f}  BIC {c['bic']:10.2f}  "
-                         + ", ".join(f"{n}={_fmt(v)}" for n, v in c["params"].items()))
-        lines.append(f"    best by AIC: {result.model_comparison['best_aic']}, by BIC: "
-                     f"{result.model_comparison['best_bic']}")
+        for k, c in rows:
+            lines.append(f"    {k:>10}: AIC {c['aic']:10.2f}  BIC {c['bic']:10.2f}  "
+                         + ", ".join(f"{n}={_fmt(v)}" for n, v in c.get("params", {}).items()))
+        best = [f"by {k[5:].upper()}: {v}" for k, v in result.model_comparison.items()
+                if k.startswith("best_")]
+        if best:
+            lines.append("    best " + ", ".join(best))
+    if len(records) > 1:
+        lines.append("  per record:")
+        for i, item in enumerate(records):
+            item = item if isinstance(item, dict) else {}
+            src = item.get("source") or f"record {i}"
+            values = item.get("params", {})
+            err = item.get("stderr", {})
+            ivs = item.get("intervals", {})
+            lines.append(f"    {src}: " + ", ".join(
+                f"{n}={_fmt(v)} +- {_fmt(err.get(n))}"
+                + (" " + _interval(*ivs[n]) if ivs.get(n) is not None else "")
+                for n, v in values.items()))
+    clock = _field(result, "clock", None) or result.record.clock
+    if clock:
+        lines.append("  clock: " + str(clock.get("message") or ", ".join(
+            f"{k} {v}" for k, v in clock.items() if not isinstance(v, (list, dict)))))
     if result.outliers:
         lines.append(f"  outliers (|residual| > 5 robust sd) at k = {result.outliers}")
-    lines += [f"  warning: {w}" for w in result.warnings]
+    lines += [f"  warning: {w}" for w in _warnings(result)]
     return "\n".join(lines)
 
 
-def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = None) -> None:
-    """Figure of a fit: the data (and raw signal) with the fitted turning points, the residuals
-    (outliers circled), and the decrement diagram `A_{k+1}` against `A_k` with the
-    decrement-method line and the fitted model's map."""
+def _acf(x: np.ndarray, lags: int) -> np.ndarray:
+    """Autocorrelation at lags 1..`lags`, as `fits._stats.diagnostics` defines lag 1 (not
+    demeaned: residuals are deviations from the model)."""
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    den = float(np.dot(x, x))
+    if den <= 0:
+        return np.full(lags, np.nan)
+    return np.array([np.dot(x[:-h], x[h:]) / den if h < x.size else np.nan
+                     for h in range(1, lags + 1)])
+
+
+def _panels(result):
+    """`(record or None, residuals, per-record parameters, source)` to draw: the first record
+    with its data; the further records of a joint fit with their residuals only (a result
+    keeps the first record's data)."""
+    items = [it for it in _field(result, "records", [])
+             if isinstance(it, dict) and isinstance(it.get("residuals"), dict)]
+    first = items[0].get("params", {}) if items else {}
+    out = [(result.record, result.residuals, first, result.record.source)]
+    out += [(None, it["residuals"], it.get("params", {}), it.get("source") or f"record {i + 1}")
+            for i, it in enumerate(items[1:])]
+    return out
+
+
+def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = None,
+             lags: int = 20) -> None:
+    """Figure of a fit, written atomically to `path` (format from its extension).
+
+    Panels: the data (turning points; the raw signal when the record has one) with the fitted
+    turning points; the decrement diagram (amplitude `A_{k+1}` against `A_k`: data pairs, the
+    decrement-method line and the fitted model's map, i.e. its predicted amplitude pairs);
+    the position residuals and, when the record has times, the time residuals [s]; and their
+    autocorrelation at lags 1-`lags` with the white-noise band `+-1.96/sqrt(n)`.
+
+    **Arguments:** `result` (a [`fits.FitResult`][]), `path` (the file: `.png`, `.pdf`,
+    `.svg`), `title` (of the first panel; default: the fitted values), `lags` (the
+    autocorrelation's largest lag, in points).
+    """
     from vmj.plot import pyplot, save
 
     plt = pyplot()
-    rec = result.record
-    res = np.asarray(result.residuals["position"])
-    fitted = rec.positions + res
-    x_axis = rec.times if rec.times is not None else rec.k
-    xlabel = "time from the first turning point [s]" if rec.times is not None else "swing k"
-    flagged = np.asarray(result.residuals["outlier"], dtype=bool)
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.4), gridspec_kw={"width_ratios": [2.2, 1.4, 1]})
-    ax = axes[0]
-    if rec.signal is not None:
-        s = rec.signal
-        ax.plot(s.t - rec.time_origin, s.y, lw=0.5, color="0.6", label="raw signal")
-    ax.plot(x_axis, rec.positions, "o", ms=3.5, mfc="none", label="turning points (data)")
-    ax.plot(x_axis, fitted, "-", lw=1.0, color="C3", label=f"fit ({result.forward})")
-    off = result.params.get("offset", result.fixed.get("offset", 0.0))
-    ax.axhline(off, color="k", lw=0.5, ls=":")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel("position")
-    ax.legend(fontsize=8, loc="upper right")
-    ax.set_title(title or f"{result.model} fit: " + ", ".join(
-        f"{k}={v:.4g}\u00b1{result.stderr[k]:.2g}" for k, v in result.params.items()), fontsize=9)
-    ax = axes[1]
-    ax.axhline(0, color="k", lw=0.5)
-    ax.plot(x_axis, res, ".-", lw=0.6, ms=4, label="position residual")
-    if flagged.any():
-        ax.plot(np.asarray(x_axis)[flagged], res[flagged], "o", ms=10, mfc="none", color="r",
-                label="flagged outlier")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel("fit - data")
-    ax.set_title(f"residuals (rms {result.rms:.3g})", fontsize=9)
-    ax.legend(fontsize=8)
-    ax = axes[2]
+    panels = _panels(result)
+    has_times = any(res.get("time") is not None for _, res, _, _ in panels)
+    fig = plt.figure(figsize=(16, 8.4))
+    grid = fig.add_gridspec(2, 3, width_ratios=[2.2, 1.4, 1.1])
+    ax_data = fig.add_subplot(grid[0, :2])
+    ax_dec = fig.add_subplot(grid[0, 2])
+    ax_rx = fig.add_subplot(grid[1, 0] if has_times else grid[1, :2])
+    ax_rt = fig.add_subplot(grid[1, 1]) if has_times else None
+    ax_acf = fig.add_subplot(grid[1, 2])
+    params = {**result.fixed, **result.params}
+    off_global = params.get("offset", 0.0)
+    a_max = 0.0
+    acf_n = {"position": 0, "time": 0}
+    joint = len(panels) > 1
+    for i, (rec, res, rec_params, source) in enumerate(panels):
+        colour = f"C{i % 10}"
+        tag = f" ({source or i})" if joint else ""
+        off = rec_params.get("offset", off_global)
+        rx = np.asarray(res["position"], dtype=float)
+        k = np.asarray(res.get("k", np.arange(rx.size)))
+        flagged = np.asarray(res.get("outlier", np.zeros(rx.size)), dtype=bool)
+        # residuals against time for one record, against the swing for several
+        x_res = rec.times if rec is not None and rec.times is not None and not joint else k
+        ax_rx.axhline(0, color="k", lw=0.5)
+        ax_rx.plot(x_res, rx, ".-", lw=0.6, ms=4, color=colour, label="position" + tag)
+        if flagged.any():
+            ax_rx.plot(np.asarray(x_res)[flagged], rx[flagged], "o", ms=10, mfc="none",
+                       color="r", label="flagged outlier" if i == 0 else None)
+        acf_n["position"] += rx.size
+        ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i, _acf(rx, lags), "o-", ms=3, lw=0.8,
+                    color=colour, label="position" + tag)
+        rt = res.get("time")
+        if rt is not None and ax_rt is not None:
+            rt = np.asarray(rt, dtype=float)
+            ax_rt.axhline(0, color="k", lw=0.5)
+            ax_rt.plot(x_res, rt, ".-", lw=0.6, ms=4, color=colour, label="time" + tag)
+            rt_used = rt[1:] if k[0] == 0 else rt  # the release time is not a datum
+            acf_n["time"] += rt_used.size
+            ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i + 0.3, _acf(rt_used, lags), "s:",
+                        ms=3, lw=0.8, color=colour, mfc="none", label="time" + tag)
+        if rec is None:
+            continue
+        x_axis = rec.times if rec.times is not None else rec.k
+        data = rec.positions if rec.sides_known else rec.amplitudes + off
+        fitted = data + rx  # amplitude-only records: the residual compares amplitudes
+        if rec.signal is not None:
+            s = rec.signal
+            ax_data.plot(s.t - rec.time_origin, s.y, lw=0.5, color="0.6", label="raw signal")
+        ax_data.plot(x_axis, data, "o", ms=3.5, mfc="none", color=colour,
+                     label=("turning points" if rec.sides_known else "amplitudes") + tag)
+        ax_data.plot(x_axis, fitted, "-", lw=1.0, color="C3", label=f"fit ({result.forward})")
+        ax_data.axhline(off, color="k", lw=0.5, ls=":")
+        # decrement diagram: consecutive swings only
+        amp_data = np.abs(data - off)
+        amp_fit = np.abs(fitted - off)
+        nxt = np.flatnonzero(np.diff(rec.k) == 1)
+        ax_dec.plot(amp_data[nxt], amp_data[nxt + 1], "o", ms=3, mfc="none", color=colour,
+                    label="data pairs" + tag)
+        order = np.argsort(amp_fit[nxt])
+        ax_dec.plot(amp_fit[nxt][order], amp_fit[nxt + 1][order], "-", color="C3",
+                    label="fitted model's map")
+        a_max = max(a_max, float(np.max(amp_data)) if amp_data.size else 0.0)
+    ax_data.set_xlabel("time from the release [s]" if panels[0][0].times is not None
+                       else "swing k")
+    ax_data.set_ylabel("position [signal units]")
+    ax_data.legend(fontsize=8, loc="upper right")
+    stderr = result.stderr
+    ax_data.set_title(title or f"{result.model} fit" + (" (first record)" if joint else "")
+                      + ": " + ", ".join(
+        f"{k}={_short(v, 5)}\u00b1{_short(stderr.get(k), 2)}" for k, v in result.params.items()),
+        fontsize=9)
+    xlabel = "swing k" if joint else ax_data.get_xlabel()
+    ax_rx.set_xlabel(xlabel)
+    ax_rx.set_ylabel("fit - data [signal units]")
+    ax_rx.set_title(f"position residuals (rms {_fmt(result.rms)})", fontsize=9)
+    ax_rx.legend(fontsize=8)
+    if ax_rt is not None:
+        ax_rt.set_xlabel(xlabel)
+        ax_rt.set_ylabel("fit - data [s]")
+        ax_rt.set_title(f"time residuals (rms {_fmt(result.rms_time)} s)", fontsize=9)
+    ax_acf.axhline(0, color="k", lw=0.5)
+    for kind, shade in (("position", "0.85"), ("time", "0.92")):
+        if acf_n[kind]:
+            band = 1.96 / np.sqrt(acf_n[kind] / len(panels))
+            ax_acf.axhspan(-band, band, color=shade, zorder=0, label=f"{kind}: \u00b11.96/\u221an")
+    diag = _field(result, "diagnostics", {})
+    ax_acf.set_title("residual autocorrelation" + (
+        f" (lag-1 {_short(diag.get('lag1'), 3)}, runs p {_short(diag.get('runs_p'), 2)})"
+        if diag else ""),
+        fontsize=9)
+    ax_acf.set_xlabel("lag [points]")
+    ax_acf.set_ylim(-1.05, 1.05)
+    ax_acf.legend(fontsize=7)
     dec = result.decrement
-    a_now, a_next = dec["pairs"]
-    ax.plot(a_now, a_next, "o", ms=3, mfc="none", label="data pairs")
-    grid = np.linspace(0, float(np.max(a_now)) * 1.05, 50)
-    ax.plot(grid, dec["slope"] * grid + dec["intercept"], "-", color="C2",
-            label=f"decrement method: r={dec['r']:.4f}, xF={dec['xF']:.3g}")
-    if result.model == "oscillator":
-        p = {**result.fixed, **result.params}
-        wd = p["omega"] * np.sqrt(1 - p["zeta"] ** 2)
-        r = np.exp(-p["zeta"] * p["omega"] * np.pi / wd)
-        ax.plot(grid, r * grid - (1 + r) * p["xF"], "--", color="C3",
-                label=f"fitted model: r={r:.4f}, xF={p['xF']:.3g}")
-    ax.plot(grid, grid, ":", color="0.5", lw=0.8, label="no loss")
-    ax.set_xlabel("amplitude A_k")
-    ax.set_ylabel("next amplitude A_{k+1}")
-    ax.set_title("decrement diagram", fontsize=9)
-    ax.legend(fontsize=7)
+    grid_a = np.linspace(0, a_max * 1.05, 50)
+    if dec and "slope" in dec:
+        ax_dec.plot(grid_a, dec["slope"] * grid_a + dec["intercept"], "-", color="C2", lw=0.8,
+                    label=f"decrement method: r={_fmt(dec['r'])}, xF={_fmt(dec['xF'])}")
+    ax_dec.plot(grid_a, grid_a, ":", color="0.5", lw=0.8, label="no loss")
+    ax_dec.set_xlabel("amplitude A_k [signal units]")
+    ax_dec.set_ylabel("next amplitude A_{k+1}")
+    ax_dec.set_title("decrement diagram", fontsize=9)
+    ax_dec.legend(fontsize=7)
     fig.tight_layout()
     save(fig, path)
     plt.close(fig)

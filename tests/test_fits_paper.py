@@ -93,7 +93,10 @@ def test_monograph_columns(which, request):
     assert len(pairs) == 8
     for it, r in pairs:
         law = it["free"][0]
-        assert r.converged, it["record"].source
+        if it["mu"] == 0 and not r.converged:  # mu at its physical bound 0 is flagged (issue 12)
+            assert any(w.startswith("mu ran into its bound 0") for w in r.warnings), r.warnings
+        else:
+            assert r.converged, it["record"].source
         if it["table"] == 1 and it["mu"] == 9:
             continue  # bad published cells: see test_bad_cells_need_the_robust_loss
         assert abs(r.params[law] / PAPER[law] - 1) < 0.02, (it["record"].source, r.params)

@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 import fits
-from fits._fit import _arrays, _dtheta_dp, _Job, _residual_and_jacobian, _theta
+from fits._fit import _bucket, _init_weights, _make_job, _problem
+from fits._solve import _Data, _job_arrays, _residual_and_jacobian, _Shape, _values
 from fits._models import SPACES
+from fits._params import HELD, derivative
 from vmj.cli import main
 
 HERE = os.path.dirname(__file__)
@@ -226,8 +228,9 @@ def test_cli_json_shape_and_errors(tmp_path, capsys):
     assert main(["fit", path, "--model", "oscillator", "--fit", "zeta,xF", "--set",
                  "a0=10,offset=0", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert list(out) == ["params", "stderr", "correlation", "converged", "iterations", "rms",
-                         "model_comparison"]
+    assert list(out) == ["model", "params", "stderr", "stderr_gn", "intervals", "correlation",
+                         "converged", "iterations", "rms", "diagnostics", "model_comparison",
+                         "units"]
     assert set(out["params"]) == {"zeta", "xF"} and out["converged"] is True
     assert len(out["correlation"]) == 2
     assert main(["fit", _write(tmp_path, "", "e.csv"), "--model", "oscillator"]) == 2
@@ -247,10 +250,10 @@ def test_energy_forward_model_agrees_with_the_exact_one(pendulum):
 
 
 
-def _held(d, idx, value):
-    """`d` with parameter `idx` held at `value` (its free slot no longer moved by p)."""
-    return eqx.tree_at(lambda z: (z.fixed, z.code), d,
-                       (d.fixed.at[idx].set(value), jnp.where(d.free == idx, 3, d.code)))
+def _held(d, slot, value):
+    """`d` with slot `slot` held at `value` (no longer moved by p)."""
+    return eqx.tree_at(lambda z: (z.code, z.held), d,
+                       (d.code.at[slot].set(HELD), d.held.at[slot].set(value)))
 
 
 def test_fit_jacobian_matches_finite_differences(synthetic_signal):
@@ -260,22 +263,27 @@ def test_fit_jacobian_matches_finite_differences(synthetic_signal):
     rec = fits.read_record(path, series=True)
     space = SPACES["oscillator"]
     start = {"omega": 20.1, "zeta": 0.011, "xF": 0.04, "a0": 9.9, "offset": 1.9}
-    d, p0, n, _ = _arrays(space, [_Job(rec, FREE, start, {}, 0, "fit")], len(FREE), [0.02],
-                          [1e-3])
-    d, p = jax.tree.map(lambda a: a[0], d), p0[0]
+    prob = _problem(space, [rec], [start], FREE, ())
+    job = _make_job(0, prob, space, "both", FREE, {}, {}, True)
+    N = _bucket(len(rec))
+    _init_weights(prob, N)
+    arrays = _job_arrays(job, prob, _Shape(N, len(FREE), _bucket(int(rec.k[-1])), 1, {}))
+    p = jnp.asarray(arrays.pop("p"))
+    d = _Data(**{k: jnp.asarray(v) for k, v in arrays.items()})
+    n = _bucket(int(rec.k[-1]))
     r, J = _residual_and_jacobian(space, "exact", n, p, d)
-    theta = _theta(space, p, d)
-    for i, idx in enumerate(np.asarray(d.free)):
-        h = 1e-6 * max(abs(float(theta[idx])), 1e-3)
-        up = _residual_and_jacobian(space, "exact", n, p, _held(d, idx, theta[idx] + h))[0]
-        dn = _residual_and_jacobian(space, "exact", n, p, _held(d, idx, theta[idx] - h))[0]
+    values = _values(d, p)
+    for i in range(len(FREE)):
+        h = 1e-6 * max(abs(float(values[i])), 1e-3)
+        up = _residual_and_jacobian(space, "exact", n, p, _held(d, i, values[i] + h))[0]
+        dn = _residual_and_jacobian(space, "exact", n, p, _held(d, i, values[i] - h))[0]
         np.testing.assert_allclose(np.asarray(J[:, i]), np.asarray((up - dn) / (2 * h)),
                                    rtol=1e-5, atol=1e-6 * float(jnp.max(jnp.abs(J[:, i]))))
     dp = jnp.ones_like(p)
     _, (tangent, _) = jax.jvp(lambda q: _residual_and_jacobian(space, "exact", n, q, d), (p,),
                               (dp,))
     np.testing.assert_allclose(np.asarray(tangent),
-                               np.asarray(J @ (_dtheta_dp(space, p, d) * dp)))
+                               np.asarray(J @ (derivative(d.code, d.lo, d.hi, d.scale, p) * dp)))
 
 
 def test_identifiability_warning(synthetic_signal):

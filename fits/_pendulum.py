@@ -1,0 +1,205 @@
+"""The pendulum identification model: a measured angle record explained by a restoring law and a
+set of dissipation laws, compared by BIC (issue 11).
+
+The model is [`vmj.Oscillator`][] with
+
+    theta'' + 2 zeta omega theta' + omega^2 xF sign(theta') + cq theta' |theta'|
+            + omega^2 r(theta) = 0,      r(theta) = s(theta) + b2 theta^2 + b3 theta^3,
+
+`theta` the angle [rad] from the hanging position, `s` the sine (`SineRestoring`, the pendulum)
+or the identity (`PolynomialRestoring`, a linear spring), released from rest at `-a0`, read by
+a sensor with an offset and a side-dependent gain (applied by the fit, see `fits.Space`).
+
+**Units.** Angles of the record (and `a0`, `offset`, `xF`, `xS`) are in the signal's unit; the
+non-fitted `angle_unit` [rad per signal unit] converts them (default `pi/180`: degrees; the
+command line's `--angle-unit`). `cq` is per signal unit [1/signal unit], like the record.
+The restoring law is written in radians whatever the signal's unit, so that `b2` [1/rad] and
+`b3` [1/rad^2] compare directly with the sine's own `-1/6` cubic term.
+
+**Variants.** The user-facing model `"pendulum"` is the sine space; its variants are the law
+sets a decay record can identify, restoring {sine, linear} x dissipation {viscous, Coulomb,
+viscous + Coulomb, viscous + Coulomb + quadratic}: eight fits, two compiled models (the
+linear and the sine restoring law). Every variant keeps the sensor (`offset`, `asym`), the
+release `a0`, `omega` and the even restoring term `b2` free when they are asked for: the
+centre of the turning points moves with the amplitude through the sensor's gain (`asym`,
+proportional to the amplitude) and through an even restoring term (`b2`, to its square), and
+a real record needs both (docs/pendulum-fits.md). `b3` and `xS` are held at 0 in every
+variant (`xS = 0` means "no static level above the kinetic one"); a fit that frees them is
+compared with the variants as asked. The headline result is the variant with the lowest BIC
+(`select=True`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import jax.numpy as jnp
+import numpy as np
+
+import vmj
+
+from ._decrement import decrement
+from ._io import Record
+from ._models import Space, Variant, first_amplitude, record_centre
+from ._sensor import _opposite, sensor_start
+
+__all__ = ["PENDULUM", "PENDULUM_LINEAR", "DEGREE", "DISSIPATION_SETS", "FREE"]
+
+DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: degrees
+
+NAMES = ("omega", "zeta", "xF", "xS", "cq", "b2", "b3", "a0", "offset", "asym", "angle_unit")
+KINDS = ("positive", "damping", "positive", "positive", "positive", "real", "real", "positive",
+         "real", "real", "positive")
+UNITS = ("rad/s", "-", "signal", "signal", "1/signal", "1/rad", "1/rad^2", "signal", "signal",
+         "-", "rad/signal")
+
+#: the parameters fitted by default (`fits.fit(record, "pendulum")`, `vmj fit --model pendulum`)
+FREE = ("omega", "zeta", "xF", "cq", "b2", "a0", "offset", "asym")
+
+#: dissipation law sets compared, as the parameters each holds at 0
+DISSIPATION_SETS = {
+    "viscous": ("xF", "cq"),
+    "coulomb": ("zeta", "cq"),
+    "viscous+coulomb": ("cq",),
+    "viscous+coulomb+quadratic": (),
+}
+
+_SOLVERS = {"exact": vmj.Exact, "smooth": vmj.Smoothed, "energy": vmj.EnergyBalance}
+
+
+def _predictor(sine: bool):
+    law_of = vmj.SineRestoring if sine else vmj.PolynomialRestoring
+
+    def predict(theta: dict, n: int, forward: str):
+        """Release and first `n` turning points `(times [s], signed angles [signal unit])`."""
+        u = theta["angle_unit"]
+        kinetic = theta["xF"] * u
+        static = jnp.maximum(theta["xS"], theta["xF"]) * u  # xS below xF: no static excess
+        model = vmj.Oscillator(theta["omega"], law_of(theta["b2"], theta["b3"]),
+                               (vmj.ViscousDamping(theta["zeta"]),
+                                vmj.CoulombDamping(kinetic, static),
+                                vmj.QuadraticDamping(theta["cq"] / u)))
+        a0 = theta["a0"]
+        seq = vmj.turning_points(model, a0 * u, n, _SOLVERS[forward]())
+        times = jnp.concatenate([jnp.zeros((1,)), seq.times])
+        angles = jnp.concatenate([-jnp.reshape(a0, (1,)), seq.positions / u])
+        return times, angles
+
+    return predict
+
+
+def _losses(amplitudes: np.ndarray) -> tuple[float, float, float]:
+    """`(xF, zeta, cq)` from the amplitude lost per half-swing, `a_k - a_{k+1} = 2 xF +
+    pi zeta a + (4/3) cq a^2` (the linear oscillator's half-swing losses of the three laws,
+    `a` the mean amplitude of the pair), by non-negative least squares; `None` where too few
+    swings."""
+    a = amplitudes
+    if a.size < 6:
+        return None
+    mean, loss = 0.5 * (a[:-1] + a[1:]), a[:-1] - a[1:]
+    design = np.stack([2 * np.ones_like(mean), np.pi * mean, 4 / 3 * mean**2], axis=1)
+    best, coef = np.inf, np.zeros(3)
+    for subset in itertools.product((False, True), repeat=3):  # non-negative least squares
+        cols = np.nonzero(subset)[0]
+        c = np.zeros(3)
+        if cols.size:
+            c[cols] = np.linalg.lstsq(design[:, cols], loss, rcond=None)[0]
+        rss = float(np.sum((design @ c - loss) ** 2))
+        if np.all(c >= 0) and rss < best:
+            best, coef = rss, c
+    return float(coef[0]), float(coef[1]), float(coef[2])
+
+
+def _centres(record: Record, u: float) -> dict | None:
+    """`offset`, `asym` and `b2` from the centres of successive extrema: the centre `c` of a
+    pair at amplitude `d` [signal units] moves as `c = offset + asym d + gamma d^2`, the gain
+    giving the linear term and an even restoring term `b2` the quadratic one (the turning
+    points of `r = theta + b2 theta^2` at amplitude `A` [rad] both shift by `-b2 A^2 / 3`, so
+    `gamma = -o b2 u / 3`, `o` the record's orientation, `u` [rad per signal unit]). Least
+    squares over the local centres of [`fits.sensor_start`][]'s interpolation; `None` with
+    fewer than 8 centres or amplitudes that change by less than a factor 1.5."""
+    if not record.sides_known or record.k[-1] - record.k[0] != len(record) - 1:
+        return None
+    x = np.asarray(record.positions, dtype=float)
+    if x.size < 10:
+        return None
+    opposite = _opposite(x)[1:-1]
+    c, d = (x[1:-1] + opposite) / 2, np.abs(x[1:-1] - opposite) / 2
+    if np.max(d) < 1.5 * np.min(d):
+        return None
+    design = np.stack([np.ones_like(d), d, d * d], axis=1)
+    offset, asym, gamma = np.linalg.lstsq(design, c, rcond=None)[0]
+    return {"offset": float(offset), "asym": float(asym),
+            "b2": float(-3 * gamma / (record.orientation * u))}
+
+
+def _start(record: Record, given: dict, dec: dict) -> dict:
+    """Starting values: the sensor's offset and gain and the even restoring term from the
+    centres of successive extrema (`_centres`; [`fits.sensor_start`][] where too few); the
+    three laws' levels from the amplitude lost per half-swing (`_losses`, on the amplitudes
+    corrected for the gain); the frequency from the mean half-period, corrected for the sine's
+    amplitude dependence; `b3`, `xS` 0."""
+    u = float(given.get("angle_unit", DEGREE))
+    sensor = _centres(record, u)
+    if sensor is None:
+        sensor = {**(sensor_start(record) if record.sides_known else
+                     {"offset": dec["centre"], "asym": 0.0}), "b2": 0.0}
+    offset = float(given.get("offset", sensor["offset"]))
+    asym = min(max(float(given.get("asym", sensor["asym"])), -0.2), 0.2)
+    b2 = float(given.get("b2", sensor["b2"]))
+    side = np.sign(record.positions - offset)
+    amplitudes = np.abs(record.positions - offset) / (1 + asym * side)
+    consecutive = record.k[-1] - record.k[0] == len(record) - 1
+    a0 = float(amplitudes[0]) if record.k[0] == 0 else float(np.max(amplitudes))
+    losses = _losses(amplitudes) if consecutive else None
+    dec = decrement(record, offset)
+    if losses is None:
+        xF, zeta, cq = dec["xF"], dec["zeta"], 0.0
+    else:
+        xF, zeta, cq = losses
+    omega = dec["omega"] or 1.0
+    # the sine's frequency falls with the amplitude: the mean half-period is about that of
+    # 0.6 of the release amplitude, where the sine's frequency is 1 - A^2/16
+    omega /= 1 - (0.6 * a0 * u) ** 2 / 16
+    return {"omega": omega, "zeta": min(max(zeta, 1e-4), 0.5), "xF": max(xF, 1e-4 * a0),
+            "xS": 0.0, "cq": max(cq, 1e-4 / a0), "b2": b2, "b3": 0.0, "a0": a0,
+            "offset": offset, "asym": asym, "angle_unit": u}
+
+
+def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) -> Space:
+    return Space(
+        name=name,
+        names=NAMES,
+        kinds=KINDS,
+        units=UNITS,
+        dry=("xF",),
+        viscous=("zeta",),
+        required=("omega",),
+        predict=_predictor(sine),
+        defaults={"zeta": 0.0, "xF": 0.0, "xS": 0.0, "cq": 0.0, "b2": 0.0, "b3": 0.0,
+                  "asym": 0.0, "angle_unit": DEGREE, "a0": first_amplitude,
+                  "offset": record_centre},
+        variants=variants,
+        select=select,
+        bounds={"zeta": (0.0, 1.0), "asym": (-0.5, 0.5)},
+        label=("sine" if sine else "linear") + ":viscous+coulomb+quadratic",
+        start=_start,
+    )
+
+
+#: the linear-restoring space (compiled separately; reached through the pendulum's variants)
+PENDULUM_LINEAR = _space("pendulum-linear", sine=False)
+
+
+def _variants() -> tuple:
+    out = []
+    for restoring, space in (("sine", None), ("linear", PENDULUM_LINEAR)):
+        for label, zero in DISSIPATION_SETS.items():
+            hold = {"b3": 0.0, "xS": 0.0, **{n: 0.0 for n in zero}}
+            out.append(Variant(f"{restoring}:{label}", space, hold))
+    return tuple(out)
+
+
+#: the pendulum model (`"pendulum"`): sine restoring law, every law set compared by BIC
+PENDULUM = _space("pendulum", sine=True, variants=_variants(), select=True)

@@ -1,0 +1,342 @@
+"""The result of a fit (`FitResult`, its JSON contract) and how a solved job becomes one:
+statistics (AIC, BIC), the corrected covariance (`fits._stats`), the converged rules, the
+profile-likelihood intervals, the residual diagnostics and the model comparison.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._io import Record
+from ._params import HELD
+from ._solve import _profiles
+from ._stats import RANK_RTOL, covariance, diagnostics
+
+__all__ = ["FitResult"]
+
+
+# -- results -----------------------------------------------------------------------------------
+@dataclass
+class FitResult:
+    """The outcome of a fit.
+
+    **Fields:**
+
+    - `model` (the model family of the headline fit), `label` (its label in the model
+      comparison, e.g. `"both"`), `forward`, `loss`, `optimizer`.
+    - `params` (the free parameters, in the order fitted; for a joint fit the shared ones) and
+      `fixed` (the others), in SI units or the signal's units (`units`: `{name: unit}`).
+    - `stderr`: standard errors corrected for serially correlated residuals (the Gauss-Newton
+      ones times the square root of an inflation >= 1); `stderr_gn`: the Gauss-Newton ones;
+      `None` (JSON null) for a parameter the data do not identify, never 0.
+    - `intervals`: `{name: (lo, hi)}` 95 % profile-likelihood intervals (Wald where a profile
+      failed, said in the warnings).
+    - `correlation`: correlation matrix of `params`; `converged`: the optimiser converged AND
+      the Jacobian has full rank AND no parameter sits at a bound the user did not set;
+      `iterations` (solver steps over all passes).
+    - `rms` (RMS position residual, data units), `rms_time` [s]; `rss` (weighted residual sum of
+      squares), `n_residuals`, `aic`, `bic`.
+    - `diagnostics`: `{"lag1", "runs_p", "n_eff", "warnings"}` (see `fits._stats`); `warnings`
+      (the same list).
+    - `model_comparison`: `{label: {"aic", "bic", "rss", "params", "converged"}, "best_aic",
+      "best_bic"}` over the sub-models fitted beside the headline (empty when none).
+    - `residuals` (per point of the first record: `k`, `position`, `time`, `standardized`,
+      `outlier`); `outliers` (the flagged `k`); `decrement` (the decrement-method estimate);
+      `record`; `records` (joint fits: per record `source`, `params`, `stderr`, `stderr_gn`,
+      `intervals`, `rms`, `outliers`); `clock` (the sample-clock report of a raw signal).
+    """
+
+    model: str
+    forward: str
+    loss: str
+    optimizer: str
+    params: dict
+    fixed: dict
+    stderr: dict
+    correlation: list
+    converged: bool
+    iterations: int
+    rms: float
+    rms_time: float | None
+    model_comparison: dict
+    residuals: dict
+    outliers: list
+    warnings: list
+    decrement: dict
+    record: Record = field(repr=False)
+    stderr_gn: dict = field(default_factory=dict)
+    intervals: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+    aic: float = math.nan
+    bic: float = math.nan
+    rss: float = math.nan
+    n_residuals: int = 0
+    records: list = field(default_factory=list)
+    clock: dict | None = None
+    units: dict = field(default_factory=dict)
+    label: str = ""
+
+    def to_json(self) -> dict:
+        """The command line's JSON object: `model`, `params`, `stderr`, `stderr_gn`,
+        `intervals` (`{name: [lo, hi]}`), `correlation`, `converged`, `iterations`, `rms`,
+        `diagnostics`, `model_comparison`, then `records` (joint fits), `clock` (raw signals)
+        and `units`; NaN becomes `null`."""
+        out = {
+            "model": self.model,
+            "params": self.params,
+            "stderr": self.stderr,
+            "stderr_gn": self.stderr_gn,
+            "intervals": {k: list(v) for k, v in self.intervals.items()},
+            "correlation": self.correlation,
+            "converged": self.converged,
+            "iterations": self.iterations,
+            "rms": self.rms,
+            "diagnostics": self.diagnostics,
+            "model_comparison": self.model_comparison,
+        }
+        if self.records:
+            out["records"] = [{k: v for k, v in r.items() if k != "residuals"}
+                              for r in self.records]
+        if self.clock is not None:
+            out["clock"] = self.clock
+        out["units"] = self.units
+        return _jsonable(out)
+
+    def report(self) -> str:
+        from ._report import text_report
+
+        return text_report(self)
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {k: _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
+
+# -- views of a solved job ---------------------------------------------------------------------
+def _slot_names(job) -> list:
+    return [nm if r is None else f"{nm}[{r}]" for nm, r in job.slots]
+
+def _values_of(job) -> list:
+    """Per record {name: value} at the job's last solution."""
+    th = job.out["theta"]
+    return [dict(zip(job.space.names, th[r].tolist())) for r in range(th.shape[0])]
+
+def _robust_scale(r, floor):
+    r = r[np.isfinite(r)]
+    if r.size == 0:
+        return floor
+    return max(1.4826 * float(np.median(np.abs(r - np.median(r)))), floor)
+
+# -- per-job statistics ------------------------------------------------------------------------
+def _used(job, prob, N):
+    """Indices of the residuals that count, and the blocks (slices of them) in record order."""
+    idx, blocks, at = [], [], 0
+    for r in range(len(prob.records)):
+        for kind, w in ((0, prob.wx[r]), (1, prob.wt[r])):
+            sel = np.nonzero(w > 0)[0] + r * 2 * N + kind * N
+            if sel.size:
+                idx.append(sel)
+                blocks.append(slice(at, at + sel.size))
+                at += sel.size
+    return np.concatenate(idx), blocks
+
+
+def _information(job, prob, N):
+    idx, _ = _used(job, prob, N)
+    n = idx.size
+    q = int(np.sum(job.code != HELD))
+    rss = job.rss
+    ll = n * math.log(max(rss, 1e-300) / n)
+    return {"aic": ll + 2 * q, "bic": ll + q * math.log(n), "rss": rss, "n": n, "q": q}
+
+# -- results -----------------------------------------------------------------------------------
+def _at_user_bound(job, s) -> bool:
+    """Whether slot `s` is held at a bound the user set (`bounds=`, `--bounds`)."""
+    t = job.transforms[s]
+    return bool((job.user_lo[s] and job.held[s] == t.lo) or (job.user_hi[s] and job.held[s] == t.hi))
+
+
+def _result(job, prob, jobs, shape, outlier_sigma):
+    space, settings = job.space, shape.settings
+    N = shape.N
+    names = _slot_names(job)
+    q = len(job.slots)
+    idx, blocks = _used(job, prob, N)
+    J = job.out["J"][:, :q][idx]
+    r = job.out["r"][idx]
+    info = _information(job, prob, N)
+    active = job.code != HELD
+    warn = []
+    # covariance over the slots the solver moved; held slots have none
+    cov_c = np.full((q, q), np.nan)
+    cov_gn = np.full((q, q), np.nan)
+    inflation = 1.0
+    full_rank = True
+    if active.any():
+        Ja = J[:, active]
+        c_c, c_gn, inflation = covariance(Ja, r, blocks)
+        sel = np.ix_(active, active)
+        cov_c[sel], cov_gn[sel] = c_c, c_gn
+        norms = np.linalg.norm(Ja, axis=0)
+        if np.any(norms == 0) or not np.all(np.isfinite(Ja)):
+            full_rank = False
+        else:
+            sv = np.linalg.svd(Ja / norms, compute_uv=False)
+            full_rank = bool(sv[-1] > RANK_RTOL * sv[0])
+    if not np.isfinite(inflation):
+        inflation = 1.0
+    vals = _values_of(job)
+    est = np.array([vals[0 if rr is None else rr][name] for name, rr in job.slots])
+    se_c = np.sqrt(np.where(np.diag(cov_c) > 0, np.diag(cov_c), np.nan))
+    se_gn = np.sqrt(np.where(np.diag(cov_gn) > 0, np.diag(cov_gn), np.nan))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov_c / np.outer(se_c, se_c)
+    for s, nm in enumerate(names):
+        if job.bound_hit[s]:
+            if not _at_user_bound(job, s):
+                warn.append(f"{nm} ran into its bound {job.held[s]:.6g} "
+                            f"[{space.unit(job.slots[s][0])}]: held there (a sub-model fits "
+                            f"as well; see model_comparison)")
+        elif not np.isfinite(se_c[s]):
+            warn.append(f"{nm} is not identified by these data: no standard error")
+        elif not se_c[s] < abs(est[s]):
+            warn.append(f"{nm} is not identifiable from these data: its standard error "
+                        f"{se_c[s]:.3g} is not below its value {est[s]:.3g}")
+    for a in range(q):
+        for b in range(a + 1, q):
+            if np.isfinite(corr[a, b]) and abs(corr[a, b]) > 0.99:
+                warn.append(f"{names[a]} and {names[b]} are not separately identifiable: "
+                            f"correlation {corr[a, b]:.4f}")
+    if not full_rank:
+        warn.append("the Jacobian is rank-deficient (relative singular-value tolerance "
+                    f"{RANK_RTOL:g}): some parameters are not determined by the data")
+    at_unset_bound = any(job.bound_hit[s] and not _at_user_bound(job, s) for s in range(q))
+    if not job.out["ok"]:
+        warn.append("the optimiser did not converge (step limit or no progress)")
+    converged = bool(job.out["ok"] and full_rank and not at_unset_bound)
+    # residual diagnostics
+    std_blocks = [r[b] for b in blocks]
+    diag = diagnostics(std_blocks, int(np.sum(active)))
+    n_dof = info["n"] - info["q"]
+    if n_dof < 3:
+        warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not "
+                    f"reliable")
+        converged = False if n_dof < 2 else converged
+    if any(active[s] and not np.isfinite(se_c[s]) for s in range(q)):
+        converged = False  # a parameter without a standard error is not determined
+    # intervals
+    intervals = {}
+    s2 = job.rss / max(n_dof, 1)
+    profiled = bool(active.any() and job.out["ok"] and full_rank and settings["intervals"])
+    ends = _profiles(job, prob, shape, est, se_gn, inflation, s2) if profiled else {}
+    for s, nm in enumerate(names):
+        if not active[s]:
+            intervals[nm] = (math.nan, math.nan)
+            continue
+        got = ends.get(s, {})
+        wald = 1.96 * se_c[s]
+        lo = got.get(-1, est[s] - wald)
+        hi = got.get(1, est[s] + wald)
+        t = job.transforms[s]
+        lo, hi = max(lo, t.lo), min(hi, t.hi)
+        if len(got) < 2 and np.isfinite(wald) and profiled:
+            warn.append(f"{nm}: the profile likelihood failed; the interval is the Wald "
+                        f"interval +- 1.96 stderr")
+        intervals[nm] = (float(lo), float(hi))
+    warn += diag["warnings"]
+    diag = {**diag, "warnings": warn}
+    # per-record residuals in data units
+    per_record = []
+    R = len(prob.records)
+    r_all = job.out["r"].reshape(R, 2, N)
+    for i, rec in enumerate(prob.records):
+        m = len(rec)
+        wx, wt = prob.wx[i][:m], prob.wt[i][:m]
+        res_x = r_all[i, 0, :m] / np.where(wx > 0, wx, 1.0)
+        floor = 1e-4 * float(np.max(rec.amplitudes))
+        z = res_x / _robust_scale(res_x, floor)
+        flagged = np.abs(z) > outlier_sigma
+        res_t = None
+        if rec.times is not None:
+            res_t = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
+            res_t[wt == 0] = 0.0
+            z_t = res_t / _robust_scale(res_t[wt > 0], 1e-12)
+            flagged |= np.abs(z_t) > outlier_sigma
+        per_record.append({
+            "residuals": {"k": rec.k.tolist(), "position": res_x.tolist(),
+                          "time": None if res_t is None else res_t.tolist(),
+                          "standardized": z.tolist(), "outlier": flagged.tolist()},
+            "rms": float(np.sqrt(np.mean(res_x ** 2))),
+            "rms_time": None if res_t is None else float(np.sqrt(np.mean(res_t[1:] ** 2))),
+            "outliers": [int(kk) for kk in rec.k[flagged]],
+        })
+    top = [s for s, (nm, rr) in enumerate(job.slots) if rr is None]
+
+    def pick(arr, sel):
+        return {names[s]: (float(arr[s]) if np.isfinite(arr[s]) else None) for s in sel}
+
+    params = {names[s]: float(est[s]) for s in top}
+    records = []
+    if R > 1:
+        for i, rec in enumerate(prob.records):
+            sel = [s for s, (nm, rr) in enumerate(job.slots) if rr == i]
+            records.append({
+                "source": rec.source,
+                "params": {job.slots[s][0]: float(est[s]) for s in sel},
+                "stderr": {job.slots[s][0]: pick(se_c, [s])[names[s]] for s in sel},
+                "stderr_gn": {job.slots[s][0]: pick(se_gn, [s])[names[s]] for s in sel},
+                "intervals": {job.slots[s][0]: intervals[names[s]] for s in sel},
+                "fixed": {k: v for k, v in vals[i].items() if k not in job.free},
+                **{k: per_record[i][k] for k in ("rms", "rms_time", "outliers", "residuals")},
+            })
+    comparison = {}
+    mine = [j for j in jobs if j.problem == job.problem]
+    if len(mine) > 1:
+        for j in mine:
+            inf_j = _information(j, prob, N)
+            vj = _values_of(j)
+            comparison[j.label] = {
+                "aic": inf_j["aic"], "bic": inf_j["bic"], "rss": inf_j["rss"],
+                "params": {sn: vj[0 if rr is None else rr][nm]
+                           for sn, (nm, rr) in zip(_slot_names(j), j.slots)},
+                "converged": bool(j.out["ok"]),
+            }
+        labels = [j.label for j in mine]
+        comparison["best_aic"] = min(labels, key=lambda k: comparison[k]["aic"])
+        comparison["best_bic"] = min(labels, key=lambda k: comparison[k]["bic"])
+    rec0 = prob.records[0]
+    dec = prob.decs[0]
+    corr_top = corr[np.ix_(top, top)] if top else np.zeros((0, 0))
+    result = FitResult(
+        model=space.name, forward=settings["forward"], loss=settings["loss"],
+        optimizer=settings["optimizer"], params=params,
+        fixed={k: v for k, v in vals[0].items() if k not in job.free},
+        stderr=pick(se_c, top), correlation=np.where(np.isfinite(corr_top), corr_top,
+                                                     np.nan).tolist(),
+        converged=converged, iterations=int(sum(j.iterations for j in mine)),
+        rms=per_record[0]["rms"] if R == 1 else float(np.sqrt(np.mean(np.concatenate(
+            [np.asarray(p["residuals"]["position"]) ** 2 for p in per_record])))),
+        rms_time=per_record[0]["rms_time"], model_comparison=comparison,
+        residuals=per_record[0]["residuals"], outliers=per_record[0]["outliers"],
+        warnings=warn, decrement={k: v for k, v in dec.items() if k != "pairs"}, record=rec0,
+        stderr_gn=pick(se_gn, top), intervals={names[s]: intervals[names[s]] for s in top},
+        diagnostics=diag, aic=info["aic"], bic=info["bic"], rss=info["rss"],
+        n_residuals=info["n"], records=records, clock=rec0.clock,
+        units={nm: space.unit(nm) for nm in space.names}, label=job.label,
+    )
+    result.decrement["pairs"] = dec["pairs"]
+    return result

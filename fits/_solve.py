@@ -1,0 +1,302 @@
+"""The compiled solve of the fits: residuals of a job's records, their Jacobian, the
+Levenberg-Marquardt and Adam solvers batched over jobs (`jax.vmap`), and the profile-likelihood
+batch.
+
+A *job* is one least-squares problem (`fits._fit`): R records of N points, P parameters and q
+free slots, all array data (`_Data`), so one compiled solve serves every fit of a model family,
+forward method, record shape and batch size. The residual vmaps over the records; a slot's
+value is its coordinate through `fits._params.apply` (bounds per slot); the Jacobian is
+materialised in one forward-mode pass and handed to the solvers through a `custom_jvp`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import optimistix as optx
+
+import vmj
+
+from ._models import theta_dict
+from ._params import HELD, apply, derivative
+
+__all__ = []
+
+_TUNING = {"huber": 1.345, "cauchy": 2.385}  #: 95 % efficiency constants of the robust losses
+_LM_RTOL, _LM_ATOL = 1e-10, 1e-12
+_CHI2_95 = 3.841458820694124  #: 95 % quantile of chi-square with 1 degree of freedom
+_PROFILE_STEPS = 8  #: root-finding iterations of a profile-likelihood end
+_PROFILE_TOL = 0.02  #: relative tolerance on the deviance at an interval end
+
+
+# -- the compiled core -------------------------------------------------------------------------
+class _Data(eqx.Module):
+    """One job's arrays (a leading batch axis when stacked): R records of N points, P
+    parameters, q free slots."""
+
+    k: jax.Array  # (R, N) swing index of each point
+    x: jax.Array  # (R, N) measured positions (amplitudes for amplitude-only records)
+    t: jax.Array  # (R, N) measured times from the release
+    wx: jax.Array  # (R, N) weights of the position residuals (0 = ignored / padding)
+    wt: jax.Array  # (R, N) weights of the time residuals
+    orient: jax.Array  # (R,) +1 if the release is below the centre
+    absval: jax.Array  # (R,) 1 for amplitude-only records
+    fixed: jax.Array  # (R, P) parameter values
+    M: jax.Array  # (q, R, P) 1 where slot s sets parameter p of record r
+    code: jax.Array  # (q,) transform code of each slot (fits._params), HELD: not moved
+    lo: jax.Array  # (q,) bounds of each slot
+    hi: jax.Array
+    scale: jax.Array  # (q,) scale of each slot's transform
+    held: jax.Array  # (q,) value of a held slot
+
+
+def _place(d: _Data, val):
+    """Parameter values (R, P) with the slots set to `val` (q,)."""
+    mask = jnp.sum(d.M, axis=0)
+    return d.fixed * (1 - mask) + jnp.einsum("q,qrp->rp", val, d.M)
+
+
+def _values(d: _Data, p):
+    return apply(d.code, d.lo, d.hi, d.scale, p, d.held)
+
+
+def _residual(space, forward, n, theta, d: _Data):
+    def one(th_row, k, x, t, wx, wt, orient, absval):
+        th = theta_dict(space, th_row)
+        times, y = space.predict(th, n, forward)
+        oy = orient * y[k]
+        dev = oy * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else oy
+        offset = th["offset"] if "offset" in th else 0.0
+        px = jnp.where(absval > 0, jnp.abs(dev), offset + dev)
+        return jnp.concatenate([wx * (px - x), wt * (times[k] - t)])
+
+    r = jax.vmap(one)(theta, d.k, d.x, d.t, d.wx, d.wt, d.orient, d.absval)
+    return r.reshape(-1)
+
+
+def _residual_and_jacobian_impl(space, forward, n, p, d):
+    """Residuals at `p` and their Jacobian with respect to the slot values (in the parameters'
+    units), from one forward-mode pass. Wrapping it as a `custom_jvp` whose tangent is that
+    materialised Jacobian keeps the solvers from tracing (and compiling) the forward model
+    again for linearisation and transposition: one compiled Jacobian serves the
+    Levenberg-Marquardt steps, Adam's gradients and the standard errors."""
+    val = _values(d, p)
+
+    def r_of(v):
+        r = _residual(space, forward, n, _place(d, v), d)
+        return r, r
+
+    # the smoothed model's diffrax solve differentiates in reverse mode only
+    jacobian = jax.jacrev if forward == "smooth" else jax.jacfwd
+    J, r = jacobian(r_of, has_aux=True)(val)
+    return r, J
+
+
+_residual_and_jacobian = jax.custom_jvp(_residual_and_jacobian_impl, nondiff_argnums=(0, 1, 2))
+
+
+@_residual_and_jacobian.defjvp
+def _residual_and_jacobian_jvp(space, forward, n, primals, tangents):
+    p, d = primals
+    dp, _ = tangents  # never differentiated with respect to the data
+    r, J = _residual_and_jacobian(space, forward, n, p, d)
+    dv = derivative(d.code, d.lo, d.hi, d.scale, p)
+    return (r, J), (J @ (dv * dp), jnp.zeros_like(J))
+
+
+@eqx.filter_jit
+def _solve_lm(space, forward, n, max_steps, d, p0):
+    def one(d, p0):
+        def fn(p, d):
+            r, J = _residual_and_jacobian(space, forward, n, p, d)
+            return r, (r, J)
+
+        sol = optx.least_squares(fn, optx.LevenbergMarquardt(_LM_RTOL, _LM_ATOL), p0, d,
+                                 has_aux=True, max_steps=max_steps, throw=False)
+        r, J = sol.aux  # at the returned point: no second compiled copy of the Jacobian
+        ok = sol.result == optx.RESULTS.successful
+        return sol.value, _place(d, _values(d, sol.value)), J, r, ok, sol.stats["num_steps"]
+
+    return jax.vmap(one)(d, p0)
+
+
+def _rho(loss, u):
+    if loss == "l2":
+        return 0.5 * u * u
+    c = _TUNING[loss]
+    if loss == "huber":
+        return optax.losses.huber_loss(u, jnp.zeros_like(u), delta=c)
+    return 0.5 * c * c * jnp.log1p((u / c) ** 2)
+
+
+@eqx.filter_jit
+def _solve_adam(space, forward, n, steps, loss, d, p0):
+    def one(d, p0):
+        def objective(p):
+            r, _ = _residual_and_jacobian(space, forward, n, p, d)
+            return jnp.sum(_rho(loss, r))
+
+        opt = optax.adam(optax.cosine_decay_schedule(0.02, steps, alpha=1e-3))
+        grad = jax.value_and_grad(objective)
+
+        def body(carry, _):
+            p, state = carry
+            _, g = grad(p)
+            updates, state = opt.update(g, state, p)
+            return (optax.apply_updates(p, updates), state), None
+
+        (p, _), _ = jax.lax.scan(body, (p0, opt.init(p0)), None, length=steps)
+        value, g = grad(p)
+        ok = jnp.max(jnp.abs(g)) <= 1e-4 * jnp.maximum(1.0, value)
+        r, J = _residual_and_jacobian(space, forward, n, p, d)
+        return p, _place(d, _values(d, p)), J, r, ok, jnp.asarray(steps)
+
+    return jax.vmap(one)(d, p0)
+
+# -- batched solves ----------------------------------------------------------------------------
+@dataclass
+class _Shape:
+    N: int  # points per record (bucketed)
+    q: int  # slots
+    n_model: int  # turning points predicted
+    B: int  # jobs per compiled solve
+    settings: dict
+
+
+def _job_arrays(job, prob, shape) -> dict:
+    R, N, q = len(prob.records), shape.N, shape.q
+    space = job.space
+    P = len(space.names)
+    k = np.zeros((R, N), dtype=int)
+    x = np.zeros((R, N))
+    t = np.zeros((R, N))
+    fixed = np.zeros((R, P))
+    M = np.zeros((q, R, P))
+    for r, rec in enumerate(prob.records):
+        m = len(rec)
+        k[r, :m] = rec.k
+        signs = None if job.signs is None else job.signs[r]
+        x[r, :m] = rec.positions if rec.sides_known else \
+            rec.amplitudes if signs is None else signs * rec.amplitudes
+        if rec.times is not None:
+            t[r, :m] = rec.times
+        for i, name in enumerate(space.names):
+            fixed[r, i] = job.fixed[r].get(name, job.start[r].get(name, 0.0))
+    for s, (name, r) in enumerate(job.slots):
+        i = space.index(name)
+        if r is None:
+            M[s, :, i] = 1.0
+        else:
+            M[s, r, i] = 1.0
+    pad = q - len(job.slots)
+    lo = np.array([t_.lo for t_ in job.transforms] + [-np.inf] * pad)
+    hi = np.array([t_.hi for t_ in job.transforms] + [np.inf] * pad)
+    return dict(k=k, x=x, t=t, wx=np.stack(prob.wx), wt=np.stack(prob.wt),
+                orient=np.array([rec.orientation for rec in prob.records]),
+                absval=np.array([0.0 if rec.sides_known or job.signs is not None else 1.0
+                                 for rec in prob.records]),
+                fixed=fixed, M=M, code=np.concatenate([job.code, np.full(pad, HELD)]),
+                lo=lo, hi=hi, scale=np.concatenate([job.scale, np.ones(pad)]),
+                held=np.concatenate([job.held, np.zeros(pad)]),
+                p=np.concatenate([job.p, np.zeros(pad)]))
+
+
+def _solve(space, items, shape, optimizer=None):
+    """Solve the jobs `items` (dicts of `_job_arrays`) of one space in chunks of `shape.B`
+    (the last one padded with copies); returns per item a dict of numpy outputs."""
+    s = shape.settings
+    steps = s["max_steps"]
+    optimizer = optimizer or s["optimizer"]
+    outs = []
+    for c0 in range(0, len(items), shape.B):
+        chunk = items[c0:c0 + shape.B]
+        chunk = chunk + [chunk[0]] * (shape.B - len(chunk))
+        stacked = {k: np.stack([it[k] for it in chunk]) for k in chunk[0]}
+        p0 = jnp.asarray(stacked.pop("p"), dtype=float)
+        d = _Data(**{k: jnp.asarray(v) if k in ("k", "code") else jnp.asarray(v, dtype=float)
+                     for k, v in stacked.items()})
+        with vmj.assume_valid():
+            if optimizer == "lm":
+                res = _solve_lm(space, s["forward"], shape.n_model, steps, d, p0)
+            else:
+                res = _solve_adam(space, s["forward"], shape.n_model, s["adam_steps"], s["loss"],
+                                  d, p0)
+        p, theta, J, r, ok, st = (np.asarray(v) for v in res)
+        for j in range(min(shape.B, len(items) - c0)):
+            outs.append({"p": p[j], "theta": theta[j], "J": J[j], "r": r[j], "ok": bool(ok[j]),
+                         "steps": int(st[j])})
+    return outs
+
+
+def _rss(out) -> float:
+    """Residual sum of squares of a solve's output (infinite when not finite)."""
+    r = out["r"]
+    return float(np.sum(r * r)) if np.all(np.isfinite(r)) else math.inf
+
+# -- profile likelihood ------------------------------------------------------------------------
+def _profiles(job, prob, shape, est, se, inflation, s2):
+    """95 % profile-likelihood intervals of the job's active slots: all slots and both sides
+    solved together per root-finding iteration (one batched solve, chunked by the call's batch
+    size), each warm-started at its previous point (first at the optimum).
+
+    The profile deviance `(rss(v) - rss) / s2` is scaled by the residual-autocorrelation
+    `inflation` through the target, `3.84 inflation`; each end is found by the iteration
+    `v <- est + (v - est) sqrt(target / deviance(v))` (exact for a quadratic profile), started
+    at the Wald end. An end whose bound lies inside the region is the bound. Returns
+    `{slot: {-1: lo, +1: hi}}` for the ends found; the others failed."""
+    active = [s for s in range(len(job.slots)) if job.code[s] != HELD]
+    target = _CHI2_95 * max(inflation, 1.0)
+    ends = {}
+    state = []
+    base = _job_arrays(job, prob, shape)
+    for s in active:
+        t = job.transforms[s]
+        width = 1.96 * se[s] * math.sqrt(max(inflation, 1.0)) if np.isfinite(se[s]) and se[s] > 0 \
+            else 0.1 * max(abs(est[s]), job.scale[s])
+        for side in (-1, 1):
+            v = est[s] + side * width
+            state.append({"slot": s, "side": side, "v": v, "done": False, "ok": False,
+                          "p": base["p"], "bound": t.lo if side < 0 else t.hi})
+    for _ in range(_PROFILE_STEPS):
+        live = [st for st in state if not st["done"]]
+        if not live:
+            break
+        items = []
+        for st in live:
+            lo_b, hi_b = job.transforms[st["slot"]].lo, job.transforms[st["slot"]].hi
+            st["v"] = min(max(st["v"], lo_b), hi_b)
+            it = {k: np.copy(v) for k, v in base.items()}
+            it["code"][st["slot"]] = HELD
+            it["held"][st["slot"]] = st["v"]
+            it["p"] = np.copy(st["p"])
+            items.append(it)
+        outs = _solve(job.space, items, shape, optimizer="lm")  # profiles need exact minima
+        for st, out in zip(live, outs):
+            dev = (_rss(out) - job.rss) / s2
+            st["p"] = out["p"]
+            if not np.isfinite(dev):
+                st["done"] = True
+                continue
+            at_edge = st["v"] == st["bound"]
+            if at_edge and dev < target:
+                st["done"], st["ok"] = True, True  # the bound is inside the 95 % region
+                continue
+            if abs(dev / target - 1) < _PROFILE_TOL:
+                st["done"], st["ok"] = True, True
+                continue
+            s = st["slot"]
+            dist = st["v"] - est[s]
+            if dev <= 1e-3 * target:
+                st["v"] = est[s] + 4 * dist
+            else:
+                st["v"] = est[s] + dist * math.sqrt(target / dev)
+    for st in state:
+        if st["ok"]:
+            ends.setdefault(st["slot"], {})[st["side"]] = st["v"]
+    return ends

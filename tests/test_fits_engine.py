@@ -1,0 +1,303 @@
+"""The fits engine of issue 12: required parameters, bounds, the converged rules, nested
+sub-models (the synthetic viscous decay), amplitude-only records, joint fits, degenerate
+inputs and the JSON contract."""
+
+import glob
+import json
+import math
+import os
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+import fits
+import vmj
+from fits._cli import MODELS
+from fits._models import SPACES
+from vmj import PAPER
+from vmj.cli import main
+
+HERE = os.path.dirname(__file__)
+ROOT = os.path.join(HERE, "..")
+
+
+def _csv(path, columns, header):
+    np.savetxt(path, np.column_stack(columns), delimiter=",", header=header, comments="")
+    return str(path)
+
+
+def test_fits_imports_nothing_private_from_vmj():
+    for path in glob.glob(os.path.join(ROOT, "fits", "*.py")):
+        text = open(path).read()
+        assert not re.search(r"(from|import)\s+vmj\._", text), path
+
+
+def test_cli_model_choices_are_the_spaces():
+    from fits._cli import _DEFAULT_FREE
+    from fits._pendulum import FREE
+
+    assert set(MODELS) == set(SPACES) == set(_DEFAULT_FREE)
+    assert _DEFAULT_FREE["pendulum"] == ",".join(FREE)
+
+
+# -- the synthetic viscous decay of issue 12 ---------------------------------------------------
+@pytest.fixture(scope="module")
+def viscous_decay(tmp_path_factory):
+    t = np.linspace(0.0, 60.0, 20000)
+    path = _csv(tmp_path_factory.mktemp("visc") / "v.csv",
+                [t, 10 * np.exp(-0.05 * t) * np.sin(21.7 * t)], "t,x")
+    record = fits.read_record(path, series=True)
+    free = ("omega", "zeta", "xF", "a0", "offset")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = fits.fit(record, "oscillator", free)
+        bounded = fits.fit(record, "oscillator", free, bounds={"xF": (0.0, 0.5)})
+    return path, plain, bounded
+
+
+def test_viscous_decay_nested_models(viscous_decay):
+    _, r, _ = viscous_decay
+    omega, zeta = math.hypot(0.05, 21.7), 0.05 / math.hypot(0.05, 21.7)
+    assert abs(r.params["omega"] / omega - 1) < 1e-4
+    assert abs(r.params["zeta"] / zeta - 1) < 0.01
+    comp = r.model_comparison
+    # a nested model is never worse than its sub-model; the data prefer the viscous one
+    assert comp["both"]["rss"] <= comp["viscous"]["rss"] * (1 + 1e-9)
+    assert comp["best_bic"] == "viscous"
+    for name in ("omega", "zeta"):
+        lo, hi = r.intervals[name]
+        assert lo < r.params[name] < hi
+
+
+def test_converged_rules_at_bounds(viscous_decay):
+    """xF ends at its physical bound 0: flagged, unless the user set that bound."""
+    _, plain, bounded = viscous_decay
+    assert plain.params["xF"] < 1e-6 * plain.params["a0"]
+    assert plain.converged is False
+    assert any(w.startswith("xF ran into its bound 0") for w in plain.warnings)
+    assert plain.stderr["xF"] is None and plain.stderr_gn["xF"] is None  # never 0
+    assert bounded.converged is True
+    assert not any("ran into its bound" in w for w in bounded.warnings)
+    assert bounded.params["omega"] == pytest.approx(plain.params["omega"], rel=1e-8)
+
+
+def test_json_contract(viscous_decay, capsys):
+    path, _, _ = viscous_decay
+    assert main(["fit", path, "--series", "--model", "oscillator", "--bounds", "xF=0:0.5",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert list(out) == ["model", "params", "stderr", "stderr_gn", "intervals", "correlation",
+                         "converged", "iterations", "rms", "diagnostics", "model_comparison",
+                         "clock", "units"]
+    assert set(out["diagnostics"]) == {"lag1", "runs_p", "n_eff", "warnings"}
+    assert set(out["intervals"]) == set(out["params"])
+    assert all(len(v) == 2 for v in out["intervals"].values())
+    for name, se in out["stderr"].items():
+        assert se is None or se > 0, name
+        assert se is None or se >= out["stderr_gn"][name] * (1 - 1e-12)
+    assert out["units"]["omega"] == "rad/s"
+
+
+# -- required parameters, bounds and bad input -------------------------------------------------
+def test_required_parameter_is_named(viscous_decay, capsys):
+    path, _, _ = viscous_decay
+    record = fits.read_record(path, series=True)
+    with pytest.raises(ValueError, match=r"give omega with --set omega=VALUE or fit it"):
+        fits.fit(record, "oscillator", ("zeta", "xF"))
+    assert main(["fit", path, "--series", "--model", "oscillator", "--fit", "zeta,xF"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "omega" in err[0]
+    with pytest.raises(ValueError, match="needs m0"):
+        fits.fit(record, "variable-mass", ("FT", "mu"), {"c": 4900.0})
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--bounds", "xF=1"], "--bounds"),
+    (["--bounds", "xF=a:b"], "--bounds"),
+    (["--bounds", "xF=2:1"], "--bounds"),
+    (["--bounds", "nope=0:1"], "--bounds"),
+    (["--set", "xF=2", "--fit", "zeta", "--bounds", "xF=0:1"], "outside --bounds"),
+    (["--angle-unit", "rad"], "--angle-unit"),
+    (["--shared", "zeta"], "--shared"),
+])
+def test_bad_options_exit_2(tmp_path, capsys, args, message):
+    path = _csv(tmp_path / "p.csv", [np.arange(6), [10.0, 9.0, 8.1, 7.2, 6.4, 5.7]],
+                "k,amplitude")
+    assert main(["fit", path, "--model", "oscillator", *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+
+
+def test_degenerate_inputs(tmp_path):
+    constant = fits.record_from_sequence(amplitudes=[0.05] * 10)
+    with pytest.raises(ValueError, match="does not decay"):
+        fits.fit(constant, "variable-mass", ("FT", "mu"), {"m0": 5.0, "c": 4900.0})
+    t = np.linspace(0, 5, 2000)
+    flat = _csv(tmp_path / "flat.csv", [t, np.full_like(t, 3.0)], "t,x")
+    with pytest.raises(ValueError):
+        fits.fit(fits.read_record(flat, series=True), "oscillator", ("zeta", "xF"),
+                 {"omega": 20.0})
+    three = fits.record_from_sequence(amplitudes=[0.06, 0.05, 0.041], crossed=[1, 1, 1])
+    with pytest.raises(ValueError, match="too few"):
+        fits.fit(three, "variable-mass", ("FT", "mu", "delta"), {"m0": 5.0, "c": 4900.0})
+    with pytest.raises(ValueError, match="nothing to identify"):
+        fits.fit(three, "variable-mass", (), {"m0": 5.0, "c": 4900.0})
+
+
+# -- amplitude-only records --------------------------------------------------------------------
+#: (law, delta [kg/s], mu [kg/s]) whose records end in a swing that does not cross the centre
+AMPLITUDE_CASES = {"FT": ((0.0, 3.0), (3.0, 4.0), (-3.0, 4.0)),
+                   "f": ((0.0, 3.0), (3.0, 3.0), (-3.0, 3.0))}
+
+
+def _amplitude_record(law, delta, mu):
+    value = PAPER[law]
+    friction = fits.AffineFriction(value if law == "FT" else 0.0, value if law == "f" else 0.0)
+    model = vmj.VariableMass(PAPER["m0"], PAPER["c"], delta, 0.0, mu, friction)
+    seq = vmj.turning_points(model, PAPER["a0"], 40)
+    n = int(seq.count)
+    pos = np.concatenate([[-PAPER["a0"]], np.asarray(seq.positions)[:n]])
+    assert np.sign(pos[-1]) == np.sign(pos[-2])  # the last swing did not cross
+    amps = np.round(np.abs(pos), 5)  # printed to 0.01 mm, as the paper's tables
+    return fits.record_from_sequence(amplitudes=amps, source=f"{law} delta={delta} mu={mu}")
+
+
+@pytest.fixture(scope="module", params=["FT", "f"])
+def variable_mass_batch(request):
+    """The module's variable-mass records of one friction law in one batched solve: constant,
+    growing and shrinking mass as amplitude-only records; for FT also table 1 (mu = 2,
+    eps = 0, delta = 3) without its `crossed` column (issue 12's case) and a record of three
+    swings (degenerate)."""
+    law = request.param
+    cases = AMPLITUDE_CASES[law]
+    records = [_amplitude_record(law, d, mu) for d, mu in cases]
+    given = [{"m0": PAPER["m0"], "c": PAPER["c"], "delta": d, "a0": PAPER["a0"]}
+             for d, _ in cases]
+    truth = [mu for _, mu in cases]
+    if law == "FT":
+        col = next(c for c in fits.paper_records(1) if c["mu"] == 2 and c["eps"] == 0)
+        rec = col["record"]
+        records.append(fits.record_from_sequence(amplitudes=rec.amplitudes, k=rec.k,
+                                                 source="table 1 without crossed"))
+        given.append(col["given"])
+        truth.append(2.0)
+        records.append(fits.record_from_sequence(amplitudes=[0.06, 0.05, 0.041],
+                                                 crossed=[1, 1, 1], source="three swings"))
+        given.append({"m0": PAPER["m0"], "c": PAPER["c"]})
+        truth.append(None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = fits.fit_batch(records, "variable-mass", (law, "mu"), given)
+    return law, records, truth, results
+
+
+def test_amplitude_only_records(variable_mass_batch):
+    law, records, truth, results = variable_mass_batch
+    amplitude_only = [(rec, mu, r) for rec, mu, r in zip(records, truth, results) if mu]
+    assert len(amplitude_only) == (4 if law == "FT" else 3)
+    for rec, mu, r in amplitude_only:
+        assert not rec.sides_known
+        assert abs(r.params[law] / PAPER[law] - 1) < 0.03, (rec.source, r.params)
+        assert abs(r.params["mu"] / mu - 1) < 0.15, (rec.source, r.params)
+
+
+def test_three_swings_are_flagged(variable_mass_batch):
+    law, records, _, results = variable_mass_batch
+    if law != "FT":
+        pytest.skip("one degenerate record is enough")
+    r = results[-1]
+    assert records[-1].source == "three swings"
+    assert r.converged is False and r.stderr == {"FT": None, "mu": None}
+    assert any("degrees of freedom" in w for w in r.warnings)
+
+
+# -- joint fits --------------------------------------------------------------------------------
+OSC = {"omega": 20.0, "zeta": 0.01, "xF": 0.05}
+
+
+def _release(a0, offset, seed):
+    seq = vmj.turning_points(vmj.Oscillator.linear(OSC["omega"], OSC["zeta"], OSC["xF"]), a0, 24)
+    n = int(seq.count)
+    rng = np.random.default_rng(seed)
+    pos = np.concatenate([[-a0], np.asarray(seq.positions)[:n]]) + offset
+    times = np.concatenate([[0.0], np.asarray(seq.times)[:n]])
+    pos = pos + rng.normal(0, 0.002 * a0, n + 1)
+    times = times + rng.normal(0, 2e-4, n + 1) * (np.arange(n + 1) > 0)
+    rec = fits.record_from_sequence(positions=pos, times=times, source=f"release a0={a0}")
+    return fits.Record(k=rec.k, positions=rec.positions, times=rec.times, centre=offset,
+                       source=rec.source)
+
+
+def test_joint_fit_narrows_the_shared_intervals():
+    records = [_release(a0, off, s) for a0, off, s in ((10.0, 1.0, 1), (8.0, -0.5, 2),
+                                                       (6.0, 0.3, 3))]
+    free = ("omega", "zeta", "xF", "a0", "offset")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        singles = fits.fit_batch(records, "oscillator", free, compare=False)
+        joint = fits.fit(records, "oscillator", free, shared=("omega", "zeta", "xF"),
+                         compare=False)
+    assert set(joint.params) == {"omega", "zeta", "xF"}
+    assert len(joint.records) == 3 and set(joint.records[0]["params"]) == {"a0", "offset"}
+    for name, true in OSC.items():
+        lo, hi = joint.intervals[name]
+        assert lo < true < hi, (name, joint.intervals[name])
+        width = hi - lo
+        for s in singles:
+            assert width < s.intervals[name][1] - s.intervals[name][0], name
+    assert len(joint.correlation) == 3
+
+
+def test_joint_fit_from_the_command_line(tmp_path, capsys):
+    paths = []
+    for i, (a0, off, s) in enumerate(((10.0, 1.0, 1), (8.0, -0.5, 2), (6.0, 0.3, 3))):
+        rec = _release(a0, off, s)
+        paths.append(_csv(tmp_path / f"r{i}.csv", [rec.times, rec.positions], "time,position"))
+    assert main(["fit", *paths, "--model", "oscillator", "--shared", "omega,zeta,xF",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["params"]) == {"omega", "zeta", "xF"} and len(out["records"]) == 3
+    assert set(out["records"][2]["params"]) == {"a0", "offset"}
+    assert abs(out["records"][0]["params"]["offset"] - 1.0) < 0.05
+    assert abs(out["params"]["zeta"] / OSC["zeta"] - 1) < 0.05
+
+
+# -- sensor asymmetry and model selection -----------------------------------------------------
+def test_select_reports_the_bic_preferred_variant(viscous_decay, monkeypatch):
+    """A space with `select=True` (as the pendulum's) reports the variant BIC prefers."""
+    import dataclasses
+
+    path, plain, _ = viscous_decay
+    space = dataclasses.replace(SPACES["oscillator"], name="oscillator-select", select=True)
+    monkeypatch.setitem(SPACES, space.name, space)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(fits.read_record(path, series=True), space.name,
+                     ("omega", "zeta", "xF", "a0", "offset"))
+    assert r.label == "viscous" and set(r.params) == {"omega", "zeta", "a0", "offset"}
+    assert r.converged
+    assert r.params["zeta"] == pytest.approx(plain.params["zeta"], rel=1e-6)
+
+
+def test_sensor_asymmetry_is_fitted():
+    """Readings `offset + y (1 + asym sign(y))`: asym and offset recovered beside the friction."""
+    seq = vmj.turning_points(vmj.Oscillator.linear(OSC["omega"], OSC["zeta"], OSC["xF"]), 10.0,
+                             40)
+    n = int(seq.count)
+    y = np.concatenate([[-10.0], np.asarray(seq.positions)[:n]])
+    times = np.concatenate([[0.0], np.asarray(seq.times)[:n]])
+    rng = np.random.default_rng(4)
+    reading = 1.0 + y * (1 + 0.05 * np.sign(y)) + rng.normal(0, 0.005, n + 1)
+    rec = fits.record_from_sequence(positions=reading, times=times)
+    rec = fits.Record(k=rec.k, positions=rec.positions, times=rec.times, centre=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(rec, "oscillator", ("omega", "zeta", "xF", "a0", "offset", "asym"),
+                     compare=False)
+    assert r.converged
+    for name, true in (("asym", 0.05), ("offset", 1.0), ("zeta", OSC["zeta"]),
+                       ("xF", OSC["xF"])):
+        lo, hi = r.intervals[name]
+        assert lo < true < hi, (name, r.params[name], r.intervals[name])

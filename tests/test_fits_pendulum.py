@@ -1,0 +1,249 @@
+"""The pendulum identification model (issue 11): synthetic raw records of every restoring x
+dissipation law set, read like a user's file (arrival-time stamps in bursts, sensor offset and
+side-dependent gain, noise 0.2 % of the amplitude), must give every parameter within 3 %
+(damping within 10 %) and the true law set by BIC; the public record 80P.txt must be explained
+(residual lag-1 autocorrelation at least halved against the plain oscillator fit).
+
+The records are simulated once per law set (module fixture) and fitted with `fits.fit_batch`
+over the seeds: one compiled solve per restoring law.
+"""
+
+import math
+import os
+import time
+import warnings
+from importlib.resources import files
+
+import numpy as np
+import pytest
+
+import fits
+import vmj
+from fits._pendulum import DEGREE, FREE, PENDULUM, PENDULUM_LINEAR
+
+FS = 259.6  #: the logger's sampling rate [Hz]
+RELEASE = 27.0  #: release amplitude of the simulations [deg]
+DURATION = 12.0  #: length of the records [s]
+SENSOR = {"offset": 4.0, "asym": 0.03}
+BASE = {"omega": 21.7, "b2": -0.2}
+#: the dissipation law sets and their true values (xF [deg], cq [1/deg])
+DISSIPATION = {
+    "viscous": {"zeta": 0.008},
+    "coulomb": {"xF": 0.15},
+    "viscous+coulomb": {"zeta": 0.005, "xF": 0.06},
+    "viscous+coulomb+quadratic": {"zeta": 0.003, "xF": 0.04, "cq": 4e-4},
+}
+MAX_STEPS = 200  #: Levenberg-Marquardt steps per solve
+DAMPING = ("zeta", "xF", "cq")  #: within 10 %; every other parameter within 3 %
+
+
+def oscillator(truth: dict, sine: bool) -> vmj.Oscillator:
+    """The true model in radians (`truth` in degrees, as the fit reports it)."""
+    law = (vmj.SineRestoring if sine else vmj.PolynomialRestoring)(truth["b2"], 0.0)
+    return vmj.Oscillator(truth["omega"], law, (vmj.ViscousDamping(truth.get("zeta", 0.0)),
+                                                vmj.CoulombDamping(truth.get("xF", 0.0) * DEGREE),
+                                                vmj.QuadraticDamping(truth.get("cq", 0.0) / DEGREE)))
+
+
+def simulate(truth: dict, sine: bool):
+    """Sample times [s], true angles [deg] sampled at FS from a little before the first turning
+    point after the release, and the true turning points `(times [s], angles [deg])`."""
+    model = oscillator(truth, sine)
+    first = 13  # samples dropped: the record starts during the first half-swing, as 80P.txt
+    n = int(DURATION * FS) + first
+    with vmj.assume_valid():
+        traj = vmj.simulate(model, -RELEASE * DEGREE, 0.0, (n - 1) / FS, n_save=n)
+        seq = vmj.turning_points(model, RELEASE * DEGREE, 200, vmj.Exact())
+    return (np.asarray(traj.ts)[first:], np.asarray(traj.xs)[first:] / DEGREE,
+            (np.asarray(seq.times), np.asarray(seq.positions) / DEGREE))
+
+
+def write_raw(path, ts, angles, seed: int):
+    """A raw record as the pendulum's serial logger writes it: the sensor's reading with
+    noise 0.2 % of the release amplitude, stamped with the time each row ARRIVED at the
+    computer (bursts of 15-20 rows 0.5 ms apart after the burst's last sample, then a gap of
+    50-60 ms), `HH:MM:SS.mmm`, a coarse elapsed-time column, angles to 0.01 deg."""
+    rng = np.random.default_rng(seed)
+    reading = SENSOR["offset"] + angles * (1 + SENSOR["asym"] * np.sign(angles))
+    reading = reading + rng.normal(0.0, 0.002 * RELEASE, angles.size)
+    stamps = np.empty(angles.size)
+    i = 0
+    while i < angles.size:
+        j = min(i + int(rng.integers(15, 21)), angles.size)
+        stamps[i:j] = ts[j - 1] + rng.uniform(0.0, 2e-3) + 5e-4 * np.arange(j - i)
+        i = j
+    stamps = np.maximum.accumulate(stamps) + 16 * 3600.0 + rng.uniform(0, 60)
+    lines = ["Timestamp, Time_Elapsed(s), Angle(deg)", "-" * 37]
+    for s, y in zip(stamps, reading):
+        ms = int(round(s * 1000))
+        h, rest = divmod(ms, 3_600_000)
+        m, rest = divmod(rest, 60_000)
+        elapsed = 0.06 * math.floor((s - stamps[0]) / 0.06)
+        lines.append(f"{h:02d}:{m:02d}:{rest // 1000:02d}.{rest % 1000:03d}, {elapsed:.3f}, "
+                     f"{y:.2f}")
+    path.write_text("\n".join(lines) + "\n")
+
+
+def truth_of_record(record, truth: dict, turning) -> dict:
+    """The true parameters as the record sees them: its `k = 0` is a turning point of the
+    simulation (the release of the fitted model), found by its reading; `b2` in the model's
+    coordinate (released at `-a0`), whose sign is the record's orientation times the
+    simulation's."""
+    times, angles = turning
+    a = np.abs(angles[:4])
+    first = float(record.positions[0]) - SENSOR["offset"]
+    first /= 1 + SENSOR["asym"] * np.sign(first)
+    j = int(np.argmin(np.abs(a - abs(first))))
+    return {**truth, **SENSOR, "a0": float(a[j]), "b2": record.orientation * truth["b2"]}
+
+
+LAW_SETS = [(sine, label) for sine in (True, False) for label in DISSIPATION]
+
+
+def label(sine: bool, dissipation: str) -> str:
+    return ("sine" if sine else "linear") + ":" + dissipation
+
+
+class Trajectories(dict):
+    """The simulated law sets, each simulated once when first asked for."""
+
+    def __missing__(self, key):
+        sine, diss = key
+        truth = {**BASE, **DISSIPATION[diss]}
+        self[key] = (truth, *simulate(truth, sine))
+        return self[key]
+
+
+@pytest.fixture(scope="module")
+def trajectories():
+    return Trajectories()
+
+
+def records_for(trajectories, tmp_path, sine, diss, seeds):
+    truth, ts, angles, turning = trajectories[sine, diss]
+    recs, truths = [], []
+    for seed in seeds:
+        path = tmp_path / f"{'sine' if sine else 'linear'}-{diss}-{seed}.txt"
+        write_raw(path, ts, angles, seed)
+        rec = fits.read_record(path, series=True)
+        recs.append(rec)
+        truths.append(truth_of_record(rec, truth, turning))
+    return recs, truths
+
+
+def fit_law_set(trajectories, tmp_path, sine, diss, seeds):
+    recs, truths = records_for(trajectories, tmp_path, sine, diss, seeds)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = fits.fit_batch(recs, "pendulum", FREE, intervals=False, max_steps=MAX_STEPS)
+    return recs, truths, results, time.perf_counter() - t0
+
+
+def errors(result, truth) -> dict:
+    """Relative errors of the fitted parameters of the chosen law set."""
+    out = {}
+    for name, value in result.params.items():
+        if name in ("offset", "b2", "asym", "a0", "omega", "zeta", "xF", "cq"):
+            ref = truth.get(name, 0.0)
+            out[name] = abs(value - ref) / abs(ref) if ref else abs(value)
+    return out
+
+
+def test_the_clock_of_a_synthetic_record_is_recovered(trajectories, tmp_path):
+    """The generator's stamps are arrival times: the reader recovers the logger's rate."""
+    recs, _ = records_for(trajectories, tmp_path, True, "viscous", [0])
+    clock = recs[0].clock
+    assert clock["stamps"] == "arrival" and clock["method"] == "envelope"
+    assert abs(clock["rate_hz"] / FS - 1) < 1e-4
+
+
+def test_units_convert_between_degrees_and_radians():
+    """The same pendulum in degrees (angle_unit pi/180) and in radians (angle_unit 1) gives the
+    same turning points, and both are `vmj.Oscillator.pendulum`'s."""
+    deg = {"omega": 21.7, "zeta": 0.004, "xF": 0.05, "xS": 0.0, "cq": 2e-4, "b2": -0.1,
+           "b3": 0.02, "a0": 27.0, "angle_unit": DEGREE}
+    rad = {**deg, "xF": deg["xF"] * DEGREE, "cq": deg["cq"] / DEGREE, "a0": deg["a0"] * DEGREE,
+           "angle_unit": 1.0}
+    with vmj.assume_valid():
+        t_deg, x_deg = PENDULUM.predict(deg, 40, "exact")
+        t_rad, x_rad = PENDULUM.predict(rad, 40, "exact")
+        direct = vmj.turning_points(
+            vmj.Oscillator.pendulum(21.7, 0.004, 0.05 * DEGREE, None, 2e-4 / DEGREE, -0.1, 0.02),
+            27.0 * DEGREE, 40, vmj.Exact())
+    np.testing.assert_allclose(np.asarray(x_deg) * DEGREE, np.asarray(x_rad), rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(t_deg), np.asarray(t_rad), rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(x_rad)[1:], np.asarray(direct.positions), rtol=1e-12)
+    assert PENDULUM_LINEAR.name != PENDULUM.name
+
+
+def within(err: dict) -> bool:
+    return all(e < (0.10 if name in DAMPING else 0.03) for name, e in err.items())
+
+
+def test_synthetic_law_set_is_recovered(trajectories, tmp_path):
+    """Default suite: one seed of the richest law set (every law set over 50 seeds: the slow
+    test below)."""
+    sine, diss = True, "viscous+coulomb+quadratic"
+    _, truths, results, _ = fit_law_set(trajectories, tmp_path, sine, diss, [1])
+    res, truth = results[0], truths[0]
+    assert res.label == label(sine, diss), res.model_comparison
+    assert res.converged
+    assert within(errors(res, truth)), (res.params, truth)
+    others = [v["bic"] for k, v in res.model_comparison.items()
+              if isinstance(v, dict) and k != res.label]
+    assert len(others) == 7 and min(others) > res.bic
+
+
+#: seeds of the slow test (the environment variable VMJ_PENDULUM_SEEDS runs fewer)
+SEEDS = int(os.environ.get("VMJ_PENDULUM_SEEDS", "50"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sine,diss", LAW_SETS)
+def test_law_sets_over_seeds(trajectories, tmp_path, sine, diss):
+    """Issue 11's acceptance: over 50 seeded records of each law set the true law set is the
+    BIC choice in at least 90 %, and in at least 90 % of them it is chosen AND every parameter
+    is within 3 % (damping within 10 %)."""
+    _, truths, results, dt = fit_law_set(trajectories, tmp_path, sine, diss, range(SEEDS))
+    chosen = [res.label == label(sine, diss) for res in results]
+    good = [ok and within(errors(res, truth)) for ok, res, truth in zip(chosen, results, truths)]
+    worst = {name: max(errors(res, truth)[name] for res, truth in zip(results, truths)
+                       if name in res.params) for name in results[0].params}
+    print(f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS}, all parameters within "
+          f"tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s")
+    assert sum(chosen) >= 0.9 * SEEDS
+    assert sum(good) >= 0.9 * SEEDS
+
+
+# -- the public record 80P.txt -------------------------------------------------------------
+@pytest.fixture(scope="module")
+def record_80p():
+    return fits.read_record(files("fits") / "data" / "80P.txt", series=True)
+
+
+def lag1(r) -> float:
+    r = np.asarray(r, dtype=float) - np.mean(r)
+    return float(r[1:] @ r[:-1] / (r @ r))
+
+
+@pytest.mark.slow
+def test_80p_residuals_lose_their_structure(record_80p):
+    """The pendulum model at least halves the residual lag-1 autocorrelation of the plain
+    oscillator fit (issue 11; measured 0.944 -> 0.02 on the positions), with a position RMS
+    below a quarter of it (0.290 -> 0.0215 deg). The times keep a smooth wander of +-2 ms
+    (the logger's clock, not a law: it is not monotonic in the amplitude), so the pooled
+    lag-1 of positions and times falls less (0.955 -> 0.70). Slow: the eight law sets of a
+    120-point record, about 5 minutes on 2 cores."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = fits.fit(record_80p, "oscillator", ("omega", "zeta", "xF", "a0", "offset"),
+                         intervals=False)
+        pend = fits.fit(record_80p, "pendulum", FREE, intervals=False)
+    before, after = lag1(plain.residuals["position"]), lag1(pend.residuals["position"])
+    assert before > 0.9
+    assert abs(after) <= 0.5 * before
+    assert pend.diagnostics["lag1"] < plain.diagnostics["lag1"] - 0.2
+    assert pend.rms < 0.25 * plain.rms
+    assert pend.converged
+    assert pend.label.startswith("linear:viscous+coulomb"), pend.model_comparison
