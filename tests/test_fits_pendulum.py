@@ -8,6 +8,7 @@ The records are simulated once per law set (module fixture) and fitted with `fit
 over the seeds: one compiled solve per restoring law.
 """
 
+import collections
 import math
 import os
 import time
@@ -210,8 +211,9 @@ def test_law_sets_over_seeds(trajectories, tmp_path, sine, diss):
     good = [ok and within(errors(res, truth)) for ok, res, truth in zip(chosen, results, truths)]
     worst = {name: max(errors(res, truth)[name] for res, truth in zip(results, truths)
                        if name in res.params) for name in results[0].params}
-    print(f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS}, all parameters within "
-          f"tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s")
+    picks = collections.Counter(res.label for res in results)
+    print(f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS} ({dict(picks)}), all "
+          f"parameters within tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s")
     assert sum(chosen) >= 0.9 * SEEDS
     assert sum(good) >= 0.9 * SEEDS
 
