@@ -17,12 +17,13 @@ from vmj.cli import figure_path, input_file, number, parse_set
 __all__ = ["add_arguments", "run", "MODELS"]
 
 #: the model families (kept equal to `fits._models.SPACES` by a test)
-MODELS = ("variable-mass", "rope", "oscillator")
+MODELS = ("variable-mass", "rope", "oscillator", "pendulum")
 
 _DEFAULT_FREE = {
     "variable-mass": "FT,mu",
     "oscillator": "omega,zeta,xF,a0,offset",
     "rope": "T",
+    "pendulum": "omega,zeta,xF,cq,b2,a0,offset,asym",  # fits._pendulum.FREE (a test checks)
 }
 _ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180}
 
@@ -76,7 +77,8 @@ def add_arguments(p):
                    help="model family (default: %(default)s)")
     p.add_argument("--fit", metavar="NAME[,NAME...]",
                    help="parameters to fit (default: variable-mass FT,mu; oscillator "
-                        "omega,zeta,xF,a0,offset, without omega for records without times; rope T)")
+                        "omega,zeta,xF,a0,offset, without omega for records without times; rope T;"
+                        " pendulum omega,zeta,xF,cq,b2,a0,offset,asym)")
     p.add_argument("--set", metavar="NAME=VALUE,...", default="",
                    help="fixed parameter values (SI units: FT N, mu and delta kg/s, m0 kg, c N/m, "
                         "g m/s^2, omega rad/s; the signal's units for xF, a0, offset); for "
@@ -129,7 +131,7 @@ def run(args) -> int:
                          f"(the {args.model} model has none)")
     records = [fits.read_record(path, series=args.series, time_col=args.time_col,
                                 signal_col=args.signal_col) for path in args.FILE]
-    free = args.fit or _DEFAULT_FREE.get(args.model, "")
+    free = args.fit or _DEFAULT_FREE[args.model]
     if args.fit is None and args.model == "oscillator" and any(r.times is None for r in records):
         free = "zeta,xF,a0,offset"
     names = _names(free, "--fit")

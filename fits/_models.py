@@ -90,7 +90,10 @@ class Space:
     def transform(self, name: str) -> Transform:
         """The physical range of a parameter as a bijection (its kind, narrowed by `bounds`)."""
         if name in self.bounds:
-            return transform_for(*self.bounds[name])
+            lo, hi = self.bounds[name]
+            if self.kinds[self.index(name)] == "damping":
+                hi = min(hi, _UNDERDAMPED)
+            return transform_for(lo, hi)
         return _KIND_TRANSFORMS[self.kinds[self.index(name)]]()
 
     def default(self, name: str, record: Record):

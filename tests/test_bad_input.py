@@ -282,7 +282,7 @@ CASES = parameter_cases() + [
                          "zeta=1e300"], ["--set zeta", "magnitude"]),
     ("fit --set no =", ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set", "zeta"],
      ["--set takes NAME=VALUE"]),
-    ("fit --model", ["fit", "{tmp}/good.csv", "--model", "pendulum"],
+    ("fit --model", ["fit", "{tmp}/good.csv", "--model", "spring"],
      ["argument --model", "invalid choice"]),
     ("fit --plot dir", ["fit", "{tmp}/good.csv", "--plot", "{tmp}/no/f.png"] + FIT,
      ["argument --plot", "does not exist"]),

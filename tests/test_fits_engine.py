@@ -35,7 +35,11 @@ def test_fits_imports_nothing_private_from_vmj():
 
 
 def test_cli_model_choices_are_the_spaces():
-    assert set(MODELS) == set(SPACES)
+    from fits._cli import _DEFAULT_FREE
+    from fits._pendulum import FREE
+
+    assert set(MODELS) == set(SPACES) == set(_DEFAULT_FREE)
+    assert _DEFAULT_FREE["pendulum"] == ",".join(FREE)
 
 
 # -- the synthetic viscous decay of issue 12 ---------------------------------------------------
