@@ -182,7 +182,7 @@ def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) ->
                   "offset": record_centre},
         variants=variants,
         select=select,
-        bounds={"zeta": (0.0, 1.0), "asym": (-0.5, 0.5)},
+        bounds={"asym": (-0.5, 0.5)},
         label=("sine" if sine else "linear") + ":viscous+coulomb+quadratic",
         start=_start,
     )

@@ -8,6 +8,7 @@ The records are simulated once per law set (module fixture) and fitted with `fit
 over the seeds: one compiled solve per restoring law.
 """
 
+import collections
 import math
 import os
 import time
@@ -131,12 +132,13 @@ def records_for(trajectories, tmp_path, sine, diss, seeds):
     return recs, truths
 
 
-def fit_law_set(trajectories, tmp_path, sine, diss, seeds):
+def fit_law_set(trajectories, tmp_path, sine, diss, seeds, compare=True):
     recs, truths = records_for(trajectories, tmp_path, sine, diss, seeds)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        results = fits.fit_batch(recs, "pendulum", FREE, intervals=False, max_steps=MAX_STEPS)
+        results = fits.fit_batch(recs, "pendulum", FREE, intervals=False, max_steps=MAX_STEPS,
+                                 compare=compare)
     return recs, truths, results, time.perf_counter() - t0
 
 
@@ -182,17 +184,15 @@ def within(err: dict) -> bool:
 
 
 def test_synthetic_law_set_is_recovered(trajectories, tmp_path):
-    """Default suite: one seed of the richest law set (every law set over 50 seeds: the slow
-    test below)."""
+    """Default suite: one seed of the richest law set, fitted as that law set alone (one
+    compiled model; the comparison of the eight law sets over 50 seeds is the slow test
+    below, and `select=True` is tested in tests/test_fits_engine.py)."""
     sine, diss = True, "viscous+coulomb+quadratic"
-    _, truths, results, _ = fit_law_set(trajectories, tmp_path, sine, diss, [1])
+    _, truths, results, _ = fit_law_set(trajectories, tmp_path, sine, diss, [1], compare=False)
     res, truth = results[0], truths[0]
-    assert res.label == label(sine, diss), res.model_comparison
+    assert res.label == label(sine, diss)
     assert res.converged
     assert within(errors(res, truth)), (res.params, truth)
-    others = [v["bic"] for k, v in res.model_comparison.items()
-              if isinstance(v, dict) and k != res.label]
-    assert len(others) == 7 and min(others) > res.bic
 
 
 #: seeds of the slow test (the environment variable VMJ_PENDULUM_SEEDS runs fewer)
@@ -210,8 +210,9 @@ def test_law_sets_over_seeds(trajectories, tmp_path, sine, diss):
     good = [ok and within(errors(res, truth)) for ok, res, truth in zip(chosen, results, truths)]
     worst = {name: max(errors(res, truth)[name] for res, truth in zip(results, truths)
                        if name in res.params) for name in results[0].params}
-    print(f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS}, all parameters within "
-          f"tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s")
+    picks = collections.Counter(res.label for res in results)
+    print(f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS} ({dict(picks)}), all "
+          f"parameters within tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s")
     assert sum(chosen) >= 0.9 * SEEDS
     assert sum(good) >= 0.9 * SEEDS
 
