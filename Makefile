@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint docs bench clean
+.PHONY: demo test test-long lint docs bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,7 +23,12 @@ demo: $(STAMP)
 # lint, then the suite: it includes the documentation (every snippet and example runs, and
 # `mkdocs build --strict`, tests/test_docs.py) and the wheel (tests/test_wheel.py)
 test: lint
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not long"
+
+# the long acceptance runs (50-seed law-set choices, exact coverage runs, the pendulum on 80P.txt):
+# about an hour on 2 cores
+test-long: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m long
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

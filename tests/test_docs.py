@@ -38,9 +38,17 @@ def code_blocks(path: Path, langs: tuple[str, ...]) -> list[str]:
     return [textwrap.dedent(m["body"]) for m in _FENCE.finditer(text) if m["lang"] in langs]
 
 
-def python_source(path: Path) -> str:
-    """Every ```python block of `path`, in order, as one program."""
-    return "\n\n".join(code_blocks(path, ("python",)))
+LONG = "# long-running"  #: first line of a block that takes minutes: run by `make test-long`
+
+
+def _is_long(block: str) -> bool:
+    return block.lstrip().startswith(LONG)
+
+
+def python_source(path: Path, long: bool = False) -> str:
+    """Every ```python block of `path`, in order, as one program: the long-running blocks
+    (first line `# long-running ...`) when `long`, the others otherwise."""
+    return "\n\n".join(b for b in code_blocks(path, ("python",)) if _is_long(b) == long)
 
 
 # Commands the pages show that are not cheap enough to run here, with where they are tested.
@@ -51,12 +59,14 @@ EXPENSIVE = {
 }
 
 
-def vmj_commands(path: Path) -> list[list[str]]:
+def vmj_commands(path: Path, long: bool = False) -> list[list[str]]:
     """The arguments of each `vmj ...` command in the shell blocks of `path` (continuation lines
     joined, `$ ` prompts and `# comments` dropped; other commands, output lines and the commands
-    in `EXPENSIVE` skipped)."""
+    in `EXPENSIVE` skipped): those of the long-running blocks when `long`, the others otherwise."""
     commands = []
     for block in code_blocks(path, SHELLS):
+        if _is_long(block) != long:
+            continue
         for line in block.replace("\\\n", " ").splitlines():
             line = line.strip().removeprefix("$ ")
             if line.startswith("vmj "):
@@ -104,6 +114,14 @@ def test_python_snippets_run(page, tmp_path):
     run([sys.executable, program.name], tmp_path, timeout=600)
 
 
+@pytest.mark.long
+@pytest.mark.parametrize("page", [p for p in PAGES if python_source(p, long=True)], ids=_id)
+def test_long_python_snippets_run(page, tmp_path):
+    program = scratch(tmp_path) / "snippets.py"
+    program.write_text(python_source(page, long=True), encoding="utf-8")
+    run([sys.executable, program.name], tmp_path, timeout=3600)
+
+
 # The `vmj` commands of one page run in one process (one start-up, shared compilations) through
 # the installed `vmj` entry point, each as `vmj ARGS` would run it.
 _RUN_COMMANDS = """
@@ -127,15 +145,25 @@ for args in json.load(sys.stdin):
 """
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("page", [p for p in PAGES if vmj_commands(p)], ids=_id)
-def test_vmj_commands_run(page, tmp_path):
+def _run_commands(commands: list[list[str]], tmp_path: Path, timeout: float):
     import json
 
     got = subprocess.run([sys.executable, "-c", _RUN_COMMANDS], cwd=scratch(tmp_path),
-                         input=json.dumps(vmj_commands(page)), env=environment(),
-                         capture_output=True, text=True, timeout=600)
+                         input=json.dumps(commands), env=environment(),
+                         capture_output=True, text=True, timeout=timeout)
     assert got.returncode == 0, f"{got.stdout[-3000:]}\n{got.stderr[-6000:]}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", [p for p in PAGES if vmj_commands(p)], ids=_id)
+def test_vmj_commands_run(page, tmp_path):
+    _run_commands(vmj_commands(page), tmp_path, timeout=600)
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("page", [p for p in PAGES if vmj_commands(p, long=True)], ids=_id)
+def test_long_vmj_commands_run(page, tmp_path):
+    _run_commands(vmj_commands(page, long=True), tmp_path, timeout=3600)
 
 
 # -- the site ------------------------------------------------------------------------------------

@@ -153,7 +153,7 @@ def test_coverage_variable_mass_energy_balance():
     _check_coverage(results, VM_TRUTH, "variable-mass energy")
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_coverage_variable_mass_exact():
     """The default exact forward model: 52-79 s on 2 shared cores (28 s of it with every
     program compiled), most of it the profile-likelihood solves. Measured FT 46/50, mu 46/50
@@ -170,7 +170,7 @@ def test_coverage_rope_fixed_length():
                     "rope fixed length")
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_coverage_rope_lowering():
     """The paper's rope lowered at 2 m/s, exact forward model: 77-87 s on 2 shared cores.
     Measured T 48/50 (Gauss-Newton 48)."""

@@ -199,7 +199,7 @@ def test_synthetic_law_set_is_recovered(trajectories, tmp_path):
 SEEDS = int(os.environ.get("VMJ_PENDULUM_SEEDS", "50"))
 
 
-@pytest.mark.slow
+@pytest.mark.long
 @pytest.mark.parametrize("sine,diss", LAW_SETS)
 def test_law_sets_over_seeds(trajectories, tmp_path, sine, diss):
     """Issue 11's acceptance: over 50 seeded records of each law set the true law set is the
@@ -228,7 +228,7 @@ def lag1(r) -> float:
     return float(r[1:] @ r[:-1] / (r @ r))
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_80p_residuals_lose_their_structure(record_80p):
     """The pendulum model at least halves the residual lag-1 autocorrelation of the plain
     oscillator fit (issue 11; measured 0.944 -> 0.02 on the positions), with a position RMS
