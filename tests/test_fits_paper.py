@@ -42,7 +42,7 @@ def _batch(law: str, tables, loss: str):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         results = fits.fit_batch([it["record"] for it in items], "variable-mass", (law, "mu"),
-                                 [it["given"] for it in items], loss=loss)
+                                 [it["given"] for it in items], loss=loss, intervals=False)
     return list(zip(items, results))
 
 

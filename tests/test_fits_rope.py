@@ -33,7 +33,7 @@ def test_rope_T_from_a_lowering_rope(lowering):
     path, given, T = lowering
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = fits.fit(fits.read_peaks(path), "rope", ("T",), given)
+        r = fits.fit(fits.read_peaks(path), "rope", ("T",), given, intervals=False)
     assert r.converged
     assert abs(r.params["T"] / T - 1) < 0.03
     assert abs(r.params["T"] - T) < 4 * r.stderr["T"]
