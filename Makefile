@@ -32,6 +32,7 @@ test-long: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 
 # the documentation site at http://127.0.0.1:8000, rebuilt on every change
 docs: $(STAMP)

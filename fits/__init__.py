@@ -13,11 +13,19 @@ See docs/fits.md.
 
 from vmj import AffineFriction  # re-exported: it lived here before vmj 0.2
 
+from ._clock import recover_clock
 from ._decrement import decrement
 from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
-from ._clock import recover_clock
-from ._io import (MAX_ROWS, Record, Signal, extract_turning_points, read_peaks, read_record,
-                  read_signal, record_from_sequence)
+from ._io import (
+    MAX_ROWS,
+    Record,
+    Signal,
+    extract_turning_points,
+    read_peaks,
+    read_record,
+    read_signal,
+    record_from_sequence,
+)
 from ._models import FORWARDS
 from ._report import paper_records, plot_fit, text_report
 from ._sensor import sensor_start

@@ -69,47 +69,84 @@ def _names(text: str | None, option: str) -> tuple:
 
 
 def add_arguments(p):
-    p.add_argument("FILE", type=input_file, nargs="+",
-                   help="peak-sequence CSV (k|time, amplitude|position[, crossed]) or, with "
-                        "--series, a raw signal; several files are fitted jointly "
-                        "(see --shared)")
-    p.add_argument("--model", choices=MODELS, default="variable-mass",
-                   help="model family (default: %(default)s)")
-    p.add_argument("--fit", metavar="NAME[,NAME...]",
-                   help="parameters to fit (default: variable-mass FT,mu; oscillator "
-                        "omega,zeta,xF,a0,offset, without omega for records without times; rope T;"
-                        " pendulum omega,zeta,xF,cq,b2,a0,offset,asym)")
-    p.add_argument("--set", metavar="NAME=VALUE,...", default="",
-                   help="fixed parameter values (SI units: FT N, mu and delta kg/s, m0 kg, c N/m, "
-                        "g m/s^2, omega rad/s; the signal's units for xF, a0, offset); for "
-                        "fitted names, the starting value. A parameter neither fitted nor set "
-                        "takes its physical default (friction terms 0, g 9.81, a0 the first "
-                        "point, offset the record's centre) or is an error")
-    p.add_argument("--bounds", metavar="NAME=LO:HI,...",
-                   help="bounds of parameters, in their units (an empty LO or HI is open); a "
-                        "fitted value at a bound set here is not flagged")
-    p.add_argument("--shared", metavar="NAME[,NAME...]",
-                   help="several FILEs: fitted parameters with one value for all records (the "
-                        "others, e.g. offset and a0, one per record)")
-    p.add_argument("--series", action="store_true", help="FILE is a raw signal: extract the "
-                                                         "turning points first")
+    p.add_argument(
+        "FILE",
+        type=input_file,
+        nargs="+",
+        help="peak-sequence CSV (k|time, amplitude|position[, crossed]) or, with "
+        "--series, a raw signal; several files are fitted jointly "
+        "(see --shared)",
+    )
+    p.add_argument(
+        "--model",
+        choices=MODELS,
+        default="variable-mass",
+        help="model family (default: %(default)s)",
+    )
+    p.add_argument(
+        "--fit",
+        metavar="NAME[,NAME...]",
+        help="parameters to fit (default: variable-mass FT,mu; oscillator "
+        "omega,zeta,xF,a0,offset, without omega for records without times; rope T;"
+        " pendulum omega,zeta,xF,cq,b2,a0,offset,asym)",
+    )
+    p.add_argument(
+        "--set",
+        metavar="NAME=VALUE,...",
+        default="",
+        help="fixed parameter values (SI units: FT N, mu and delta kg/s, m0 kg, c N/m, "
+        "g m/s^2, omega rad/s; the signal's units for xF, a0, offset); for "
+        "fitted names, the starting value. A parameter neither fitted nor set "
+        "takes its physical default (friction terms 0, g 9.81, a0 the first "
+        "point, offset the record's centre) or is an error",
+    )
+    p.add_argument(
+        "--bounds",
+        metavar="NAME=LO:HI,...",
+        help="bounds of parameters, in their units (an empty LO or HI is open); a "
+        "fitted value at a bound set here is not flagged",
+    )
+    p.add_argument(
+        "--shared",
+        metavar="NAME[,NAME...]",
+        help="several FILEs: fitted parameters with one value for all records (the "
+        "others, e.g. offset and a0, one per record)",
+    )
+    p.add_argument(
+        "--series",
+        action="store_true",
+        help="FILE is a raw signal: extract the turning points first",
+    )
     p.add_argument("--time-col", help="raw signal: time column (name or 0-based index)")
     p.add_argument("--signal-col", help="raw signal: signal column (name or 0-based index)")
-    p.add_argument("--angle-unit", choices=tuple(_ANGLE_UNITS),
-                   help="unit of an angle signal, for models with an angle_unit parameter "
-                        "(default: deg)")
-    p.add_argument("--forward", choices=("exact", "smooth", "energy"), default="exact",
-                   help="forward model (default: %(default)s)")
-    p.add_argument("--loss", choices=("l2", "huber", "cauchy"), default="l2",
-                   help="loss (default: %(default)s)")
-    p.add_argument("--optimizer", choices=("lm", "adam"), default="lm",
-                   help="optimizer (default: %(default)s)")
-    p.add_argument("--json", action="store_true",
-                   help="print one JSON object: model, params, stderr, stderr_gn, intervals, "
-                        "correlation, converged, iterations, rms, diagnostics, "
-                        "model_comparison[, records, clock], units")
-    p.add_argument("--plot", metavar="PATH", type=figure_path,
-                   help="write a figure (PNG) to PATH")
+    p.add_argument(
+        "--angle-unit",
+        choices=tuple(_ANGLE_UNITS),
+        help="unit of an angle signal, for models with an angle_unit parameter (default: deg)",
+    )
+    p.add_argument(
+        "--forward",
+        choices=("exact", "smooth", "energy"),
+        default="exact",
+        help="forward model (default: %(default)s)",
+    )
+    p.add_argument(
+        "--loss",
+        choices=("l2", "huber", "cauchy"),
+        default="l2",
+        help="loss (default: %(default)s)",
+    )
+    p.add_argument(
+        "--optimizer", choices=("lm", "adam"), default="lm", help="optimizer (default: %(default)s)"
+    )
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object: model, params, stderr, stderr_gn, intervals, "
+        "correlation, converged, iterations, rms, diagnostics, "
+        "model_comparison[, records, clock], units",
+    )
+    p.add_argument("--plot", metavar="PATH", type=figure_path, help="write a figure (PNG) to PATH")
 
 
 def run(args) -> int:
@@ -127,19 +164,33 @@ def run(args) -> int:
     if "angle_unit" in space.names:
         given["angle_unit"] = _ANGLE_UNITS[args.angle_unit or "deg"]
     elif args.angle_unit is not None:
-        raise ValueError(f"--angle-unit applies only to models with an angle_unit parameter "
-                         f"(the {args.model} model has none)")
-    records = [fits.read_record(path, series=args.series, time_col=args.time_col,
-                                signal_col=args.signal_col) for path in args.FILE]
+        raise ValueError(
+            f"--angle-unit applies only to models with an angle_unit parameter "
+            f"(the {args.model} model has none)"
+        )
+    records = [
+        fits.read_record(
+            path, series=args.series, time_col=args.time_col, signal_col=args.signal_col
+        )
+        for path in args.FILE
+    ]
     free = args.fit or _DEFAULT_FREE[args.model]
     if args.fit is None and args.model == "oscillator" and any(r.times is None for r in records):
         free = "zeta,xF,a0,offset"
     names = _names(free, "--fit")
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
-        result = fits.fit(records if len(records) > 1 else records[0], args.model, names, given,
-                          shared=shared, bounds=bounds, forward=args.forward, loss=args.loss,
-                          optimizer=args.optimizer)
+        result = fits.fit(
+            records if len(records) > 1 else records[0],
+            args.model,
+            names,
+            given,
+            shared=shared,
+            bounds=bounds,
+            forward=args.forward,
+            loss=args.loss,
+            optimizer=args.optimizer,
+        )
     if args.plot:
         fits.plot_fit(result, args.plot)
     if args.json:

@@ -135,8 +135,8 @@ def _steps(b: np.ndarray, w: int = 3, width: int = 20) -> np.ndarray:
         return np.zeros((0, 2), dtype=int)
     med = np.median(np.lib.stride_tricks.sliding_window_view(b, w), axis=1)  # of b[i:i + w]
     e = np.zeros(n)
-    e[w:n - w + 1] = med[w:] - med[:-w]
-    scale = 1.4826 * float(np.median(np.abs(e[w:n - w + 1])))
+    e[w : n - w + 1] = med[w:] - med[:-w]
+    scale = 1.4826 * float(np.median(np.abs(e[w : n - w + 1])))
     candidates = np.nonzero(e > max(0.5, 5 * scale))[0]
     out = []
     for j in candidates[np.argsort(-e[candidates])]:
@@ -210,8 +210,11 @@ def classify(stamps: np.ndarray) -> str:
     dt = np.diff(stamps)
     mean = (stamps[-1] - stamps[0]) / len(dt)
     gaps = dt > 2 * mean
-    if (np.median(dt) < 0.5 * mean and np.sum(dt[gaps]) >= 0.5 * (stamps[-1] - stamps[0])
-            and np.sum(gaps) >= 3):
+    if (
+        np.median(dt) < 0.5 * mean
+        and np.sum(dt[gaps]) >= 0.5 * (stamps[-1] - stamps[0])
+        and np.sum(gaps) >= 3
+    ):
         return "arrival"
     positive = dt[dt > 0]
     if positive.size == dt.size and _uniform_grid(stamps, float(np.median(positive))) is not None:
@@ -219,9 +222,14 @@ def classify(stamps: np.ndarray) -> str:
     return "irregular"
 
 
-def recover_clock(stamps, *, clock: str = "auto", rate: float | None = None,
-                  column: str | None = None, rows: int | None = None
-                  ) -> tuple[np.ndarray | None, dict]:
+def recover_clock(
+    stamps,
+    *,
+    clock: str = "auto",
+    rate: float | None = None,
+    column: str | None = None,
+    rows: int | None = None,
+) -> tuple[np.ndarray | None, dict]:
     """The sample times of a raw signal from its time stamps.
 
     **Arguments:**
@@ -258,22 +266,40 @@ def recover_clock(stamps, *, clock: str = "auto", rate: float | None = None,
         try:
             rate = float(rate)
         except (TypeError, ValueError):
-            raise ValueError(f"rate must be a positive number of samples per second [Hz] "
-                             f"(got {rate!r})") from None
+            raise ValueError(
+                f"rate must be a positive number of samples per second [Hz] (got {rate!r})"
+            ) from None
         if not (np.isfinite(rate) and rate > 0):
-            raise ValueError(f"rate must be a positive number of samples per second [Hz] "
-                             f"(got {rate!r})")
+            raise ValueError(
+                f"rate must be a positive number of samples per second [Hz] (got {rate!r})"
+            )
         if clock == "stamps":
-            raise ValueError("rate=... puts the samples on a uniform clock: it cannot be "
-                             "combined with clock='stamps'")
-    report = {"method": None, "stamps": "none", "rate_hz": None, "t0": 0.0, "jitter_s": None,
-              "dropped": 0, "rows": 0, "column": column, "message": ""}
+            raise ValueError(
+                "rate=... puts the samples on a uniform clock: it cannot be "
+                "combined with clock='stamps'"
+            )
+    report = {
+        "method": None,
+        "stamps": "none",
+        "rate_hz": None,
+        "t0": 0.0,
+        "jitter_s": None,
+        "dropped": 0,
+        "rows": 0,
+        "column": column,
+        "message": "",
+    }
     if stamps is None:
         if rate is None:
-            raise ValueError("the signal has no time column: give the sampling rate "
-                             "(rate=... [Hz])")
-        report.update(method="rate", rate_hz=rate, rows=int(rows),
-                      message=f"no time column: samples at the given {_fmt_rate(rate)}")
+            raise ValueError(
+                "the signal has no time column: give the sampling rate (rate=... [Hz])"
+            )
+        report.update(
+            method="rate",
+            rate_hz=rate,
+            rows=int(rows),
+            message=f"no time column: samples at the given {_fmt_rate(rate)}",
+        )
         return np.arange(int(rows)) / rate, report
     stamps = np.asarray(stamps, dtype=float)
     n = stamps.size
@@ -288,8 +314,13 @@ def recover_clock(stamps, *, clock: str = "auto", rate: float | None = None,
     if kind == "arrival" and clock != "stamps":
         m, t0, period, jitter, dropped, bursts = _arrival(stamps, rate, mean_step)
         t = t0 + period * m
-        report.update(method="rate" if rate is not None else "envelope", rate_hz=1.0 / period,
-                      t0=t0, jitter_s=jitter, dropped=dropped)
+        report.update(
+            method="rate" if rate is not None else "envelope",
+            rate_hz=1.0 / period,
+            t0=t0,
+            jitter_s=jitter,
+            dropped=dropped,
+        )
         lag = stamps - t
         report["message"] = (
             f"{name} are arrival times ({bursts} bursts, median step "
@@ -297,7 +328,8 @@ def recover_clock(stamps, *, clock: str = "auto", rate: float | None = None,
             f"uniform clock at {_fmt_rate(1 / period)}"
             + (" (given)" if rate is not None else " from their lower envelope")
             + f", envelope scatter {jitter * 1e3:.2g} ms, arrival lag up to {lag.max() * 1e3:.3g}"
-              f" ms, {dropped} dropped samples")
+            f" ms, {dropped} dropped samples"
+        )
         return t, report
 
     if kind == "uniform":
@@ -313,22 +345,32 @@ def recover_clock(stamps, *, clock: str = "auto", rate: float | None = None,
             dev = stamps - (t0 + period * m)
         jitter = float(np.sqrt(np.mean(dev**2)))
         report.update(rate_hz=1.0 / period, t0=t0, jitter_s=jitter, dropped=dropped)
-        what = (f"{name} are uniform at {_fmt_rate(1 / period)} (rms deviation "
-                f"{jitter * 1e3:.2g} ms, {dropped} dropped samples)")
+        what = (
+            f"{name} are uniform at {_fmt_rate(1 / period)} (rms deviation "
+            f"{jitter * 1e3:.2g} ms, {dropped} dropped samples)"
+        )
         if rate is None and clock in ("auto", "stamps"):
             report.update(method="stamps", t0=float(stamps[0]), message=what + ": kept")
             return None, report
-        report.update(method="rate" if rate is not None else "grid",
-                      message=what + ": put on the uniform grid")
+        report.update(
+            method="rate" if rate is not None else "grid",
+            message=what + ": put on the uniform grid",
+        )
         return t0 + period * m, report
 
     # irregular (or arrival stamps kept on request)
     report["rate_hz"] = 1.0 / mean_step
     if clock == "stamps" or (clock == "auto" and rate is None):
-        what = ("are arrival times (bursts), kept as the sample times on request"
-                if kind == "arrival" else "are irregular")
-        report.update(method="stamps", t0=float(stamps[0]),
-                      message=f"{name} {what} (mean rate {_fmt_rate(1 / mean_step)}): kept")
+        what = (
+            "are arrival times (bursts), kept as the sample times on request"
+            if kind == "arrival"
+            else "are irregular"
+        )
+        report.update(
+            method="stamps",
+            t0=float(stamps[0]),
+            message=f"{name} {what} (mean rate {_fmt_rate(1 / mean_step)}): kept",
+        )
         return None, report
     m = np.arange(n, dtype=float)
     if rate is not None:
@@ -337,11 +379,14 @@ def recover_clock(stamps, *, clock: str = "auto", rate: float | None = None,
     else:
         t0, period = _line(m, stamps)
     dev = stamps - (t0 + period * m)
-    report.update(method="rate" if rate is not None else "line", rate_hz=1.0 / period, t0=t0,
-                  jitter_s=float(np.sqrt(np.mean(dev**2))),
-                  message=f"{name} are irregular; samples taken as equally spaced at "
-                          f"{_fmt_rate(1 / period)}" + (" (given)" if rate is not None else
-                                                        " (least-squares line)")
-                          + f", rms deviation {np.sqrt(np.mean(dev**2)) * 1e3:.3g} ms")
+    report.update(
+        method="rate" if rate is not None else "line",
+        rate_hz=1.0 / period,
+        t0=t0,
+        jitter_s=float(np.sqrt(np.mean(dev**2))),
+        message=f"{name} are irregular; samples taken as equally spaced at "
+        f"{_fmt_rate(1 / period)}"
+        + (" (given)" if rate is not None else " (least-squares line)")
+        + f", rms deviation {np.sqrt(np.mean(dev**2)) * 1e3:.3g} ms",
+    )
     return t0 + period * m, report
-

@@ -38,8 +38,9 @@ def decrement(record: Record, centre: float | None = None) -> dict:
     k = np.asarray(record.k)
     src = f"{record.source}: " if record.source else ""
     if len(x) < 3:
-        raise ValueError(f"{src}need at least 3 turning points for the decrement method "
-                         f"(got {len(x)})")
+        raise ValueError(
+            f"{src}need at least 3 turning points for the decrement method (got {len(x)})"
+        )
     amp = np.abs(x)
     kf = k.astype(float)
     (trend, level), res, *_ = np.polyfit(kf, amp, 1, full=True)
@@ -48,9 +49,11 @@ def decrement(record: Record, centre: float | None = None) -> dict:
     drop = -trend * float(kf[-1] - kf[0])
     if not (trend < 0 and -trend > 3 * se_trend and drop > 1e-6 * float(np.max(amp))):
         what = "grow" if trend > 3 * se_trend else "stay constant"
-        raise ValueError(f"{src}the sequence does not decay (the amplitudes {what}: "
-                         f"{trend:.3g} +- {se_trend:.2g} per swing on average): nothing to "
-                         f"identify")
+        raise ValueError(
+            f"{src}the sequence does not decay (the amplitudes {what}: "
+            f"{trend:.3g} +- {se_trend:.2g} per swing on average): nothing to "
+            f"identify"
+        )
     consecutive = np.diff(k) == 1
     a_now = amp[:-1][consecutive]
     a_next = (-np.sign(x[:-1]) * x[1:])[consecutive]  # negative: did not pass the centre
@@ -111,8 +114,10 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
         start.update(zeta=min(zeta, 0.5), xF=xF, omega=dec["omega"] or 1.0)
     elif {"FT", "f", "mu", "m0", "c"} <= names:
         if "m0" not in given or "c" not in given:
-            raise ValueError("the variable-mass fit needs m0 and c (give them with --set "
-                             "m0=VALUE,c=VALUE; a fitted one needs a starting value)")
+            raise ValueError(
+                "the variable-mass fit needs m0 and c (give them with --set "
+                "m0=VALUE,c=VALUE; a fitted one needs a starting value)"
+            )
         m0, c = given["m0"], given["c"]
         delta = given.get("delta", 0.0)
         eps = given.get("eps", 0.0)
@@ -122,13 +127,26 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
         m_mid = max(m0 + delta * half * n / 2, 0.2 * m0)
         lam = 4 * math.sqrt(c * m_mid) * math.log(dec["r"]) / math.pi
         mu = max((delta - 2 * delta * eps - lam) / 2, 2e-3 * math.sqrt(c * m0))
-        start.update(mu=mu, eps=min(max(eps, 0.05), 0.95), delta=delta, g=g, m0=m0, c=c,
-                     FT=c * xF, f=c * xF / (g * m_mid))
+        start.update(
+            mu=mu,
+            eps=min(max(eps, 0.05), 0.95),
+            delta=delta,
+            g=g,
+            m0=m0,
+            c=c,
+            FT=c * xF,
+            f=c * xF / (g * m_mid),
+        )
     elif {"T", "e", "l0"} <= names:
         # the dead band xF = A T / (A e / l0): T = e xF / l0 (first-order, length at release)
         e = given.get("e", 1.0)
-        start.update(T=e * xF / given.get("l0", 1.0), e=e, d=given.get("d", 0.0),
-                     b=given.get("b", 0.0), u=given.get("u", 0.0))
+        start.update(
+            T=e * xF / given.get("l0", 1.0),
+            e=e,
+            d=given.get("d", 0.0),
+            b=given.get("b", 0.0),
+            u=given.get("u", 0.0),
+        )
     if "asym" in names and record.sides_known and len(record) >= 3:
         from ._sensor import sensor_start
 

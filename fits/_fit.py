@@ -43,8 +43,18 @@ import vmj
 from ._decrement import decrement, starting_guess
 from ._io import Record
 from ._models import FORWARDS, SPACES, Space
-from ._params import HELD, INTERVAL, LOWER, REAL, Transform, at_bound, check_value, inverse, \
-    transform_for, warn_if_float32
+from ._params import (
+    HELD,
+    INTERVAL,
+    LOWER,
+    REAL,
+    Transform,
+    at_bound,
+    check_value,
+    inverse,
+    transform_for,
+    warn_if_float32,
+)
 from ._result import FitResult, _information, _result, _robust_scale, _values_of
 from ._solve import _TUNING, _job_arrays, _rss, _Shape, _solve
 
@@ -73,36 +83,53 @@ def _check_inputs(space, free, shared, given, bounds, forward, loss, optimizer):
         raise ValueError(f"optimizer must be one of {list(OPTIMIZERS)} (got {optimizer!r})")
     free = tuple(free)
     if not free:
-        raise ValueError("give at least one parameter to fit (--fit NAME[,NAME...]): with every "
-                         "parameter fixed there is nothing to identify")
+        raise ValueError(
+            "give at least one parameter to fit (--fit NAME[,NAME...]): with every "
+            "parameter fixed there is nothing to identify"
+        )
     for name in free:
         if name not in space.names:
-            raise ValueError(f"unknown parameter {name!r} for the {space.name} model "
-                             f"(parameters: {', '.join(space.names)})")
+            raise ValueError(
+                f"unknown parameter {name!r} for the {space.name} model "
+                f"(parameters: {', '.join(space.names)})"
+            )
     for name in given:
         if name == "angle_unit" and name not in space.names:
-            raise ValueError(f"--angle-unit applies only to models with an angle_unit parameter "
-                             f"(the {space.name} model has none)")
+            raise ValueError(
+                f"--angle-unit applies only to models with an angle_unit parameter "
+                f"(the {space.name} model has none)"
+            )
         if name not in space.names:
-            raise ValueError(f"unknown parameter {name!r} for the {space.name} model "
-                             f"(parameters: {', '.join(space.names)})")
+            raise ValueError(
+                f"unknown parameter {name!r} for the {space.name} model "
+                f"(parameters: {', '.join(space.names)})"
+            )
     if len(set(free)) != len(free):
         raise ValueError(f"a parameter is listed twice in {free}")
     for name in shared:
         if name not in free:
-            raise ValueError(f"--shared {name}: only fitted parameters can be shared "
-                             f"(fitted: {', '.join(free)})")
+            raise ValueError(
+                f"--shared {name}: only fitted parameters can be shared (fitted: {', '.join(free)})"
+            )
     for name, (lo, hi) in bounds.items():
         if name not in space.names:
-            raise ValueError(f"--bounds: unknown parameter {name!r} for the {space.name} model "
-                             f"(parameters: {', '.join(space.names)})")
-        if not (isinstance(lo, (int, float)) and isinstance(hi, (int, float))) or not lo < hi \
-                or math.isnan(lo) or math.isnan(hi):
+            raise ValueError(
+                f"--bounds: unknown parameter {name!r} for the {space.name} model "
+                f"(parameters: {', '.join(space.names)})"
+            )
+        if (
+            not (isinstance(lo, (int, float)) and isinstance(hi, (int, float)))
+            or not lo < hi
+            or math.isnan(lo)
+            or math.isnan(hi)
+        ):
             raise ValueError(f"--bounds {name}: need LO < HI (got {lo}:{hi})")
         plo, phi = _physical_range(space, name)
         if max(lo, plo) >= min(hi, phi):
-            raise ValueError(f"--bounds {name}={lo}:{hi} leaves nothing of its physical range "
-                             f"[{plo}, {phi}] [{space.unit(name)}]")
+            raise ValueError(
+                f"--bounds {name}={lo}:{hi} leaves nothing of its physical range "
+                f"[{plo}, {phi}] [{space.unit(name)}]"
+            )
     for name, value in given.items():
         kind = space.kinds[space.index(name)]
         unit = space.unit(name)
@@ -113,8 +140,9 @@ def _check_inputs(space, free, shared, given, bounds, forward, loss, optimizer):
         if name in bounds and name not in free:
             lo, hi = bounds[name]
             if not lo <= value <= hi:
-                raise ValueError(f"--set {name}={value} is outside --bounds {name}={lo}:{hi} "
-                                 f"[{unit}]")
+                raise ValueError(
+                    f"--set {name}={value} is outside --bounds {name}={lo}:{hi} [{unit}]"
+                )
     return free
 
 
@@ -156,10 +184,13 @@ def _fixed_values(space, record, free, given, hold=None) -> dict:
     if missing:
         if len(missing) == 1:
             nm = missing[0]
-            raise ValueError(f"the {space.name} model needs {nm}: give {nm} with --set {nm}=VALUE "
-                             f"or fit it")
-        raise ValueError(f"the {space.name} model needs {', '.join(missing)}: give them with "
-                         f"--set NAME=VALUE or fit them")
+            raise ValueError(
+                f"the {space.name} model needs {nm}: give {nm} with --set {nm}=VALUE or fit it"
+            )
+        raise ValueError(
+            f"the {space.name} model needs {', '.join(missing)}: give them with "
+            f"--set NAME=VALUE or fit them"
+        )
     return out
 
 
@@ -210,18 +241,20 @@ class _Job:
 
 def _make_job(index, prob, space, label, free, hold, bounds, headline):
     R = len(prob.records)
-    fixed = [_fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names},
-                           hold) for rec, g in zip(prob.records, prob.givens)]
+    fixed = [
+        _fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names}, hold)
+        for rec, g in zip(prob.records, prob.givens)
+    ]
     start = []
     for rec, g, dec, fx in zip(prob.records, prob.givens, prob.decs, fixed):
-        guess = starting_guess(space, rec, {**fx, **{k: v for k, v in g.items()
-                                                     if k in space.names}}, dec)
+        guess = starting_guess(
+            space, rec, {**fx, **{k: v for k, v in g.items() if k in space.names}}, dec
+        )
         defaults = {n: space.default(n, rec) for n in free if n in space.defaults}
         st = {**{n: v for n, v in defaults.items() if v is not None}, **guess, **fx}
         for name in free:
             if name not in st:
-                raise ValueError(f"no starting value for {name}: give one with --set "
-                                 f"{name}=VALUE")
+                raise ValueError(f"no starting value for {name}: give one with --set {name}=VALUE")
         start.append(st)
     slots = []
     for name in free:
@@ -235,14 +268,30 @@ def _make_job(index, prob, space, label, free, hold, bounds, headline):
         transforms.append(t)
         ulo.append(lo_user)
         uhi.append(hi_user)
-    job = _Job(index, space, label, tuple(free), dict(hold), slots, transforms, ulo, uhi, fixed,
-               start, headline)
+    job = _Job(
+        index,
+        space,
+        label,
+        tuple(free),
+        dict(hold),
+        slots,
+        transforms,
+        ulo,
+        uhi,
+        fixed,
+        start,
+        headline,
+    )
     q = len(slots)
     job.code = np.array([t.code for t in transforms])
     job.held = np.zeros(q)
     job.bound_hit = np.zeros(q, dtype=bool)
-    job.scale = np.array([_scale(slots[s][0], t, _slot_start(job, s), prob.records)
-                          for s, t in enumerate(transforms)])
+    job.scale = np.array(
+        [
+            _scale(slots[s][0], t, _slot_start(job, s), prob.records)
+            for s, t in enumerate(transforms)
+        ]
+    )
     job.p = _coordinates(job, [dict(s) for s in start])
     return job
 
@@ -299,6 +348,7 @@ def _bucket(n: int) -> int:
     """Round a length up to a multiple of 8, so records of similar length share a compilation."""
     return max(8, -(-n // 8) * 8)
 
+
 # -- weights -----------------------------------------------------------------------------------
 def _psi_weight(loss, u):
     """IRLS weight `psi(u)/u` of a robust loss."""
@@ -312,8 +362,10 @@ def _psi_weight(loss, u):
 
 def _init_weights(prob, N):
     prob.sx = [max(rec.noise or 0.0, 1e-3 * float(np.max(rec.amplitudes))) for rec in prob.records]
-    prob.st = [1e-3 * float(np.median(np.diff(rec.times))) if rec.times is not None else 1.0
-               for rec in prob.records]
+    prob.st = [
+        1e-3 * float(np.median(np.diff(rec.times))) if rec.times is not None else 1.0
+        for rec in prob.records
+    ]
     prob.robust_x = [np.ones(N) for _ in prob.records]
     prob.robust_t = [np.ones(N) for _ in prob.records]
     _set_weights(prob, N)
@@ -353,6 +405,7 @@ def _reweight(prob, job, loss, N):
                 prob.robust_t[i][:m] = np.nan_to_num(_psi_weight(loss, rt / prob.st[i]), nan=0.0)
     _set_weights(prob, N)
 
+
 def _fit_jobs(jobs, problems, shape):
     """Solve `jobs` (one round) grouped by space; a slot that runs into a bound is held there
     and the job solved again."""
@@ -373,8 +426,14 @@ def _fit_jobs(jobs, problems, shape):
                 job.iterations += out["steps"]
                 job.rss = _rss(out)
                 near = 1e-5 if out["ok"] else 1e-4  # (value - bound) / scale
-                hit, value = at_bound(job.code, [t.lo for t in job.transforms],
-                                      [t.hi for t in job.transforms], job.scale, job.p, near)
+                hit, value = at_bound(
+                    job.code,
+                    [t.lo for t in job.transforms],
+                    [t.hi for t in job.transforms],
+                    job.scale,
+                    job.p,
+                    near,
+                )
                 hit &= job.code != HELD
                 if hit.any():
                     job.code = np.where(hit, HELD, job.code)
@@ -422,7 +481,7 @@ def _adopt(job, sub, problems, shape):
             job.bound_hit[s] = job.held[s] in (t.lo, t.hi)
     job.p = _coordinates(job, vals)
     out = _solve(job.space, [_job_arrays(job, problems[job.problem], shape)], shape)[0]
-    job.out, job.p, job.rss = out, out["p"][:len(job.slots)], _rss(out)
+    job.out, job.p, job.rss = out, out["p"][: len(job.slots)], _rss(out)
     job.iterations += out["steps"]
 
 
@@ -439,8 +498,9 @@ def _twin(job, signs=None, records=None) -> _Job:
         start = []
         for r, (rec, sg) in enumerate(zip(records, signs)):
             if sg is not None:
-                rec = dataclasses.replace(rec, positions=rec.centre + sg * rec.amplitudes,
-                                          sides_known=True)
+                rec = dataclasses.replace(
+                    rec, positions=rec.centre + sg * rec.amplitudes, sides_known=True
+                )
             guess = starting_guess(job.space, rec, job.fixed[r], decrement(rec, rec.centre))
             start.append({**job.start[r], **guess, **job.fixed[r]})
         twin.p = _coordinates(twin, start)
@@ -475,8 +535,9 @@ def _fit_all(jobs, problems, shape, first_pass):
         round_jobs = [j for j in jobs if len(j.slots) == q]
         subs, twins = {}, {}
         for job in round_jobs:
-            nested = [a for a in jobs if len(a.slots) < q and a.out is not None
-                      and _nested_in(a, job)]
+            nested = [
+                a for a in jobs if len(a.slots) < q and a.out is not None and _nested_in(a, job)
+            ]
             mine = []
             if nested:
                 best = min(nested, key=lambda a: a.rss)
@@ -507,6 +568,7 @@ def _fit_all(jobs, problems, shape, first_pass):
             if best is not None and not job.rss <= best.rss * (1 + 1e-9):
                 _adopt(job, best, problems, shape)
 
+
 # -- the driver --------------------------------------------------------------------------------
 def _problem(space, records, givens, free, shared):
     recs = []
@@ -520,9 +582,11 @@ def _problem(space, records, givens, free, shared):
     for rec in recs:
         per_record = len(free) if len(recs) == 1 else len(free) - len(shared)
         if len(rec) <= per_record:
-            raise ValueError(f"{rec.source or 'record'}: {len(rec)} turning points are too few "
-                             f"for {per_record} free parameters (need at least "
-                             f"{per_record + 1})")
+            raise ValueError(
+                f"{rec.source or 'record'}: {len(rec)} turning points are too few "
+                f"for {per_record} free parameters (need at least "
+                f"{per_record + 1})"
+            )
         if "omega" in free and rec.times is None:
             raise ValueError("omega can only be fitted from a record with times")
         centre = rec.centre if "offset" in space.names else 0.0
@@ -575,22 +639,47 @@ def _parse_given(given, n):
     return givens
 
 
-def _settings(space, free, shared, givens, bounds, forward, loss, optimizer, max_steps,
-              adam_steps, intervals):
+def _settings(
+    space, free, shared, givens, bounds, forward, loss, optimizer, max_steps, adam_steps, intervals
+):
     bounds = {k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}
     for g in givens:
         free = _check_inputs(space, free, shared, g, bounds, forward, loss, optimizer)
-    return free, bounds, {"forward": forward, "loss": loss, "optimizer": optimizer,
-                          "max_steps": max_steps, "adam_steps": adam_steps,
-                          "intervals": intervals}
+    return (
+        free,
+        bounds,
+        {
+            "forward": forward,
+            "loss": loss,
+            "optimizer": optimizer,
+            "max_steps": max_steps,
+            "adam_steps": adam_steps,
+            "intervals": intervals,
+        },
+    )
 
 
-def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=None, *,
-              bounds=None, forward: str = "exact", loss: str = "l2", optimizer: str = "lm",
-              compare: bool = True, max_steps: int = 200, adam_steps: int = 3000,
-              outlier_sigma: float = 5.0, intervals: bool = True,
-              chunk_size: int | None = None, client=None, store=None, resume: bool = False,
-              progress=None) -> list:
+def fit_batch(
+    records,
+    model: str = "variable-mass",
+    free=("FT", "mu"),
+    given=None,
+    *,
+    bounds=None,
+    forward: str = "exact",
+    loss: str = "l2",
+    optimizer: str = "lm",
+    compare: bool = True,
+    max_steps: int = 200,
+    adam_steps: int = 3000,
+    outlier_sigma: float = 5.0,
+    intervals: bool = True,
+    chunk_size: int | None = None,
+    client=None,
+    store=None,
+    resume: bool = False,
+    progress=None,
+) -> list:
     """Fit the same model to many records independently, at once (`jax.vmap` over records and
     sub-models; one compilation).
 
@@ -611,15 +700,33 @@ def fit_batch(records, model: str = "variable-mass", free=("FT", "mu"), given=No
     if not records:
         raise ValueError("no records to fit")
     givens = _parse_given(given, len(records))
-    free, bounds, settings = _settings(space, free, (), givens, bounds, forward, loss, optimizer,
-                                       max_steps, adam_steps, intervals)
+    free, bounds, settings = _settings(
+        space, free, (), givens, bounds, forward, loss, optimizer, max_steps, adam_steps, intervals
+    )
     if chunk_size is not None or client is not None or store is not None:
-        chunk = functools.partial(_fit_chunk, model=model, free=free, bounds=bounds,
-                                  forward=forward, loss=loss, optimizer=optimizer,
-                                  compare=compare, max_steps=max_steps, adam_steps=adam_steps,
-                                  outlier_sigma=outlier_sigma, intervals=intervals)
-        return vmj.map_chunks(chunk, list(zip(records, givens)), chunk_size=chunk_size,
-                              client=client, store=store, resume=resume, progress=progress)
+        chunk = functools.partial(
+            _fit_chunk,
+            model=model,
+            free=free,
+            bounds=bounds,
+            forward=forward,
+            loss=loss,
+            optimizer=optimizer,
+            compare=compare,
+            max_steps=max_steps,
+            adam_steps=adam_steps,
+            outlier_sigma=outlier_sigma,
+            intervals=intervals,
+        )
+        return vmj.map_chunks(
+            chunk,
+            list(zip(records, givens)),
+            chunk_size=chunk_size,
+            client=client,
+            store=store,
+            resume=resume,
+            progress=progress,
+        )
     problems = [_problem(space, [rec], [g], free, ()) for rec, g in zip(records, givens)]
     return _run(space, problems, free, bounds, settings, compare, outlier_sigma)
 
@@ -636,11 +743,23 @@ def _fit_chunk(items, **settings) -> list:
     return fit_batch([r for r, _ in items], given=[g for _, g in items], **settings)
 
 
-def fit(record, model: str = "variable-mass", free=("FT", "mu"), given=None, *,
-        shared=(), bounds=None, forward: str = "exact", loss: str = "l2",
-        optimizer: str = "lm", compare: bool = True, max_steps: int = 200,
-        adam_steps: int = 3000, outlier_sigma: float = 5.0,
-        intervals: bool = True) -> FitResult:
+def fit(
+    record,
+    model: str = "variable-mass",
+    free=("FT", "mu"),
+    given=None,
+    *,
+    shared=(),
+    bounds=None,
+    forward: str = "exact",
+    loss: str = "l2",
+    optimizer: str = "lm",
+    compare: bool = True,
+    max_steps: int = 200,
+    adam_steps: int = 3000,
+    outlier_sigma: float = 5.0,
+    intervals: bool = True,
+) -> FitResult:
     """Identify friction and damping from one measured decay, or from several jointly.
 
     **Arguments:**
@@ -690,7 +809,18 @@ def fit(record, model: str = "variable-mass", free=("FT", "mu"), given=None, *,
     shared = tuple(shared)
     if shared and len(records) < 2:
         raise ValueError("--shared needs several records")
-    free, bounds, settings = _settings(space, free, shared, givens, bounds, forward, loss,
-                                       optimizer, max_steps, adam_steps, intervals)
+    free, bounds, settings = _settings(
+        space,
+        free,
+        shared,
+        givens,
+        bounds,
+        forward,
+        loss,
+        optimizer,
+        max_steps,
+        adam_steps,
+        intervals,
+    )
     prob = _problem(space, records, givens, free, shared)
     return _run(space, [prob], free, bounds, settings, compare, outlier_sigma)[0]

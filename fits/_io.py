@@ -17,8 +17,16 @@ from numpy.typing import ArrayLike
 
 from ._clock import CLOCKS, recover_clock
 
-__all__ = ["Record", "Signal", "read_peaks", "read_signal", "extract_turning_points",
-           "record_from_sequence", "read_record", "MAX_ROWS"]
+__all__ = [
+    "Record",
+    "Signal",
+    "read_peaks",
+    "read_signal",
+    "extract_turning_points",
+    "record_from_sequence",
+    "read_record",
+    "MAX_ROWS",
+]
 
 MAX_ROWS = 2_000_000
 """Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
@@ -123,17 +131,25 @@ def _decode(data: bytes, source: str) -> str:
         try:
             return data.decode("utf-16")
         except UnicodeDecodeError:
-            _fail(source, "not a readable text file (a UTF-16 byte-order mark, then invalid "
-                          "UTF-16)")
+            _fail(
+                source, "not a readable text file (a UTF-16 byte-order mark, then invalid UTF-16)"
+            )
     head = data[:65536]
     nul = head.find(b"\x00")
-    control = sum(head.count(bytes([c])) for c in (*range(1, 9), 14, 15, *range(16, 27),
-                                                   *range(28, 32)))
+    control = sum(
+        head.count(bytes([c])) for c in (*range(1, 9), 14, 15, *range(16, 27), *range(28, 32))
+    )
     if nul >= 0 or control > 0.01 * max(len(head), 1):
-        where = nul if nul >= 0 else next(i for i, c in enumerate(head) if c < 32 and c not in
-                                          (9, 10, 11, 12, 13, 27))
-        _fail(source, f"not a text file (binary data at byte {where}): give a CSV or "
-                      "whitespace-separated text file")
+        where = (
+            nul
+            if nul >= 0
+            else next(i for i, c in enumerate(head) if c < 32 and c not in (9, 10, 11, 12, 13, 27))
+        )
+        _fail(
+            source,
+            f"not a text file (binary data at byte {where}): give a CSV or "
+            "whitespace-separated text file",
+        )
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -161,9 +177,12 @@ def _text(path_or_text, max_rows: int | None = None) -> tuple[str, str]:
                 if max_rows is not None and size > len(head) > 0:
                     estimate = size * max(head.count(b"\n"), 1) / len(head)
                     if estimate > 1.1 * max_rows:
-                        _fail(path, f"about {estimate:,.0f} rows ({size / 2**20:.0f} MiB), more "
-                                    f"than the limit of {max_rows:,} rows: pass a larger "
-                                    f"max_rows, or max_rows=None, to read it")
+                        _fail(
+                            path,
+                            f"about {estimate:,.0f} rows ({size / 2**20:.0f} MiB), more "
+                            f"than the limit of {max_rows:,} rows: pass a larger "
+                            f"max_rows, or max_rows=None, to read it",
+                        )
                 data = head + fh.read()
         except OSError as err:
             raise ValueError(f"{path}: cannot be read ({err.strerror or err})") from None
@@ -235,16 +254,22 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
             cells.pop()
         if all(c and _is_number(c) for c in cells):
             if header is None and need_header:
-                _fail(source, f"line {no}: expected a header line naming the columns, found "
-                              f"numbers: {line.strip()!r}")
+                _fail(
+                    source,
+                    f"line {no}: expected a header line naming the columns, found "
+                    f"numbers: {line.strip()!r}",
+                )
             hdr = None if header is None else _splitter(sep)(header)
             if hdr is not None and sep is None and len(hdr) != len(cells):
                 hdr = [h for h in re.split(r"\s{2,}|\t", header.strip()) if h]  # "time (s)"
             while hdr and len(hdr) > len(cells) and not hdr[-1]:
                 hdr.pop()
             if hdr is not None and len(hdr) < len(cells):
-                _fail(source, f"line {no}: {len(cells)} cells, but the header names only "
-                              f"{len(hdr)} columns: {hdr}")
+                _fail(
+                    source,
+                    f"line {no}: {len(cells)} cells, but the header names only "
+                    f"{len(hdr)} columns: {hdr}",
+                )
             ncols = len(hdr) if hdr else len(cells)
             return _Table(text, source, hdr, sep, ncols, start, no, cells)
         if header is None:
@@ -264,7 +289,7 @@ def _slow_columns(tab: _Table, cols: list, clock_cols: set) -> list:
     split = _splitter(tab.sep)
     need = max(cols) + 1
     out = [[] for _ in cols]
-    lines = tab.text[tab.body:].split("\n")
+    lines = tab.text[tab.body :].split("\n")
     for offset, line in enumerate(lines):
         line = line.split("#", 1)[0]  # an inline comment, as NumPy's parser drops it
         if _skip(line):
@@ -283,8 +308,11 @@ def _slow_columns(tab: _Table, cols: list, clock_cols: set) -> list:
                     what = "empty cell" if not cell.strip() else f"not a number: {cell.strip()!r}"
                     _fail(tab.source, f"line {no}, column {names[c]!r}: {what}")
             if not math.isfinite(value):
-                _fail(tab.source, f"line {no}, column {names[c]!r}: {cell.strip()!r} is not a "
-                                  "finite number (NaN and infinity are not allowed)")
+                _fail(
+                    tab.source,
+                    f"line {no}, column {names[c]!r}: {cell.strip()!r} is not a "
+                    "finite number (NaN and infinity are not allowed)",
+                )
             out[j].append(value)
     return [np.asarray(v, dtype=float) for v in out]
 
@@ -294,7 +322,7 @@ def _columns(tab: _Table, cols: list) -> list:
     NumPy's parser, the clock's colons turned into separators; any problem is located and
     reported by the line-by-line parser."""
     clock_cols = {c for c in cols if c < len(tab.first) and _CLOCK.match(tab.first[c].strip())}
-    body = tab.text[tab.body:]
+    body = tab.text[tab.body :]
     parts = [tab.first[c].count(":") for c in range(len(tab.first))]
     index = np.concatenate([[0], np.cumsum(np.asarray(parts) + 1)])
     try:
@@ -308,11 +336,18 @@ def _columns(tab: _Table, cols: list) -> list:
             if c >= len(tab.first):
                 raise ValueError("short row")
             use += range(index[c], index[c] + parts[c] + 1)
-        data = np.loadtxt(io.StringIO(body), delimiter=tab.sep, usecols=use, comments="#",
-                          quotechar='"', ndmin=2, dtype=float)
+        data = np.loadtxt(
+            io.StringIO(body),
+            delimiter=tab.sep,
+            usecols=use,
+            comments="#",
+            quotechar='"',
+            ndmin=2,
+            dtype=float,
+        )
         out, j = [], 0
         for c in cols:
-            block = data[:, j:j + parts[c] + 1]
+            block = data[:, j : j + parts[c] + 1]
             j += parts[c] + 1
             value = block[:, -1].copy()
             for q in range(1, parts[c] + 1):
@@ -329,15 +364,18 @@ def _columns(tab: _Table, cols: list) -> list:
 
 def _rows_ok(n: int, source: str, max_rows: int | None, need: int, what: str):
     if max_rows is not None and n > max_rows:
-        _fail(source, f"{n:,} rows, more than the limit of {max_rows:,} rows: pass a larger "
-                      "max_rows, or max_rows=None, to read it")
+        _fail(
+            source,
+            f"{n:,} rows, more than the limit of {max_rows:,} rows: pass a larger "
+            "max_rows, or max_rows=None, to read it",
+        )
     if n < need:
         _fail(source, f"only {n} data row{'s' if n != 1 else ''}: {what} needs at least {need}")
 
 
 def _line_of(tab: _Table, row: int) -> int:
     """Line number (1-based) of data row `row` (0-based); for error messages only."""
-    for offset, line in enumerate(tab.text[tab.body:].split("\n")):
+    for offset, line in enumerate(tab.text[tab.body :].split("\n")):
         if not _skip(line.split("#", 1)[0]):
             if row == 0:
                 return tab.first_line + offset
@@ -349,8 +387,11 @@ def _strictly_increasing(values, tab: _Table, name: str):
     bad = np.nonzero(np.diff(values) <= 0)[0]
     if bad.size:
         i = int(bad[0])
-        _fail(tab.source, f"line {_line_of(tab, i + 1)}, column {name!r}: must be strictly "
-                          f"increasing ({values[i + 1]:g} after {values[i]:g})")
+        _fail(
+            tab.source,
+            f"line {_line_of(tab, i + 1)}, column {name!r}: must be strictly "
+            f"increasing ({values[i + 1]:g} after {values[i]:g})",
+        )
 
 
 # -- peak sequences ----------------------------------------------------------------------------
@@ -386,8 +427,11 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     def check(column, bad, what):
         rows = np.nonzero(bad)[0]
         if rows.size:
-            _fail(source, f"line {_line_of(tab, int(rows[0]))}, column {label[column]!r}: "
-                          f"{values[column][rows[0]]:g}: {what}")
+            _fail(
+                source,
+                f"line {_line_of(tab, int(rows[0]))}, column {label[column]!r}: "
+                f"{values[column][rows[0]]:g}: {what}",
+            )
 
     if "k" in values:
         k = values["k"]
@@ -403,19 +447,27 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     if crossed is not None:
         check("crossed", ~np.isin(crossed, (0.0, 1.0)), "crossed must hold 0 or 1")
     if "position" in values:
-        return record_from_sequence(positions=values["position"], k=k, times=times,
-                                    source=source)
+        return record_from_sequence(positions=values["position"], k=k, times=times, source=source)
     amplitudes = values["amplitude"]
-    check("amplitude", amplitudes < 0, "an amplitude must be >= 0 (use a 'position' column for "
-                                       "signed values)")
-    return record_from_sequence(amplitudes=amplitudes, crossed=crossed, k=k, times=times,
-                                source=source)
+    check(
+        "amplitude",
+        amplitudes < 0,
+        "an amplitude must be >= 0 (use a 'position' column for signed values)",
+    )
+    return record_from_sequence(
+        amplitudes=amplitudes, crossed=crossed, k=k, times=times, source=source
+    )
 
 
-def record_from_sequence(*, amplitudes: ArrayLike | None = None,
-                         positions: ArrayLike | None = None, crossed: ArrayLike | None = None,
-                         k: ArrayLike | None = None, times: ArrayLike | None = None,
-                         source: str = "") -> Record:
+def record_from_sequence(
+    *,
+    amplitudes: ArrayLike | None = None,
+    positions: ArrayLike | None = None,
+    crossed: ArrayLike | None = None,
+    k: ArrayLike | None = None,
+    times: ArrayLike | None = None,
+    source: str = "",
+) -> Record:
     """A [`fits.Record`][] from arrays: signed `positions`, or `amplitudes` (`|x|`) with optional
     `crossed` flags (`1` where the swing ending at that point passed `x = 0`); swing indices `k`
     (default `0, 1, ...`) and optional `times` [s]. Times are measured from the release: from
@@ -469,18 +521,29 @@ def record_from_sequence(*, amplitudes: ArrayLike | None = None,
         if k[0] == 0:
             origin = float(times[0])
             times = times - origin
-    return Record(k=k, positions=values, times=times, source=source, time_origin=origin,
-                  sides_known=sides_known, crossed=flags)
+    return Record(
+        k=k,
+        positions=values,
+        times=times,
+        source=source,
+        time_origin=origin,
+        sides_known=sides_known,
+        crossed=flags,
+    )
 
 
 # -- raw signals -------------------------------------------------------------------------------
 def _pick(spec, header, ncols, what, source):
-    if isinstance(spec, (int, np.integer)) or (isinstance(spec, str)
-                                               and spec.strip().lstrip("-").isdigit()):
+    if isinstance(spec, (int, np.integer)) or (
+        isinstance(spec, str) and spec.strip().lstrip("-").isdigit()
+    ):
         i = int(spec)
         if not -ncols <= i < ncols:
-            _fail(source, f"missing column: {what} column index {i} out of range "
-                          f"(the file has {ncols} columns)")
+            _fail(
+                source,
+                f"missing column: {what} column index {i} out of range "
+                f"(the file has {ncols} columns)",
+            )
         return i % ncols
     want = spec.strip().lower()
     names = [h.strip().lower() for h in header] if header else []
@@ -517,8 +580,9 @@ def _stamps(tab: _Table, candidates: list, names: list) -> tuple[np.ndarray, str
             first_error = first_error or err
             continue
         if _CLOCK.match(tab.first[c].strip()):  # clock stamps through midnight
-            values = values + 86400.0 * np.cumsum(np.concatenate([[0.0],
-                                                                  np.diff(values) < -43200.0]))
+            values = values + 86400.0 * np.cumsum(
+                np.concatenate([[0.0], np.diff(values) < -43200.0])
+            )
         parsed.append((c, values, bool(np.all(np.diff(values) >= 0))))
     if not parsed:
         raise first_error
@@ -528,22 +592,36 @@ def _stamps(tab: _Table, candidates: list, names: list) -> tuple[np.ndarray, str
     dt = np.diff(stamps)
     if np.any(dt < 0):
         i = int(np.nonzero(dt < 0)[0][0])
-        _fail(tab.source, f"line {_line_of(tab, i + 1)}, column {names[ti]!r}: time must be "
-                          f"non-decreasing (goes back from {stamps[i]:.6g} to "
-                          f"{stamps[i + 1]:.6g})")
+        _fail(
+            tab.source,
+            f"line {_line_of(tab, i + 1)}, column {names[ti]!r}: time must be "
+            f"non-decreasing (goes back from {stamps[i]:.6g} to "
+            f"{stamps[i + 1]:.6g})",
+        )
     if stamps[-1] <= stamps[0]:
         _fail(tab.source, f"time must increase (column {names[ti]!r} is constant)")
-    others = [f"{names[c]!r}" + (f" ({d} distinct values)" if ok else " (not monotone)")
-              for (c, _, ok), d in zip(parsed, [np.unique(v).size for _, v, _ in parsed])
-              if c != ti]
-    note = (f"; time column{'s' if len(others) > 1 else ''} {', '.join(others)} ignored"
-            if others else "")
+    others = [
+        f"{names[c]!r}" + (f" ({d} distinct values)" if ok else " (not monotone)")
+        for (c, _, ok), d in zip(parsed, [np.unique(v).size for _, v, _ in parsed])
+        if c != ti
+    ]
+    note = (
+        f"; time column{'s' if len(others) > 1 else ''} {', '.join(others)} ignored"
+        if others
+        else ""
+    )
     return stamps, names[ti], note
 
 
-def read_signal(path: str | os.PathLike, time_col: str | int | None = None,
-                signal_col: str | int | None = None, clock: str = "auto", *,
-                rate: float | None = None, max_rows: int | None = MAX_ROWS) -> Signal:
+def read_signal(
+    path: str | os.PathLike,
+    time_col: str | int | None = None,
+    signal_col: str | int | None = None,
+    clock: str = "auto",
+    *,
+    rate: float | None = None,
+    max_rows: int | None = MAX_ROWS,
+) -> Signal:
     """Read a raw signal from a CSV (`,` or `;`), tab- or whitespace-separated text file.
 
     **Arguments:**
@@ -603,8 +681,15 @@ def read_signal(path: str | os.PathLike, time_col: str | int | None = None,
         kind = "stamps"
     else:
         kind = "uniform"
-    return Signal(t=t - t[0], y=y, source=source, time_name=tname or "sample index",
-                  signal_name=names[yi], clock=kind, clock_report=report)
+    return Signal(
+        t=t - t[0],
+        y=y,
+        source=source,
+        time_name=tname or "sample index",
+        signal_name=names[yi],
+        clock=kind,
+        clock_report=report,
+    )
 
 
 # -- turning points of a raw signal ------------------------------------------------------------
@@ -629,8 +714,11 @@ def _noise(t, y) -> float:
     estimates = [1.4826 * float(np.median(np.abs(d - np.median(d)) / w))] if d.size else []
     for order in (3, 4):
         dk = np.diff(y, order)
-        estimates.append(1.4826 * float(np.median(np.abs(dk - np.median(dk))))
-                         / math.sqrt(math.comb(2 * order, order)))
+        estimates.append(
+            1.4826
+            * float(np.median(np.abs(dk - np.median(dk))))
+            / math.sqrt(math.comb(2 * order, order))
+        )
     steps = np.abs(np.diff(y))
     steps = steps[steps > 1e-12 * max(float(np.max(np.abs(y))), 1e-300)]
     quantum = float(np.min(steps)) if steps.size else 0.0
@@ -716,8 +804,9 @@ def _local_centres(x):
     return (x[:-2] + 2 * x[1:-1] + x[2:]) / 4
 
 
-def extract_turning_points(signal: Signal, *, hysteresis: float | None = None,
-                           min_amplitude: float | None = None) -> Record:
+def extract_turning_points(
+    signal: Signal, *, hysteresis: float | None = None, min_amplitude: float | None = None
+) -> Record:
     """Turning points of a raw decaying signal, robust to irregular sampling, noise,
     quantisation, a constant offset and a few spurious extrema.
 
@@ -761,11 +850,11 @@ def extract_turning_points(signal: Signal, *, hysteresis: float | None = None,
         _fail(source, f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})")
     floor = float(min_amplitude) if min_amplitude is not None else 10 * h
     swings = np.abs(np.diff(y_clean[idx]))
-    small = np.nonzero(swings[int(np.argmax(swings)):] < 1.5 * floor)[0] + int(np.argmax(swings))
+    small = np.nonzero(swings[int(np.argmax(swings)) :] < 1.5 * floor)[0] + int(np.argmax(swings))
     if small.size and small[0] + 3 < idx.size:  # the tail far below the floor: not refined
-        idx = idx[:small[0] + 3]
+        idx = idx[: small[0] + 3]
     gaps = np.diff(t[idx])  # local half-period: median of the 4 nearest (robust to a hold)
-    half = np.array([np.median(gaps[max(0, i - 2):i + 2]) for i in range(idx.size)])
+    half = np.array([np.median(gaps[max(0, i - 2) : i + 2]) for i in range(idx.size)])
     peak = np.empty(idx.size, dtype=bool)
     peak[:-1] = y_clean[idx[:-1]] > y_clean[idx[1:]]
     peak[-1] = not peak[-2]
@@ -800,26 +889,41 @@ def extract_turning_points(signal: Signal, *, hysteresis: float | None = None,
         meta["release"] = "held: time extrapolated from the first half-swing"
     small = np.nonzero(np.abs(np.diff(xk)) < 2 * floor)[0]
     if small.size:
-        tk, xk = tk[:small[0] + 1], xk[:small[0] + 1]
+        tk, xk = tk[: small[0] + 1], xk[: small[0] + 1]
     if xk.size < 3:
         _fail(source, "fewer than 3 turning points above the amplitude floor: no decay to fit")
     centre = float(np.median(_local_centres(xk)))
     origin = float(tk[0])
-    return Record(k=np.arange(xk.size), positions=xk, times=tk - origin, centre=centre,
-                  noise=sigma, signal=signal, source=source, time_origin=origin, meta=meta)
+    return Record(
+        k=np.arange(xk.size),
+        positions=xk,
+        times=tk - origin,
+        centre=centre,
+        noise=sigma,
+        signal=signal,
+        source=source,
+        time_origin=origin,
+        meta=meta,
+    )
 
 
-def read_record(path: str | os.PathLike, *, series: bool = False,
-                time_col: str | int | None = None, signal_col: str | int | None = None,
-                clock: str = "auto", rate: float | None = None,
-                max_rows: int | None = MAX_ROWS) -> Record:
+def read_record(
+    path: str | os.PathLike,
+    *,
+    series: bool = False,
+    time_col: str | int | None = None,
+    signal_col: str | int | None = None,
+    clock: str = "auto",
+    rate: float | None = None,
+    max_rows: int | None = MAX_ROWS,
+) -> Record:
     """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
     turning points extracted from a raw signal (see [`fits.read_signal`][] for `time_col`,
     `signal_col`, `clock`, `rate` and [`fits.extract_turning_points`][])."""
     if series:
-        return extract_turning_points(read_signal(path, time_col, signal_col, clock, rate=rate,
-                                                  max_rows=max_rows))
+        return extract_turning_points(
+            read_signal(path, time_col, signal_col, clock, rate=rate, max_rows=max_rows)
+        )
     if time_col is not None or signal_col is not None or rate is not None or clock != "auto":
-        raise ValueError("time_col, signal_col, clock and rate apply to raw signals "
-                         "(series=True)")
+        raise ValueError("time_col, signal_col, clock and rate apply to raw signals (series=True)")
     return read_peaks(path, max_rows=max_rows)

@@ -30,8 +30,12 @@ FORWARDS = ("exact", "smooth", "energy")
 
 _UNDERDAMPED = 1.0 - 1e-9  #: the damping kind's upper end (an underdamped oscillator)
 #: the range of each kind of parameter (a Space's `bounds` narrows it per parameter)
-_KIND_TRANSFORMS = {"real": Real, "positive": Positive, "unit": lambda: Interval(0.0, 1.0),
-                    "damping": lambda: Interval(0.0, _UNDERDAMPED)}
+_KIND_TRANSFORMS = {
+    "real": Real,
+    "positive": Positive,
+    "unit": lambda: Interval(0.0, 1.0),
+    "damping": lambda: Interval(0.0, _UNDERDAMPED),
+}
 
 
 @dataclass(frozen=True)
@@ -135,37 +139,61 @@ def _omega_without_times(record: Record):
 
 def friction_variants(dry: tuple, viscous: tuple) -> tuple:
     """The Coulomb-only and viscous-only sub-models."""
-    return (Variant("coulomb", None, {n: 0.0 for n in viscous}),
-            Variant("viscous", None, {n: 0.0 for n in dry}))
+    return (
+        Variant("coulomb", None, {n: 0.0 for n in viscous}),
+        Variant("viscous", None, {n: 0.0 for n in dry}),
+    )
 
 
 # -- variable-mass oscillator ------------------------------------------------------------------
 def _variable_mass(theta: dict, n: int, forward: str):
     law = vmj.AffineFriction(theta["FT"], theta["f"], theta["g"])
-    model = vmj.VariableMass(theta["m0"], theta["c"], theta["delta"], theta["eps"], theta["mu"],
-                             law)
+    model = vmj.VariableMass(
+        theta["m0"], theta["c"], theta["delta"], theta["eps"], theta["mu"], law
+    )
     return _sequence(vmj.turning_points(model, theta["a0"], n, method=forward), theta["a0"])
 
 
 VARIABLE_MASS = Space(
     name="variable-mass",
     names=("FT", "f", "mu", "eps", "delta", "a0", "offset", "m0", "c", "g"),
-    kinds=("positive", "positive", "positive", "unit", "real", "positive", "real", "positive",
-           "positive", "positive"),
+    kinds=(
+        "positive",
+        "positive",
+        "positive",
+        "unit",
+        "real",
+        "positive",
+        "real",
+        "positive",
+        "positive",
+        "positive",
+    ),
     units=("N", "-", "kg/s", "-", "kg/s", "m", "m", "kg", "N/m", "m/s^2"),
     dry=("FT", "f"),
     viscous=("mu",),
     required=("m0", "c"),
     predict=_variable_mass,
-    defaults={"FT": 0.0, "f": 0.0, "mu": 0.0, "eps": 0.0, "delta": 0.0, "g": 9.81,
-              "a0": first_amplitude, "offset": record_centre},
+    defaults={
+        "FT": 0.0,
+        "f": 0.0,
+        "mu": 0.0,
+        "eps": 0.0,
+        "delta": 0.0,
+        "g": 9.81,
+        "a0": first_amplitude,
+        "offset": record_centre,
+    },
     variants=friction_variants(("FT", "f"), ("mu",)),
 )
 
 
 # -- normalised constant-mass oscillator -------------------------------------------------------
-_OSCILLATOR_SOLVERS = {"exact": vmj.EnergyBalance, "smooth": vmj.Smoothed,
-                       "energy": vmj.EnergyBalance}
+_OSCILLATOR_SOLVERS = {
+    "exact": vmj.EnergyBalance,
+    "smooth": vmj.Smoothed,
+    "energy": vmj.EnergyBalance,
+}
 
 
 def _oscillator(theta: dict, n: int, forward: str):
@@ -185,31 +213,61 @@ OSCILLATOR = Space(
     viscous=("zeta",),
     required=("omega",),
     predict=_oscillator,
-    defaults={"zeta": 0.0, "xF": 0.0, "asym": 0.0, "a0": first_amplitude,
-              "offset": record_centre, "omega": _omega_without_times},
+    defaults={
+        "zeta": 0.0,
+        "xF": 0.0,
+        "asym": 0.0,
+        "a0": first_amplitude,
+        "offset": record_centre,
+        "omega": _omega_without_times,
+    },
     variants=friction_variants(("xF",), ("zeta",)),
     bounds={"asym": (-0.5, 0.5)},
 )
 
+
 # -- mass on a rope of varying length (Osinski) ------------------------------------------------
 def _rope(theta: dict, n: int, forward: str):
-    rope = vmj.Rope(theta["m"], theta["A"], theta["e"], theta["b"], theta["d"], theta["T"],
-                    vmj.ConstantSpeed(theta["l0"], theta["u"]))
+    rope = vmj.Rope(
+        theta["m"],
+        theta["A"],
+        theta["e"],
+        theta["b"],
+        theta["d"],
+        theta["T"],
+        vmj.ConstantSpeed(theta["l0"], theta["u"]),
+    )
     return _sequence(vmj.turning_points(rope, theta["a0"], n, method=forward), theta["a0"])
 
 
 ROPE = Space(
     name="rope",
     names=("T", "e", "d", "b", "a0", "offset", "m", "A", "l0", "u"),
-    kinds=("positive", "positive", "positive", "real", "positive", "real", "positive",
-           "positive", "positive", "real"),
+    kinds=(
+        "positive",
+        "positive",
+        "positive",
+        "real",
+        "positive",
+        "real",
+        "positive",
+        "positive",
+        "positive",
+        "real",
+    ),
     units=("Pa", "Pa", "Pa", "Pa", "m", "m", "kg", "m^2", "m", "m/s"),
     dry=("T",),
     viscous=(),
     required=("m", "A", "e", "l0"),
     predict=_rope,
-    defaults={"T": 0.0, "d": 0.0, "b": 0.0, "u": 0.0, "a0": first_amplitude,
-              "offset": record_centre},
+    defaults={
+        "T": 0.0,
+        "d": 0.0,
+        "b": 0.0,
+        "u": 0.0,
+        "a0": first_amplitude,
+        "offset": record_centre,
+    },
 )
 
 SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR, ROPE)}

@@ -23,12 +23,25 @@ from __future__ import annotations
 
 import math
 import warnings
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["check_value", "warn_if_float32", "Transform", "Real", "LowerBound", "UpperBound", "Interval", "Positive",
-           "transform_for", "apply", "derivative", "HELD"]
+__all__ = [
+    "check_value",
+    "warn_if_float32",
+    "Transform",
+    "Real",
+    "LowerBound",
+    "UpperBound",
+    "Interval",
+    "Positive",
+    "transform_for",
+    "apply",
+    "derivative",
+    "HELD",
+]
 
 REAL, LOWER, UPPER, INTERVAL, HELD = 0, 1, 2, 3, 4
 
@@ -54,7 +67,11 @@ def warn_if_float32() -> None:
         _warned = True
         warnings.warn(
             "fits: JAX is running in float32; accuracy figures assume float64. Enable it with "
-            "jax.config.update('jax_enable_x64', True) before any computation.", stacklevel=3)
+            "jax.config.update('jax_enable_x64', True) before any computation.",
+            stacklevel=3,
+        )
+
+
 _INSIDE = 1e-3  #: starting values are kept this fraction of the range inside a bound
 
 
@@ -152,10 +169,15 @@ def apply(code, lo, hi, scale, p, held=None):
     lo_s = xp.where(xp.isfinite(lo), lo, 0.0)
     hi_s = xp.where(xp.isfinite(hi), hi, 0.0)
     width = xp.where(code == INTERVAL, hi_s - lo_s, 1.0)
-    val = xp.where(code == REAL, scale * p,
-                   xp.where(code == LOWER, lo_s + scale * p * p,
-                            xp.where(code == UPPER, hi_s - scale * p * p,
-                                     lo_s + width * xp.sin(p) ** 2)))
+    val = xp.where(
+        code == REAL,
+        scale * p,
+        xp.where(
+            code == LOWER,
+            lo_s + scale * p * p,
+            xp.where(code == UPPER, hi_s - scale * p * p, lo_s + width * xp.sin(p) ** 2),
+        ),
+    )
     if held is not None:
         val = xp.where(code == HELD, held, val)
     return val
@@ -164,11 +186,20 @@ def apply(code, lo, hi, scale, p, held=None):
 def derivative(code, lo, hi, scale, p):
     """`d theta / d p` of every slot (0 for held slots)."""
     xp = _namespace(p)
-    width = xp.where(code == INTERVAL, xp.where(xp.isfinite(hi), hi, 0.0)
-                     - xp.where(xp.isfinite(lo), lo, 0.0), 1.0)
-    dv = xp.where(code == REAL, scale,
-                  xp.where(code == LOWER, 2 * scale * p,
-                           xp.where(code == UPPER, -2 * scale * p, width * xp.sin(2 * p))))
+    width = xp.where(
+        code == INTERVAL,
+        xp.where(xp.isfinite(hi), hi, 0.0) - xp.where(xp.isfinite(lo), lo, 0.0),
+        1.0,
+    )
+    dv = xp.where(
+        code == REAL,
+        scale,
+        xp.where(
+            code == LOWER,
+            2 * scale * p,
+            xp.where(code == UPPER, -2 * scale * p, width * xp.sin(2 * p)),
+        ),
+    )
     return xp.where(code == HELD, 0.0, dv)
 
 
@@ -193,8 +224,7 @@ def at_bound(code, lo, hi, scale, p, near):
     sq = p * p
     lower = ((code == LOWER) & (sq < near)) | ((code == INTERVAL) & (sin2 < near))
     upper = ((code == UPPER) & (sq < near)) | ((code == INTERVAL) & (sin2 > 1 - near))
-    value = np.where(lower, np.where(np.isfinite(lo), lo, 0.0),
-                     np.where(np.isfinite(hi), hi, 0.0))
+    value = np.where(lower, np.where(np.isfinite(lo), lo, 0.0), np.where(np.isfinite(hi), hi, 0.0))
     return lower | upper, value
 
 

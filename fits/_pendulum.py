@@ -49,10 +49,32 @@ __all__ = ["PENDULUM", "PENDULUM_LINEAR", "DEGREE", "DISSIPATION_SETS", "FREE"]
 DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: degrees
 
 NAMES = ("omega", "zeta", "xF", "xS", "cq", "b2", "b3", "a0", "offset", "asym", "angle_unit")
-KINDS = ("positive", "damping", "positive", "positive", "positive", "real", "real", "positive",
-         "real", "real", "positive")
-UNITS = ("rad/s", "-", "signal", "signal", "1/signal", "1/rad", "1/rad^2", "signal", "signal",
-         "-", "rad/signal")
+KINDS = (
+    "positive",
+    "damping",
+    "positive",
+    "positive",
+    "positive",
+    "real",
+    "real",
+    "positive",
+    "real",
+    "real",
+    "positive",
+)
+UNITS = (
+    "rad/s",
+    "-",
+    "signal",
+    "signal",
+    "1/signal",
+    "1/rad",
+    "1/rad^2",
+    "signal",
+    "signal",
+    "-",
+    "rad/signal",
+)
 
 #: the parameters fitted by default (`fits.fit(record, "pendulum")`, `vmj fit --model pendulum`)
 FREE = ("omega", "zeta", "xF", "cq", "b2", "a0", "offset", "asym")
@@ -76,10 +98,15 @@ def _predictor(sine: bool):
         u = theta["angle_unit"]
         kinetic = theta["xF"] * u
         static = jnp.maximum(theta["xS"], theta["xF"]) * u  # xS below xF: no static excess
-        model = vmj.Oscillator(theta["omega"], law_of(theta["b2"], theta["b3"]),
-                               (vmj.ViscousDamping(theta["zeta"]),
-                                vmj.CoulombDamping(kinetic, static),
-                                vmj.QuadraticDamping(theta["cq"] / u)))
+        model = vmj.Oscillator(
+            theta["omega"],
+            law_of(theta["b2"], theta["b3"]),
+            (
+                vmj.ViscousDamping(theta["zeta"]),
+                vmj.CoulombDamping(kinetic, static),
+                vmj.QuadraticDamping(theta["cq"] / u),
+            ),
+        )
         a0 = theta["a0"]
         seq = vmj.turning_points(model, a0 * u, n, _SOLVERS[forward]())
         times = jnp.concatenate([jnp.zeros((1,)), seq.times])
@@ -130,8 +157,11 @@ def _centres(record: Record, u: float) -> dict | None:
         return None
     design = np.stack([np.ones_like(d), d, d * d], axis=1)
     offset, asym, gamma = np.linalg.lstsq(design, c, rcond=None)[0]
-    return {"offset": float(offset), "asym": float(asym),
-            "b2": float(-3 * gamma / (record.orientation * u))}
+    return {
+        "offset": float(offset),
+        "asym": float(asym),
+        "b2": float(-3 * gamma / (record.orientation * u)),
+    }
 
 
 def _start(record: Record, given: dict, dec: dict) -> dict:
@@ -143,8 +173,14 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
     u = float(given.get("angle_unit", DEGREE))
     sensor = _centres(record, u)
     if sensor is None:
-        sensor = {**(sensor_start(record) if record.sides_known else
-                     {"offset": dec["centre"], "asym": 0.0}), "b2": 0.0}
+        sensor = {
+            **(
+                sensor_start(record)
+                if record.sides_known
+                else {"offset": dec["centre"], "asym": 0.0}
+            ),
+            "b2": 0.0,
+        }
     offset = float(given.get("offset", sensor["offset"]))
     asym = min(max(float(given.get("asym", sensor["asym"])), -0.2), 0.2)
     b2 = float(given.get("b2", sensor["b2"]))
@@ -162,9 +198,19 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
     # the sine's frequency falls with the amplitude: the mean half-period is about that of
     # 0.6 of the release amplitude, where the sine's frequency is 1 - A^2/16
     omega /= 1 - (0.6 * a0 * u) ** 2 / 16
-    return {"omega": omega, "zeta": min(max(zeta, 1e-4), 0.5), "xF": max(xF, 1e-4 * a0),
-            "xS": 0.0, "cq": max(cq, 1e-4 / a0), "b2": b2, "b3": 0.0, "a0": a0,
-            "offset": offset, "asym": asym, "angle_unit": u}
+    return {
+        "omega": omega,
+        "zeta": min(max(zeta, 1e-4), 0.5),
+        "xF": max(xF, 1e-4 * a0),
+        "xS": 0.0,
+        "cq": max(cq, 1e-4 / a0),
+        "b2": b2,
+        "b3": 0.0,
+        "a0": a0,
+        "offset": offset,
+        "asym": asym,
+        "angle_unit": u,
+    }
 
 
 def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) -> Space:
@@ -177,9 +223,18 @@ def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) ->
         viscous=("zeta",),
         required=("omega",),
         predict=_predictor(sine),
-        defaults={"zeta": 0.0, "xF": 0.0, "xS": 0.0, "cq": 0.0, "b2": 0.0, "b3": 0.0,
-                  "asym": 0.0, "angle_unit": DEGREE, "a0": first_amplitude,
-                  "offset": record_centre},
+        defaults={
+            "zeta": 0.0,
+            "xF": 0.0,
+            "xS": 0.0,
+            "cq": 0.0,
+            "b2": 0.0,
+            "b3": 0.0,
+            "asym": 0.0,
+            "angle_unit": DEGREE,
+            "a0": first_amplitude,
+            "offset": record_centre,
+        },
         variants=variants,
         select=select,
         bounds={"asym": (-0.5, 0.5)},

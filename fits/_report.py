@@ -34,8 +34,9 @@ def _interval(lo, hi) -> str:
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return f"[{_fmt(lo)}, {_fmt(hi)}]"
     width, size = abs(hi - lo), max(abs(lo), abs(hi))
-    digits = 6 if width <= 0 or size <= 0 else int(min(15, max(6, np.ceil(
-        np.log10(size / width)) + 3)))
+    digits = (
+        6 if width <= 0 or size <= 0 else int(min(15, max(6, np.ceil(np.log10(size / width)) + 3)))
+    )
     return f"[{lo:.{digits}g}, {hi:.{digits}g}]"
 
 
@@ -67,7 +68,8 @@ def _comparison_rows(comparison: dict) -> list:
 def _warnings(result) -> list:
     seen = []
     for w in list(_field(result, "warnings", [])) + list(
-            _field(result, "diagnostics", {}).get("warnings", [])):
+        _field(result, "diagnostics", {}).get("warnings", [])
+    ):
         if w not in seen:
             seen.append(w)
     return seen
@@ -82,16 +84,20 @@ def text_report(result: FitResult) -> str:
     clock of a raw signal; every warning."""
     label = _field(result, "label", "")
     records = _field(result, "records", [])
-    what = (f"{len(records)} records" if len(records) > 1
-            else f"{len(result.record)} turning points")
-    lines = [f"model {result.model}" + (f" ({label})" if label else "")
-             + f", forward {result.forward}, loss {result.loss}, optimizer {result.optimizer}, "
-             + what]
+    what = f"{len(records)} records" if len(records) > 1 else f"{len(result.record)} turning points"
+    lines = [
+        f"model {result.model}"
+        + (f" ({label})" if label else "")
+        + f", forward {result.forward}, loss {result.loss}, optimizer {result.optimizer}, "
+        + what
+    ]
     intervals = _field(result, "intervals", {})
     stderr_gn = _field(result, "stderr_gn", {})
     for name, value in result.params.items():
-        line = (f"  {name:>7} = {_fmt(value):>12} +- {_fmt(result.stderr.get(name)):<10}"
-                f"{_unit(result, name)}")
+        line = (
+            f"  {name:>7} = {_fmt(value):>12} +- {_fmt(result.stderr.get(name)):<10}"
+            f"{_unit(result, name)}"
+        )
         if name in stderr_gn:
             line += f"  (gn +- {_fmt(stderr_gn[name])})"
         if name in intervals and intervals[name] is not None:
@@ -99,23 +105,35 @@ def text_report(result: FitResult) -> str:
         lines.append(line)
     if len(result.params) > 1:
         names = list(result.params)
-        lines.append("  correlation: " + "; ".join(
-            f"{a}/{b} {_corr(result.correlation[i][j])}" for i, a in enumerate(names)
-            for j, b in enumerate(names) if j > i))
-    lines.append(f"  converged: {result.converged} after {result.iterations} iterations; "
-                 f"rms {_fmt(result.rms)}" + ("" if result.rms_time is None
-                                             else f", time rms {_fmt(result.rms_time)} s"))
+        lines.append(
+            "  correlation: "
+            + "; ".join(
+                f"{a}/{b} {_corr(result.correlation[i][j])}"
+                for i, a in enumerate(names)
+                for j, b in enumerate(names)
+                if j > i
+            )
+        )
+    lines.append(
+        f"  converged: {result.converged} after {result.iterations} iterations; "
+        f"rms {_fmt(result.rms)}"
+        + ("" if result.rms_time is None else f", time rms {_fmt(result.rms_time)} s")
+    )
     diag = _field(result, "diagnostics", {})
     if diag:
         n_res = _field(result, "n_residuals")
-        lines.append(f"  residuals: lag-1 autocorrelation {_short(diag.get('lag1'), 3)}, runs test "
-                     f"p = {_short(diag.get('runs_p'), 3)}, effective sample size "
-                     f"{_short(diag.get('n_eff'), 4)}" + ("" if not n_res else f" of {n_res}"))
+        lines.append(
+            f"  residuals: lag-1 autocorrelation {_short(diag.get('lag1'), 3)}, runs test "
+            f"p = {_short(diag.get('runs_p'), 3)}, effective sample size "
+            f"{_short(diag.get('n_eff'), 4)}" + ("" if not n_res else f" of {n_res}")
+        )
     dec = result.decrement
     if dec:
-        lines.append(f"  decrement method: r = {_fmt(dec.get('r'))} per half-swing, zeta = "
-                     f"{_fmt(dec.get('zeta'))}, xF = {_fmt(dec.get('xF'))} +- "
-                     f"{_fmt(dec.get('stderr_xF'))} (signal units)")
+        lines.append(
+            f"  decrement method: r = {_fmt(dec.get('r'))} per half-swing, zeta = "
+            f"{_fmt(dec.get('zeta'))}, xF = {_fmt(dec.get('xF'))} +- "
+            f"{_fmt(dec.get('stderr_xF'))} (signal units)"
+        )
     rows = _comparison_rows(result.model_comparison or {})
     aic, bic = _field(result, "aic"), _field(result, "bic")
     if not rows and aic is not None and np.isfinite(aic):
@@ -123,10 +141,15 @@ def text_report(result: FitResult) -> str:
     if rows:
         lines.append("  model comparison (lower is better):")
         for k, c in rows:
-            lines.append(f"    {k:>10}: AIC {c['aic']:10.2f}  BIC {c['bic']:10.2f}  "
-                         + ", ".join(f"{n}={_fmt(v)}" for n, v in c.get("params", {}).items()))
-        best = [f"by {k[5:].upper()}: {v}" for k, v in result.model_comparison.items()
-                if k.startswith("best_")]
+            lines.append(
+                f"    {k:>10}: AIC {c['aic']:10.2f}  BIC {c['bic']:10.2f}  "
+                + ", ".join(f"{n}={_fmt(v)}" for n, v in c.get("params", {}).items())
+            )
+        best = [
+            f"by {k[5:].upper()}: {v}"
+            for k, v in result.model_comparison.items()
+            if k.startswith("best_")
+        ]
         if best:
             lines.append("    best " + ", ".join(best))
     if len(records) > 1:
@@ -137,14 +160,25 @@ def text_report(result: FitResult) -> str:
             values = item.get("params", {})
             err = item.get("stderr", {})
             ivs = item.get("intervals", {})
-            lines.append(f"    {src}: " + ", ".join(
-                f"{n}={_fmt(v)} +- {_fmt(err.get(n))}"
-                + (" " + _interval(*ivs[n]) if ivs.get(n) is not None else "")
-                for n, v in values.items()))
+            lines.append(
+                f"    {src}: "
+                + ", ".join(
+                    f"{n}={_fmt(v)} +- {_fmt(err.get(n))}"
+                    + (" " + _interval(*ivs[n]) if ivs.get(n) is not None else "")
+                    for n, v in values.items()
+                )
+            )
     clock = _field(result, "clock", None) or result.record.clock
     if clock:
-        lines.append("  clock: " + str(clock.get("message") or ", ".join(
-            f"{k} {v}" for k, v in clock.items() if not isinstance(v, (list, dict)))))
+        lines.append(
+            "  clock: "
+            + str(
+                clock.get("message")
+                or ", ".join(
+                    f"{k} {v}" for k, v in clock.items() if not isinstance(v, (list, dict))
+                )
+            )
+        )
     if result.outliers:
         lines.append(f"  outliers (|residual| > 5 robust sd) at k = {result.outliers}")
     lines += [f"  warning: {w}" for w in _warnings(result)]
@@ -159,25 +193,32 @@ def _acf(x: np.ndarray, lags: int) -> np.ndarray:
     den = float(np.dot(x, x))
     if den <= 0:
         return np.full(lags, np.nan)
-    return np.array([np.dot(x[:-h], x[h:]) / den if h < x.size else np.nan
-                     for h in range(1, lags + 1)])
+    return np.array(
+        [np.dot(x[:-h], x[h:]) / den if h < x.size else np.nan for h in range(1, lags + 1)]
+    )
 
 
 def _panels(result):
     """`(record or None, residuals, per-record parameters, source)` to draw: the first record
     with its data; the further records of a joint fit with their residuals only (a result
     keeps the first record's data)."""
-    items = [it for it in _field(result, "records", [])
-             if isinstance(it, dict) and isinstance(it.get("residuals"), dict)]
+    items = [
+        it
+        for it in _field(result, "records", [])
+        if isinstance(it, dict) and isinstance(it.get("residuals"), dict)
+    ]
     first = items[0].get("params", {}) if items else {}
     out = [(result.record, result.residuals, first, result.record.source)]
-    out += [(None, it["residuals"], it.get("params", {}), it.get("source") or f"record {i + 1}")
-            for i, it in enumerate(items[1:])]
+    out += [
+        (None, it["residuals"], it.get("params", {}), it.get("source") or f"record {i + 1}")
+        for i, it in enumerate(items[1:])
+    ]
     return out
 
 
-def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = None,
-             lags: int = 20) -> None:
+def plot_fit(
+    result: FitResult, path: str | os.PathLike, *, title: str | None = None, lags: int = 20
+) -> None:
     """Figure of a fit, written atomically to `path` (format from its extension).
 
     Panels: the data (turning points; the raw signal when the record has one) with the fitted
@@ -219,11 +260,25 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
         ax_rx.axhline(0, color="k", lw=0.5)
         ax_rx.plot(x_res, rx, ".-", lw=0.6, ms=4, color=colour, label="position" + tag)
         if flagged.any():
-            ax_rx.plot(np.asarray(x_res)[flagged], rx[flagged], "o", ms=10, mfc="none",
-                       color="r", label="flagged outlier" if i == 0 else None)
+            ax_rx.plot(
+                np.asarray(x_res)[flagged],
+                rx[flagged],
+                "o",
+                ms=10,
+                mfc="none",
+                color="r",
+                label="flagged outlier" if i == 0 else None,
+            )
         acf_n["position"] += rx.size
-        ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i, _acf(rx, lags), "o-", ms=3, lw=0.8,
-                    color=colour, label="position" + tag)
+        ax_acf.plot(
+            np.arange(1, lags + 1) + 0.15 * i,
+            _acf(rx, lags),
+            "o-",
+            ms=3,
+            lw=0.8,
+            color=colour,
+            label="position" + tag,
+        )
         rt = res.get("time")
         if rt is not None and ax_rt is not None:
             rt = np.asarray(rt, dtype=float)
@@ -231,8 +286,16 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
             ax_rt.plot(x_res, rt, ".-", lw=0.6, ms=4, color=colour, label="time" + tag)
             rt_used = rt[1:] if k[0] == 0 else rt  # the release time is not a datum
             acf_n["time"] += rt_used.size
-            ax_acf.plot(np.arange(1, lags + 1) + 0.15 * i + 0.3, _acf(rt_used, lags), "s:",
-                        ms=3, lw=0.8, color=colour, mfc="none", label="time" + tag)
+            ax_acf.plot(
+                np.arange(1, lags + 1) + 0.15 * i + 0.3,
+                _acf(rt_used, lags),
+                "s:",
+                ms=3,
+                lw=0.8,
+                color=colour,
+                mfc="none",
+                label="time" + tag,
+            )
         if rec is None:
             continue
         x_axis = rec.times if rec.times is not None else rec.k
@@ -241,29 +304,53 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
         if rec.signal is not None:
             s = rec.signal
             ax_data.plot(s.t - rec.time_origin, s.y, lw=0.5, color="0.6", label="raw signal")
-        ax_data.plot(x_axis, data, "o", ms=3.5, mfc="none", color=colour,
-                     label=("turning points" if rec.sides_known else "amplitudes") + tag)
+        ax_data.plot(
+            x_axis,
+            data,
+            "o",
+            ms=3.5,
+            mfc="none",
+            color=colour,
+            label=("turning points" if rec.sides_known else "amplitudes") + tag,
+        )
         ax_data.plot(x_axis, fitted, "-", lw=1.0, color="C3", label=f"fit ({result.forward})")
         ax_data.axhline(off, color="k", lw=0.5, ls=":")
         # decrement diagram: consecutive swings only
         amp_data = np.abs(data - off)
         amp_fit = np.abs(fitted - off)
         nxt = np.flatnonzero(np.diff(rec.k) == 1)
-        ax_dec.plot(amp_data[nxt], amp_data[nxt + 1], "o", ms=3, mfc="none", color=colour,
-                    label="data pairs" + tag)
+        ax_dec.plot(
+            amp_data[nxt],
+            amp_data[nxt + 1],
+            "o",
+            ms=3,
+            mfc="none",
+            color=colour,
+            label="data pairs" + tag,
+        )
         order = np.argsort(amp_fit[nxt])
-        ax_dec.plot(amp_fit[nxt][order], amp_fit[nxt + 1][order], "-", color="C3",
-                    label="fitted model's map")
+        ax_dec.plot(
+            amp_fit[nxt][order],
+            amp_fit[nxt + 1][order],
+            "-",
+            color="C3",
+            label="fitted model's map",
+        )
         a_max = max(a_max, float(np.max(amp_data)) if amp_data.size else 0.0)
-    ax_data.set_xlabel("time from the release [s]" if panels[0][0].times is not None
-                       else "swing k")
+    ax_data.set_xlabel("time from the release [s]" if panels[0][0].times is not None else "swing k")
     ax_data.set_ylabel("position [signal units]")
     ax_data.legend(fontsize=8, loc="upper right")
     stderr = result.stderr
-    ax_data.set_title(title or f"{result.model} fit" + (" (first record)" if joint else "")
-                      + ": " + ", ".join(
-        f"{k}={_short(v, 5)}\u00b1{_short(stderr.get(k), 2)}" for k, v in result.params.items()),
-        fontsize=9)
+    ax_data.set_title(
+        title
+        or f"{result.model} fit"
+        + (" (first record)" if joint else "")
+        + ": "
+        + ", ".join(
+            f"{k}={_short(v, 5)}\u00b1{_short(stderr.get(k), 2)}" for k, v in result.params.items()
+        ),
+        fontsize=9,
+    )
     xlabel = "swing k" if joint else ax_data.get_xlabel()
     ax_rx.set_xlabel(xlabel)
     ax_rx.set_ylabel("fit - data [signal units]")
@@ -279,18 +366,29 @@ def plot_fit(result: FitResult, path: str | os.PathLike, *, title: str | None = 
             band = 1.96 / np.sqrt(acf_n[kind] / len(panels))
             ax_acf.axhspan(-band, band, color=shade, zorder=0, label=f"{kind}: \u00b11.96/\u221an")
     diag = _field(result, "diagnostics", {})
-    ax_acf.set_title("residual autocorrelation" + (
-        f" (lag-1 {_short(diag.get('lag1'), 3)}, runs p {_short(diag.get('runs_p'), 2)})"
-        if diag else ""),
-        fontsize=9)
+    ax_acf.set_title(
+        "residual autocorrelation"
+        + (
+            f" (lag-1 {_short(diag.get('lag1'), 3)}, runs p {_short(diag.get('runs_p'), 2)})"
+            if diag
+            else ""
+        ),
+        fontsize=9,
+    )
     ax_acf.set_xlabel("lag [points]")
     ax_acf.set_ylim(-1.05, 1.05)
     ax_acf.legend(fontsize=7)
     dec = result.decrement
     grid_a = np.linspace(0, a_max * 1.05, 50)
     if dec and "slope" in dec:
-        ax_dec.plot(grid_a, dec["slope"] * grid_a + dec["intercept"], "-", color="C2", lw=0.8,
-                    label=f"decrement method: r={_fmt(dec['r'])}, xF={_fmt(dec['xF'])}")
+        ax_dec.plot(
+            grid_a,
+            dec["slope"] * grid_a + dec["intercept"],
+            "-",
+            color="C2",
+            lw=0.8,
+            label=f"decrement method: r={_fmt(dec['r'])}, xF={_fmt(dec['xF'])}",
+        )
     ax_dec.plot(grid_a, grid_a, ":", color="0.5", lw=0.8, label="no loss")
     ax_dec.set_xlabel("amplitude A_k [signal units]")
     ax_dec.set_ylabel("next amplitude A_{k+1}")
@@ -321,15 +419,37 @@ def paper_records(table: int | None = None, values: str = "monograph") -> list[d
         col = sorted(col, key=lambda c: c["k"])
         amps = [vmj.PAPER["a0"]] + [c[f"{key}_cm"] / 100 for c in col]
         crossed = [1] + [0 if c[f"{key}_star"] else 1 for c in col]
-        rec = record_from_sequence(amplitudes=amps, crossed=crossed,
-                                   k=[0] + [c["k"] for c in col],
-                                   source=f"table {tab} mu={mu:g} eps={eps:g} ({values})")
+        rec = record_from_sequence(
+            amplitudes=amps,
+            crossed=crossed,
+            k=[0] + [c["k"] for c in col],
+            source=f"table {tab} mu={mu:g} eps={eps:g} ({values})",
+        )
         law = "FT" if friction == "constant" else "f"
-        given = {"m0": vmj.PAPER["m0"], "c": vmj.PAPER["c"], "delta": delta, "eps": eps,
-                 "a0": vmj.PAPER["a0"], "g": vmj.PAPER["g"]}
-        notes = {c["k"]: c["note"] for c in col
-                 if c["note"] and (values in c["note"] or "energy" not in c["note"])}
-        out.append({"record": rec, "given": given, "free": (law, "mu"),
-                    "truth": {law: vmj.PAPER[law], "mu": mu}, "table": tab, "mu": mu, "eps": eps,
-                    "delta": delta, "notes": notes})
+        given = {
+            "m0": vmj.PAPER["m0"],
+            "c": vmj.PAPER["c"],
+            "delta": delta,
+            "eps": eps,
+            "a0": vmj.PAPER["a0"],
+            "g": vmj.PAPER["g"],
+        }
+        notes = {
+            c["k"]: c["note"]
+            for c in col
+            if c["note"] and (values in c["note"] or "energy" not in c["note"])
+        }
+        out.append(
+            {
+                "record": rec,
+                "given": given,
+                "free": (law, "mu"),
+                "truth": {law: vmj.PAPER[law], "mu": mu},
+                "table": tab,
+                "mu": mu,
+                "eps": eps,
+                "delta": delta,
+                "notes": notes,
+            }
+        )
     return out

@@ -98,8 +98,9 @@ class FitResult:
             "model_comparison": self.model_comparison,
         }
         if self.records:
-            out["records"] = [{k: v for k, v in r.items() if k != "residuals"}
-                              for r in self.records]
+            out["records"] = [
+                {k: v for k, v in r.items() if k != "residuals"} for r in self.records
+            ]
         if self.clock is not None:
             out["clock"] = self.clock
         out["units"] = self.units
@@ -126,20 +127,24 @@ def _jsonable(obj):
         return float(obj) if math.isfinite(obj) else None
     return obj
 
+
 # -- views of a solved job ---------------------------------------------------------------------
 def _slot_names(job) -> list:
     return [nm if r is None else f"{nm}[{r}]" for nm, r in job.slots]
+
 
 def _values_of(job) -> list:
     """Per record {name: value} at the job's last solution."""
     th = job.out["theta"]
     return [dict(zip(job.space.names, th[r].tolist())) for r in range(th.shape[0])]
 
+
 def _robust_scale(r, floor):
     r = r[np.isfinite(r)]
     if r.size == 0:
         return floor
     return max(1.4826 * float(np.median(np.abs(r - np.median(r)))), floor)
+
 
 # -- per-job statistics ------------------------------------------------------------------------
 def _used(job, prob, N):
@@ -163,11 +168,14 @@ def _information(job, prob, N):
     ll = n * math.log(max(rss, 1e-300) / n)
     return {"aic": ll + 2 * q, "bic": ll + q * math.log(n), "rss": rss, "n": n, "q": q}
 
+
 # -- results -----------------------------------------------------------------------------------
 def _at_user_bound(job, s) -> bool:
     """Whether slot `s` is held at a bound the user set (`bounds=`, `--bounds`)."""
     t = job.transforms[s]
-    return bool((job.user_lo[s] and job.held[s] == t.lo) or (job.user_hi[s] and job.held[s] == t.hi))
+    return bool(
+        (job.user_lo[s] and job.held[s] == t.lo) or (job.user_hi[s] and job.held[s] == t.hi)
+    )
 
 
 def _result(job, prob, jobs, shape, outlier_sigma):
@@ -208,22 +216,30 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     for s, nm in enumerate(names):
         if job.bound_hit[s]:
             if not _at_user_bound(job, s):
-                warn.append(f"{nm} ran into its bound {job.held[s]:.6g} "
-                            f"[{space.unit(job.slots[s][0])}]: held there (a sub-model fits "
-                            f"as well; see model_comparison)")
+                warn.append(
+                    f"{nm} ran into its bound {job.held[s]:.6g} "
+                    f"[{space.unit(job.slots[s][0])}]: held there (a sub-model fits "
+                    f"as well; see model_comparison)"
+                )
         elif not np.isfinite(se_c[s]):
             warn.append(f"{nm} is not identified by these data: no standard error")
         elif not se_c[s] < abs(est[s]):
-            warn.append(f"{nm} is not identifiable from these data: its standard error "
-                        f"{se_c[s]:.3g} is not below its value {est[s]:.3g}")
+            warn.append(
+                f"{nm} is not identifiable from these data: its standard error "
+                f"{se_c[s]:.3g} is not below its value {est[s]:.3g}"
+            )
     for a in range(q):
         for b in range(a + 1, q):
             if np.isfinite(corr[a, b]) and abs(corr[a, b]) > 0.99:
-                warn.append(f"{names[a]} and {names[b]} are not separately identifiable: "
-                            f"correlation {corr[a, b]:.4f}")
+                warn.append(
+                    f"{names[a]} and {names[b]} are not separately identifiable: "
+                    f"correlation {corr[a, b]:.4f}"
+                )
     if not full_rank:
-        warn.append("the Jacobian is rank-deficient (relative singular-value tolerance "
-                    f"{RANK_RTOL:g}): some parameters are not determined by the data")
+        warn.append(
+            "the Jacobian is rank-deficient (relative singular-value tolerance "
+            f"{RANK_RTOL:g}): some parameters are not determined by the data"
+        )
     at_unset_bound = any(job.bound_hit[s] and not _at_user_bound(job, s) for s in range(q))
     if not job.out["ok"]:
         warn.append("the optimiser did not converge (step limit or no progress)")
@@ -233,8 +249,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     diag = diagnostics(std_blocks, int(np.sum(active)))
     n_dof = info["n"] - info["q"]
     if n_dof < 3:
-        warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not "
-                    f"reliable")
+        warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not reliable")
         converged = False if n_dof < 2 else converged
     if any(active[s] and not np.isfinite(se_c[s]) for s in range(q)):
         converged = False  # a parameter without a standard error is not determined
@@ -254,8 +269,10 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         t = job.transforms[s]
         lo, hi = max(lo, t.lo), min(hi, t.hi)
         if len(got) < 2 and np.isfinite(wald) and profiled:
-            warn.append(f"{nm}: the profile likelihood failed; the interval is the Wald "
-                        f"interval +- 1.96 stderr")
+            warn.append(
+                f"{nm}: the profile likelihood failed; the interval is the Wald "
+                f"interval +- 1.96 stderr"
+            )
         intervals[nm] = (float(lo), float(hi))
     warn += diag["warnings"]
     diag = {**diag, "warnings": warn}
@@ -276,14 +293,20 @@ def _result(job, prob, jobs, shape, outlier_sigma):
             res_t[wt == 0] = 0.0
             z_t = res_t / _robust_scale(res_t[wt > 0], 1e-12)
             flagged |= np.abs(z_t) > outlier_sigma
-        per_record.append({
-            "residuals": {"k": rec.k.tolist(), "position": res_x.tolist(),
-                          "time": None if res_t is None else res_t.tolist(),
-                          "standardized": z.tolist(), "outlier": flagged.tolist()},
-            "rms": float(np.sqrt(np.mean(res_x ** 2))),
-            "rms_time": None if res_t is None else float(np.sqrt(np.mean(res_t[1:] ** 2))),
-            "outliers": [int(kk) for kk in rec.k[flagged]],
-        })
+        per_record.append(
+            {
+                "residuals": {
+                    "k": rec.k.tolist(),
+                    "position": res_x.tolist(),
+                    "time": None if res_t is None else res_t.tolist(),
+                    "standardized": z.tolist(),
+                    "outlier": flagged.tolist(),
+                },
+                "rms": float(np.sqrt(np.mean(res_x**2))),
+                "rms_time": None if res_t is None else float(np.sqrt(np.mean(res_t[1:] ** 2))),
+                "outliers": [int(kk) for kk in rec.k[flagged]],
+            }
+        )
     top = [s for s, (nm, rr) in enumerate(job.slots) if rr is None]
 
     def pick(arr, sel):
@@ -294,15 +317,17 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     if R > 1:
         for i, rec in enumerate(prob.records):
             sel = [s for s, (nm, rr) in enumerate(job.slots) if rr == i]
-            records.append({
-                "source": rec.source,
-                "params": {job.slots[s][0]: float(est[s]) for s in sel},
-                "stderr": {job.slots[s][0]: pick(se_c, [s])[names[s]] for s in sel},
-                "stderr_gn": {job.slots[s][0]: pick(se_gn, [s])[names[s]] for s in sel},
-                "intervals": {job.slots[s][0]: intervals[names[s]] for s in sel},
-                "fixed": {k: v for k, v in vals[i].items() if k not in job.free},
-                **{k: per_record[i][k] for k in ("rms", "rms_time", "outliers", "residuals")},
-            })
+            records.append(
+                {
+                    "source": rec.source,
+                    "params": {job.slots[s][0]: float(est[s]) for s in sel},
+                    "stderr": {job.slots[s][0]: pick(se_c, [s])[names[s]] for s in sel},
+                    "stderr_gn": {job.slots[s][0]: pick(se_gn, [s])[names[s]] for s in sel},
+                    "intervals": {job.slots[s][0]: intervals[names[s]] for s in sel},
+                    "fixed": {k: v for k, v in vals[i].items() if k not in job.free},
+                    **{k: per_record[i][k] for k in ("rms", "rms_time", "outliers", "residuals")},
+                }
+            )
     comparison = {}
     mine = [j for j in jobs if j.problem == job.problem]
     if len(mine) > 1:
@@ -310,9 +335,13 @@ def _result(job, prob, jobs, shape, outlier_sigma):
             inf_j = _information(j, prob, N)
             vj = _values_of(j)
             comparison[j.label] = {
-                "aic": inf_j["aic"], "bic": inf_j["bic"], "rss": inf_j["rss"],
-                "params": {sn: vj[0 if rr is None else rr][nm]
-                           for sn, (nm, rr) in zip(_slot_names(j), j.slots)},
+                "aic": inf_j["aic"],
+                "bic": inf_j["bic"],
+                "rss": inf_j["rss"],
+                "params": {
+                    sn: vj[0 if rr is None else rr][nm]
+                    for sn, (nm, rr) in zip(_slot_names(j), j.slots)
+                },
                 "converged": bool(j.out["ok"]),
             }
         labels = [j.label for j in mine]
@@ -322,21 +351,45 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     dec = prob.decs[0]
     corr_top = corr[np.ix_(top, top)] if top else np.zeros((0, 0))
     result = FitResult(
-        model=space.name, forward=settings["forward"], loss=settings["loss"],
-        optimizer=settings["optimizer"], params=params,
+        model=space.name,
+        forward=settings["forward"],
+        loss=settings["loss"],
+        optimizer=settings["optimizer"],
+        params=params,
         fixed={k: v for k, v in vals[0].items() if k not in job.free},
-        stderr=pick(se_c, top), correlation=np.where(np.isfinite(corr_top), corr_top,
-                                                     np.nan).tolist(),
-        converged=converged, iterations=int(sum(j.iterations for j in mine)),
-        rms=per_record[0]["rms"] if R == 1 else float(np.sqrt(np.mean(np.concatenate(
-            [np.asarray(p["residuals"]["position"]) ** 2 for p in per_record])))),
-        rms_time=per_record[0]["rms_time"], model_comparison=comparison,
-        residuals=per_record[0]["residuals"], outliers=per_record[0]["outliers"],
-        warnings=warn, decrement={k: v for k, v in dec.items() if k != "pairs"}, record=rec0,
-        stderr_gn=pick(se_gn, top), intervals={names[s]: intervals[names[s]] for s in top},
-        diagnostics=diag, aic=info["aic"], bic=info["bic"], rss=info["rss"],
-        n_residuals=info["n"], records=records, clock=rec0.clock,
-        units={nm: space.unit(nm) for nm in space.names}, label=job.label,
+        stderr=pick(se_c, top),
+        correlation=np.where(np.isfinite(corr_top), corr_top, np.nan).tolist(),
+        converged=converged,
+        iterations=int(sum(j.iterations for j in mine)),
+        rms=per_record[0]["rms"]
+        if R == 1
+        else float(
+            np.sqrt(
+                np.mean(
+                    np.concatenate(
+                        [np.asarray(p["residuals"]["position"]) ** 2 for p in per_record]
+                    )
+                )
+            )
+        ),
+        rms_time=per_record[0]["rms_time"],
+        model_comparison=comparison,
+        residuals=per_record[0]["residuals"],
+        outliers=per_record[0]["outliers"],
+        warnings=warn,
+        decrement={k: v for k, v in dec.items() if k != "pairs"},
+        record=rec0,
+        stderr_gn=pick(se_gn, top),
+        intervals={names[s]: intervals[names[s]] for s in top},
+        diagnostics=diag,
+        aic=info["aic"],
+        bic=info["bic"],
+        rss=info["rss"],
+        n_residuals=info["n"],
+        records=records,
+        clock=rec0.clock,
+        units={nm: space.unit(nm) for nm in space.names},
+        label=job.label,
     )
     result.decrement["pairs"] = dec["pairs"]
     return result

@@ -79,12 +79,15 @@ def sensor_start(data: Record | Signal) -> dict:
     """
     record = extract_turning_points(data) if isinstance(data, Signal) else data
     if not isinstance(record, Record):
-        raise ValueError(f"sensor_start needs a fits.Record or fits.Signal, got "
-                         f"{type(data).__name__}")
+        raise ValueError(
+            f"sensor_start needs a fits.Record or fits.Signal, got {type(data).__name__}"
+        )
     src = f"{record.source}: " if record.source else ""
     if not record.sides_known:
-        raise ValueError(f"{src}the record holds amplitudes without sides: the sensor's offset "
-                         "and asymmetry need signed turning points")
+        raise ValueError(
+            f"{src}the record holds amplitudes without sides: the sensor's offset "
+            "and asymmetry need signed turning points"
+        )
     k = np.asarray(record.k)
     x = np.asarray(record.positions, dtype=float)
     # runs of consecutive swings (a record may skip swing indices)
@@ -98,8 +101,10 @@ def sensor_start(data: Record | Signal) -> dict:
         c_all.append((xr[1:-1] + xo) / 2)
         d_all.append(np.abs(xr[1:-1] - xo) / 2)
     if not c_all:
-        raise ValueError(f"{src}need at least 3 consecutive turning points for the sensor's "
-                         f"offset (got {k.size})")
+        raise ValueError(
+            f"{src}need at least 3 consecutive turning points for the sensor's "
+            f"offset (got {k.size})"
+        )
     c, d = np.concatenate(c_all), np.concatenate(d_all)
     n = c.size
     spread = float(np.max(d) / max(float(np.min(d)), 1e-300)) if n else 1.0
@@ -107,13 +112,16 @@ def sensor_start(data: Record | Signal) -> dict:
         offset = float(np.median(c))
         resid = c - offset
         scale = 1.4826 * float(np.median(np.abs(resid)))
-        return {"offset": offset, "asym": 0.0,
-                "offset_stderr": float(scale / np.sqrt(n)) if n > 1 else None,
-                "asym_stderr": None,
-                "n": int(n),
-                "message": f"offset {offset:.6g} from the median of {n} local centres; the "
-                           "asymmetry is not identifiable (too few swings or too little decay), "
-                           "taken as 0"}
+        return {
+            "offset": offset,
+            "asym": 0.0,
+            "offset_stderr": float(scale / np.sqrt(n)) if n > 1 else None,
+            "asym_stderr": None,
+            "n": int(n),
+            "message": f"offset {offset:.6g} from the median of {n} local centres; the "
+            "asymmetry is not identifiable (too few swings or too little decay), "
+            "taken as 0",
+        }
     asym, offset = _theil_sen(d, c)
     resid = c - offset - asym * d
     scale = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
@@ -122,8 +130,13 @@ def sensor_start(data: Record | Signal) -> dict:
     inflate = np.sqrt(3.0)
     asym_se = float(inflate * scale / np.sqrt(ssd)) if ssd > 0 else None
     offset_se = float(inflate * scale * np.sqrt(1 / n + d.mean() ** 2 / ssd)) if ssd > 0 else None
-    return {"offset": offset, "asym": asym, "offset_stderr": offset_se, "asym_stderr": asym_se,
-            "n": int(n),
-            "message": f"offset {offset:.6g}, asym {asym:+.4g} from a Theil-Sen line through "
-                       f"{n} local centres against their amplitudes "
-                       f"({float(np.min(d)):.3g} to {float(np.max(d)):.3g})"}
+    return {
+        "offset": offset,
+        "asym": asym,
+        "offset_stderr": offset_se,
+        "asym_stderr": asym_se,
+        "n": int(n),
+        "message": f"offset {offset:.6g}, asym {asym:+.4g} from a Theil-Sen line through "
+        f"{n} local centres against their amplitudes "
+        f"({float(np.min(d)):.3g} to {float(np.max(d)):.3g})",
+    }

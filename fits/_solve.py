@@ -117,8 +117,15 @@ def _solve_lm(space, forward, n, max_steps, d, p0):
             r, J = _residual_and_jacobian(space, forward, n, p, d)
             return r, (r, J)
 
-        sol = optx.least_squares(fn, optx.LevenbergMarquardt(_LM_RTOL, _LM_ATOL), p0, d,
-                                 has_aux=True, max_steps=max_steps, throw=False)
+        sol = optx.least_squares(
+            fn,
+            optx.LevenbergMarquardt(_LM_RTOL, _LM_ATOL),
+            p0,
+            d,
+            has_aux=True,
+            max_steps=max_steps,
+            throw=False,
+        )
         r, J = sol.aux  # at the returned point: no second compiled copy of the Jacobian
         ok = sol.result == optx.RESULTS.successful
         return sol.value, _place(d, _values(d, sol.value)), J, r, ok, sol.stats["num_steps"]
@@ -159,6 +166,7 @@ def _solve_adam(space, forward, n, steps, loss, d, p0):
 
     return jax.vmap(one)(d, p0)
 
+
 # -- batched solves ----------------------------------------------------------------------------
 @dataclass
 class _Shape:
@@ -182,8 +190,13 @@ def _job_arrays(job, prob, shape) -> dict:
         m = len(rec)
         k[r, :m] = rec.k
         signs = None if job.signs is None else job.signs[r]
-        x[r, :m] = rec.positions if rec.sides_known else \
-            rec.amplitudes if signs is None else signs * rec.amplitudes
+        x[r, :m] = (
+            rec.positions
+            if rec.sides_known
+            else rec.amplitudes
+            if signs is None
+            else signs * rec.amplitudes
+        )
         if rec.times is not None:
             t[r, :m] = rec.times
         for i, name in enumerate(space.names):
@@ -197,14 +210,25 @@ def _job_arrays(job, prob, shape) -> dict:
     pad = q - len(job.slots)
     lo = np.array([t_.lo for t_ in job.transforms] + [-np.inf] * pad)
     hi = np.array([t_.hi for t_ in job.transforms] + [np.inf] * pad)
-    return dict(k=k, x=x, t=t, wx=np.stack(prob.wx), wt=np.stack(prob.wt),
-                orient=np.array([rec.orientation for rec in prob.records]),
-                absval=np.array([0.0 if rec.sides_known or job.signs is not None else 1.0
-                                 for rec in prob.records]),
-                fixed=fixed, M=M, code=np.concatenate([job.code, np.full(pad, HELD)]),
-                lo=lo, hi=hi, scale=np.concatenate([job.scale, np.ones(pad)]),
-                held=np.concatenate([job.held, np.zeros(pad)]),
-                p=np.concatenate([job.p, np.zeros(pad)]))
+    return dict(
+        k=k,
+        x=x,
+        t=t,
+        wx=np.stack(prob.wx),
+        wt=np.stack(prob.wt),
+        orient=np.array([rec.orientation for rec in prob.records]),
+        absval=np.array(
+            [0.0 if rec.sides_known or job.signs is not None else 1.0 for rec in prob.records]
+        ),
+        fixed=fixed,
+        M=M,
+        code=np.concatenate([job.code, np.full(pad, HELD)]),
+        lo=lo,
+        hi=hi,
+        scale=np.concatenate([job.scale, np.ones(pad)]),
+        held=np.concatenate([job.held, np.zeros(pad)]),
+        p=np.concatenate([job.p, np.zeros(pad)]),
+    )
 
 
 def _solve(space, items, shape, optimizer=None):
@@ -215,22 +239,35 @@ def _solve(space, items, shape, optimizer=None):
     optimizer = optimizer or s["optimizer"]
     outs = []
     for c0 in range(0, len(items), shape.B):
-        chunk = items[c0:c0 + shape.B]
+        chunk = items[c0 : c0 + shape.B]
         chunk = chunk + [chunk[0]] * (shape.B - len(chunk))
         stacked = {k: np.stack([it[k] for it in chunk]) for k in chunk[0]}
         p0 = jnp.asarray(stacked.pop("p"), dtype=float)
-        d = _Data(**{k: jnp.asarray(v) if k in ("k", "code") else jnp.asarray(v, dtype=float)
-                     for k, v in stacked.items()})
+        d = _Data(
+            **{
+                k: jnp.asarray(v) if k in ("k", "code") else jnp.asarray(v, dtype=float)
+                for k, v in stacked.items()
+            }
+        )
         with vmj.assume_valid():
             if optimizer == "lm":
                 res = _solve_lm(space, s["forward"], shape.n_model, steps, d, p0)
             else:
-                res = _solve_adam(space, s["forward"], shape.n_model, s["adam_steps"], s["loss"],
-                                  d, p0)
+                res = _solve_adam(
+                    space, s["forward"], shape.n_model, s["adam_steps"], s["loss"], d, p0
+                )
         p, theta, J, r, ok, st = (np.asarray(v) for v in res)
         for j in range(min(shape.B, len(items) - c0)):
-            outs.append({"p": p[j], "theta": theta[j], "J": J[j], "r": r[j], "ok": bool(ok[j]),
-                         "steps": int(st[j])})
+            outs.append(
+                {
+                    "p": p[j],
+                    "theta": theta[j],
+                    "J": J[j],
+                    "r": r[j],
+                    "ok": bool(ok[j]),
+                    "steps": int(st[j]),
+                }
+            )
     return outs
 
 
@@ -238,6 +275,7 @@ def _rss(out) -> float:
     """Residual sum of squares of a solve's output (infinite when not finite)."""
     r = out["r"]
     return float(np.sum(r * r)) if np.all(np.isfinite(r)) else math.inf
+
 
 # -- profile likelihood ------------------------------------------------------------------------
 def _profiles(job, prob, shape, est, se, inflation, s2):
@@ -257,12 +295,24 @@ def _profiles(job, prob, shape, est, se, inflation, s2):
     base = _job_arrays(job, prob, shape)
     for s in active:
         t = job.transforms[s]
-        width = 1.96 * se[s] * math.sqrt(max(inflation, 1.0)) if np.isfinite(se[s]) and se[s] > 0 \
+        width = (
+            1.96 * se[s] * math.sqrt(max(inflation, 1.0))
+            if np.isfinite(se[s]) and se[s] > 0
             else 0.1 * max(abs(est[s]), job.scale[s])
+        )
         for side in (-1, 1):
             v = est[s] + side * width
-            state.append({"slot": s, "side": side, "v": v, "done": False, "ok": False,
-                          "p": base["p"], "bound": t.lo if side < 0 else t.hi})
+            state.append(
+                {
+                    "slot": s,
+                    "side": side,
+                    "v": v,
+                    "done": False,
+                    "ok": False,
+                    "p": base["p"],
+                    "bound": t.lo if side < 0 else t.hi,
+                }
+            )
     for _ in range(_PROFILE_STEPS):
         live = [st for st in state if not st["done"]]
         if not live:

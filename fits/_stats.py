@@ -149,9 +149,11 @@ def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
         structured.append(f"runs test p = {runs_p:.2g}")
     if structured:
         warnings.append(
-            "the model does not explain the data: " + ", ".join(structured)
+            "the model does not explain the data: "
+            + ", ".join(structured)
             + f" (effective sample size {n_eff:.0f} of {n}); the standard errors and intervals "
-            "are widened for it, but a richer model (see model_comparison) may fit better")
+            "are widened for it, but a richer model (see model_comparison) may fit better"
+        )
     return {"lag1": float(lag1), "runs_p": float(runs_p), "n_eff": n_eff, "warnings": warnings}
 
 
@@ -246,8 +248,12 @@ def _block_rhos(blocks_J, blocks_r, pinv, iterations=2):
                 RJ = _ar1_sums(Jb, rh) + _ar1_sums(Jb[::-1], rh)[::-1] - Jb  # R_b J_b
                 g = Jb.T @ RJ
                 PMP = pinv @ (others + g) @ pinv
-                num = ((n - 1) * rh - np.trace(pinv @ (RJ.T @ _up(Jb)))
-                       - np.trace(pinv @ (_down(Jb).T @ RJ)) + np.trace(PMP @ G1[b]))
+                num = (
+                    (n - 1) * rh
+                    - np.trace(pinv @ (RJ.T @ _up(Jb)))
+                    - np.trace(pinv @ (_down(Jb).T @ RJ))
+                    + np.trace(PMP @ G1[b])
+                )
                 den = n - 2 * np.trace(pinv @ g) + np.trace(PMP @ G0[b])
                 return num / den - observed[b] if den > 0 else float("nan")
 
@@ -256,8 +262,9 @@ def _block_rhos(blocks_J, blocks_r, pinv, iterations=2):
     return rho, grams
 
 
-def covariance(J: np.ndarray, r: np.ndarray,
-               blocks: list[slice]) -> tuple[np.ndarray, np.ndarray, float]:
+def covariance(
+    J: np.ndarray, r: np.ndarray, blocks: list[slice]
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Gauss-Newton covariance and its correction for serially correlated residuals.
 
     **Arguments:**

@@ -20,16 +20,84 @@ import pytest
 import vmj
 from vmj.cli import main
 
-VM = ["decay", "variable-mass", "--m0", "5", "--c", "4900", "--delta", "3", "--eps", "0",
-      "--mu", "2", "--FT", "14.7", "--a0", "0.06", "--n", "3"]
-ROPE = ["decay", "rope", "--m", "2", "--A", "1.74", "--e", "0.8e6", "--d", "0.8e11", "--T", "4",
-        "--l0", "10", "--u", "-3", "--a0", "1", "--t1", "0.05", "--units", "technical"]
+VM = [
+    "decay",
+    "variable-mass",
+    "--m0",
+    "5",
+    "--c",
+    "4900",
+    "--delta",
+    "3",
+    "--eps",
+    "0",
+    "--mu",
+    "2",
+    "--FT",
+    "14.7",
+    "--a0",
+    "0.06",
+    "--n",
+    "3",
+]
+ROPE = [
+    "decay",
+    "rope",
+    "--m",
+    "2",
+    "--A",
+    "1.74",
+    "--e",
+    "0.8e6",
+    "--d",
+    "0.8e11",
+    "--T",
+    "4",
+    "--l0",
+    "10",
+    "--u",
+    "-3",
+    "--a0",
+    "1",
+    "--t1",
+    "0.05",
+    "--units",
+    "technical",
+]
 SS = ["stick-slip", "--eps", "6.3", "--Omega", "0.7"]
 LIN = ["linear", "--m", "1", "--c", "1", "--k", "14.5"]
-SWEEP = ["sweep", "variable-mass", "--eps", "0:1:3", "--mu", "0:10:3",
-         "--set", "m0=5,c=4900,delta=3,FT=14.7,a0=0.06", "--method", "energy"]
-SENS = ["sensitivity", "variable-mass", "--m0", "5", "--c", "4900", "--delta", "3", "--eps", "0",
-        "--mu", "2", "--FT", "14.7", "--a0", "0.06", "--n", "3"]
+SWEEP = [
+    "sweep",
+    "variable-mass",
+    "--eps",
+    "0:1:3",
+    "--mu",
+    "0:10:3",
+    "--set",
+    "m0=5,c=4900,delta=3,FT=14.7,a0=0.06",
+    "--method",
+    "energy",
+]
+SENS = [
+    "sensitivity",
+    "variable-mass",
+    "--m0",
+    "5",
+    "--c",
+    "4900",
+    "--delta",
+    "3",
+    "--eps",
+    "0",
+    "--mu",
+    "2",
+    "--FT",
+    "14.7",
+    "--a0",
+    "0.06",
+    "--n",
+    "3",
+]
 FIT = ["--model", "oscillator"]
 
 
@@ -46,7 +114,7 @@ def put(argv, flag, value):
 def drop(argv, flag):
     argv = list(argv)
     i = argv.index(flag)
-    del argv[i:i + 2]
+    del argv[i : i + 2]
     return argv
 
 
@@ -54,8 +122,14 @@ def with_set(argv, text):
     return put(argv, "--set", text)
 
 
-RANGE = {"m0": "> 0 [kg]", "c": "> 0 [N/m]", "eps": "in [0, 1]", "mu": ">= 0 [kg/s]",
-         "FT": ">= 0 [N]", "a0": "> 0 [m]"}
+RANGE = {
+    "m0": "> 0 [kg]",
+    "c": "> 0 [N/m]",
+    "eps": "in [0, 1]",
+    "mu": ">= 0 [kg/s]",
+    "FT": ">= 0 [N]",
+    "a0": "> 0 [m]",
+}
 
 
 def parameter_cases():
@@ -101,8 +175,11 @@ CASES = parameter_cases() + [
     ("vm --n<0", put(VM, "--n", "-3"), ["argument --n", "integer >= 1"]),
     ("vm --n 2.5", put(VM, "--n", "2.5"), ["argument --n", "not an integer"]),
     ("vm --n 1e9", put(VM, "--n", "1e9"), ["argument --n", "not an integer"]),
-    ("vm --n huge", put(VM, "--n", "1000000000"),
-     ["--n 1000000000 turning points: refused above 1e+05", "--force"]),
+    (
+        "vm --n huge",
+        put(VM, "--n", "1000000000"),
+        ["--n 1000000000 turning points: refused above 1e+05", "--force"],
+    ),
     ("vm --method", put(VM, "--method", "rk4"), ["argument --method", "invalid choice"]),
     ("vm unknown option", VM + ["--bogus", "1"], ["unrecognized arguments: --bogus"]),
     ("vm missing", VM[:4], ["required: --eps, --mu, --delta, --c, --a0"]),
@@ -126,15 +203,27 @@ CASES = parameter_cases() + [
     ("rope --t1<0", put(ROPE, "--t1", "-1"), ["--t1 must be"]),
     ("rope --t1 past lifetime", put(put(ROPE, "--u", "3"), "--t1", "4"), ["--t1 must be below"]),
     ("rope --t1 huge", put(ROPE, "--t1", "1e6"), ["half-swings before --t1", "--force"]),
-    ("rope brake order", ROPE + ["--brake", "0.05", "0.01"],
-     ["--brake T_STOP must be > --brake T_BRAKE [s]"]),
-    ("rope t_stop order", ROPE + ["--t_brake", "0.05", "--t_stop", "0.05"],
-     ["--t_stop must be > --t_brake [s]"]),
-    ("rope --brake and --t_brake", ROPE + ["--brake", "0", "1", "--t_brake", "0"],
-     ["--brake or --t_brake"]),
+    (
+        "rope brake order",
+        ROPE + ["--brake", "0.05", "0.01"],
+        ["--brake T_STOP must be > --brake T_BRAKE [s]"],
+    ),
+    (
+        "rope t_stop order",
+        ROPE + ["--t_brake", "0.05", "--t_stop", "0.05"],
+        ["--t_stop must be > --t_brake [s]"],
+    ),
+    (
+        "rope --brake and --t_brake",
+        ROPE + ["--brake", "0", "1", "--t_brake", "0"],
+        ["--brake or --t_brake"],
+    ),
     ("rope --t_brake alone", ROPE + ["--t_brake", "0.01"], ["--t_brake goes with --t_stop"]),
-    ("rope kbm brake", ROPE + ["--method", "kbm", "--brake", "0", "0.05"],
-     ["--method kbm needs a constant speed"]),
+    (
+        "rope kbm brake",
+        ROPE + ["--method", "kbm", "--brake", "0", "0.05"],
+        ["--method kbm needs a constant speed"],
+    ),
     ("rope --units", put(ROPE, "--units", "imperial"), ["argument --units", "invalid choice"]),
     ("rope missing --t1", drop(ROPE, "--t1"), ["required: --t1"]),
     # -- stick-slip -------------------------------------------------------------------------------
@@ -146,8 +235,11 @@ CASES = parameter_cases() + [
     ("ss --Omega<0", put(SS, "--Omega", "-2"), ["--Omega must be"]),
     ("ss --Omega inf", put(SS, "--Omega", "inf"), ["argument --Omega", "not a finite"]),
     ("ss --smoothing exact", SS + ["--smoothing", "1e-3"], ["--smoothing applies to --method"]),
-    ("ss --smoothing<0", SS + ["--method", "smooth", "--smoothing", "-1"],
-     ["--smoothing must be finite and > 0"]),
+    (
+        "ss --smoothing<0",
+        SS + ["--method", "smooth", "--smoothing", "-1"],
+        ["--smoothing must be finite and > 0"],
+    ),
     ("ss --method", SS + ["--method", "euler"], ["argument --method", "invalid choice"]),
     # -- linear -----------------------------------------------------------------------------------
     ("lin --m 0", put(LIN, "--m", "0"), ["--m must be finite and > 0 [kg]"]),
@@ -174,72 +266,167 @@ CASES = parameter_cases() + [
     ("sweep axis empty", put(SWEEP, "--eps", ""), ["--eps: not a number: ''"]),
     ("sweep axis empty item", put(SWEEP, "--eps", "0,,1"), ["--eps: not a number: ''"]),
     ("sweep axis nan", put(SWEEP, "--eps", "nan:1:3"), ["--eps: not a finite number"]),
-    ("sweep axis huge value", put(SWEEP, "--mu", "0,1e300"), ["--mu: must be a number of "
-                                                             "magnitude at most 1e+20"]),
-    ("sweep axis out of range", put(SWEEP, "--eps", "0:2:3"),
-     ["--eps must be finite and in [0, 1] (got 2)"]),
+    (
+        "sweep axis huge value",
+        put(SWEEP, "--mu", "0,1e300"),
+        ["--mu: must be a number of magnitude at most 1e+20"],
+    ),
+    (
+        "sweep axis out of range",
+        put(SWEEP, "--eps", "0:2:3"),
+        ["--eps must be finite and in [0, 1] (got 2)"],
+    ),
     ("sweep axis negative", put(SWEEP, "--mu", "-1,0"), ["--mu must be finite and >= 0 [kg/s]"]),
     ("sweep unknown axis", SWEEP + ["--bogus", "0:1:2"], ["unrecognized arguments: --bogus"]),
-    ("sweep no axis", ["sweep", "variable-mass", "--set", "m0=5,c=4900,delta=3,eps=0,mu=2,FT=1,"
-                       "a0=0.06"], ["give at least one axis"]),
+    (
+        "sweep no axis",
+        ["sweep", "variable-mass", "--set", "m0=5,c=4900,delta=3,eps=0,mu=2,FT=1,a0=0.06"],
+        ["give at least one axis"],
+    ),
     # -- sweep: --set -----------------------------------------------------------------------------
     ("sweep set no =", with_set(SWEEP, "m0"), ["--set takes NAME=VALUE pairs"]),
     ("sweep set no name", with_set(SWEEP, "=5"), ["--set: a value without a name"]),
     ("sweep set twice", with_set(SWEEP, "m0=5,m0=6"), ["--set gives m0 twice"]),
-    ("sweep set alias twice", with_set(SWEEP, "m0=5,c=4900,delta=3,FT=1,F=2,a0=0.06"),
-     ["--set gives FT twice"]),
-    ("sweep set text", with_set(SWEEP, "m0=abc,c=4900,delta=3,FT=14.7,a0=0.06"),
-     ["--set m0: not a number: 'abc'"]),
-    ("sweep set unknown", with_set(SWEEP, "m0=5,bogus=1"),
-     ["--set: unknown parameter 'bogus' of variable-mass (known: eps, mu, delta, m0"]),
-    ("sweep set axis", with_set(SWEEP, "m0=1:2:3,c=4900,delta=3,FT=14.7,a0=0.06"),
-     ["--set m0 has 3 values; --set takes one value; give --m0 for an axis"]),
-    ("sweep set and axis", with_set(SWEEP, "eps=0,m0=5,c=4900,delta=3,FT=14.7,a0=0.06"),
-     ["eps is given both as --eps and in --set"]),
-    ("sweep set a0 missing", with_set(SWEEP, "m0=5,c=4900,delta=3,FT=14.7"),
-     ["missing --set a0= (initial deflection [m])"]),
-    ("sweep set a0 0", with_set(SWEEP, "m0=5,c=4900,delta=3,FT=14.7,a0=0"),
-     ["--set a0 must be finite and > 0 [m]"]),
-    ("sweep set m0<0", with_set(SWEEP, "m0=-5,c=4900,delta=3,FT=14.7,a0=0.06"),
-     ["--set m0 must be finite and > 0 [kg]"]),
+    (
+        "sweep set alias twice",
+        with_set(SWEEP, "m0=5,c=4900,delta=3,FT=1,F=2,a0=0.06"),
+        ["--set gives FT twice"],
+    ),
+    (
+        "sweep set text",
+        with_set(SWEEP, "m0=abc,c=4900,delta=3,FT=14.7,a0=0.06"),
+        ["--set m0: not a number: 'abc'"],
+    ),
+    (
+        "sweep set unknown",
+        with_set(SWEEP, "m0=5,bogus=1"),
+        ["--set: unknown parameter 'bogus' of variable-mass (known: eps, mu, delta, m0"],
+    ),
+    (
+        "sweep set axis",
+        with_set(SWEEP, "m0=1:2:3,c=4900,delta=3,FT=14.7,a0=0.06"),
+        ["--set m0 has 3 values; --set takes one value; give --m0 for an axis"],
+    ),
+    (
+        "sweep set and axis",
+        with_set(SWEEP, "eps=0,m0=5,c=4900,delta=3,FT=14.7,a0=0.06"),
+        ["eps is given both as --eps and in --set"],
+    ),
+    (
+        "sweep set a0 missing",
+        with_set(SWEEP, "m0=5,c=4900,delta=3,FT=14.7"),
+        ["missing --set a0= (initial deflection [m])"],
+    ),
+    (
+        "sweep set a0 0",
+        with_set(SWEEP, "m0=5,c=4900,delta=3,FT=14.7,a0=0"),
+        ["--set a0 must be finite and > 0 [m]"],
+    ),
+    (
+        "sweep set m0<0",
+        with_set(SWEEP, "m0=-5,c=4900,delta=3,FT=14.7,a0=0.06"),
+        ["--set m0 must be finite and > 0 [kg]"],
+    ),
     # -- sweep: size, outputs, options ------------------------------------------------------------
-    ("sweep absurd size", put(put(SWEEP, "--eps", "0:1:100000"), "--mu", "0:10:100000"),
-     ["sweep of 1e+10 points", "refused above 1 GiB", "--force"]),
-    ("sweep absurd axis", put(SWEEP, "--eps", "0:1:100000000000"),
-     ["--eps has 1e+11 values", "--force"]),
-    ("sweep slow method", put(put(put(SWEEP, "--eps", "0:1:300"), "--mu", "0:10:300"),
-                              "--method", "smooth"), ["takes about", "--method smooth", "--force"]),
+    (
+        "sweep absurd size",
+        put(put(SWEEP, "--eps", "0:1:100000"), "--mu", "0:10:100000"),
+        ["sweep of 1e+10 points", "refused above 1 GiB", "--force"],
+    ),
+    (
+        "sweep absurd axis",
+        put(SWEEP, "--eps", "0:1:100000000000"),
+        ["--eps has 1e+11 values", "--force"],
+    ),
+    (
+        "sweep slow method",
+        put(put(put(SWEEP, "--eps", "0:1:300"), "--mu", "0:10:300"), "--method", "smooth"),
+        ["takes about", "--method smooth", "--force"],
+    ),
     ("sweep --n 0", SWEEP + ["--n", "0"], ["argument --n", "integer >= 1"]),
     ("sweep --chunk-size 0", SWEEP + ["--chunk-size", "0"], ["argument --chunk-size"]),
-    ("sweep --plot axes",
-     ["sweep", "variable-mass", "--mu", "0:10:3", "--c", "1,2", "--set",
-      "m0=5,eps=0,delta=3,FT=14.7,a0=0.06", "--plot", "{tmp}/swings.png"],
-     ["--plot and --error-plot need the axes --eps and --mu", "(got --mu, --c)"]),
-    ("sweep --plot one eps", put(SWEEP, "--eps", "0.5") + ["--plot", "{tmp}/swings.png"],
-     ["need at least 2 values of --eps and of --mu"]),
-    ("sweep --plot format", SWEEP + ["--plot", "{tmp}/swings.xyz"],
-     ["argument --plot", "unknown figure format 'xyz'"]),
-    ("sweep --out missing dir", SWEEP + ["--out", "{tmp}/no/such/dir/s.csv"],
-     ["argument --out", "does not exist"]),
+    (
+        "sweep --plot axes",
+        [
+            "sweep",
+            "variable-mass",
+            "--mu",
+            "0:10:3",
+            "--c",
+            "1,2",
+            "--set",
+            "m0=5,eps=0,delta=3,FT=14.7,a0=0.06",
+            "--plot",
+            "{tmp}/swings.png",
+        ],
+        ["--plot and --error-plot need the axes --eps and --mu", "(got --mu, --c)"],
+    ),
+    (
+        "sweep --plot one eps",
+        put(SWEEP, "--eps", "0.5") + ["--plot", "{tmp}/swings.png"],
+        ["need at least 2 values of --eps and of --mu"],
+    ),
+    (
+        "sweep --plot format",
+        SWEEP + ["--plot", "{tmp}/swings.xyz"],
+        ["argument --plot", "unknown figure format 'xyz'"],
+    ),
+    (
+        "sweep --out missing dir",
+        SWEEP + ["--out", "{tmp}/no/such/dir/s.csv"],
+        ["argument --out", "does not exist"],
+    ),
     ("sweep --out a directory", SWEEP + ["--out", "{tmp}"], ["argument --out", "is a directory"]),
     ("sweep --out empty", SWEEP + ["--out", ""], ["argument --out", "empty"]),
-    ("sweep --netcdf missing dir", SWEEP + ["--netcdf", "{tmp}/no/s.nc"],
-     ["argument --netcdf", "does not exist"]),
-    ("sweep rope T<0", ["sweep", "rope", "--T", "-1,0", "--set",
-                        "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=1"], ["--T must be finite and >= 0"]),
-    ("sweep rope brake alone", ["sweep", "rope", "--T", "0,1", "--set",
-                                "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=1,t_brake=1"],
-     ["--set t_brake goes with --t_stop"]),
-    ("sweep rope a0 0", ["sweep", "rope", "--T", "0,1", "--set", "m=2,A=1.74,e=0.8e6,l0=10,u=0,"
-                         "a0=0", "--units", "technical"], ["--set a0 must be finite and > 0"]),
-    ("sweep stick-slip eps", ["sweep", "stick-slip", "--eps", "0.5:2:3", "--set", "Omega=1"],
-     ["--eps must be finite and > 1"]),
-    ("sweep stick-slip missing", ["sweep", "stick-slip", "--eps", "2:3:3"],
-     ["missing --Omega/--set Omega="]),
-    ("sweep linear m", ["sweep", "linear", "--m", "0:1:3", "--set", "c=1,k=1"],
-     ["--m must be finite and > 0 [kg] (got 0)"]),
-    ("sweep linear x0", ["sweep", "linear", "--m", "1:2:3", "--set", "c=1,k=1,x0=nan"],
-     ["--set x0: not a finite number"]),
+    (
+        "sweep --netcdf missing dir",
+        SWEEP + ["--netcdf", "{tmp}/no/s.nc"],
+        ["argument --netcdf", "does not exist"],
+    ),
+    (
+        "sweep rope T<0",
+        ["sweep", "rope", "--T", "-1,0", "--set", "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=1"],
+        ["--T must be finite and >= 0"],
+    ),
+    (
+        "sweep rope brake alone",
+        ["sweep", "rope", "--T", "0,1", "--set", "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=1,t_brake=1"],
+        ["--set t_brake goes with --t_stop"],
+    ),
+    (
+        "sweep rope a0 0",
+        [
+            "sweep",
+            "rope",
+            "--T",
+            "0,1",
+            "--set",
+            "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=0",
+            "--units",
+            "technical",
+        ],
+        ["--set a0 must be finite and > 0"],
+    ),
+    (
+        "sweep stick-slip eps",
+        ["sweep", "stick-slip", "--eps", "0.5:2:3", "--set", "Omega=1"],
+        ["--eps must be finite and > 1"],
+    ),
+    (
+        "sweep stick-slip missing",
+        ["sweep", "stick-slip", "--eps", "2:3:3"],
+        ["missing --Omega/--set Omega="],
+    ),
+    (
+        "sweep linear m",
+        ["sweep", "linear", "--m", "0:1:3", "--set", "c=1,k=1"],
+        ["--m must be finite and > 0 [kg] (got 0)"],
+    ),
+    (
+        "sweep linear x0",
+        ["sweep", "linear", "--m", "1:2:3", "--set", "c=1,k=1,x0=nan"],
+        ["--set x0: not a finite number"],
+    ),
     ("sweep unknown model", ["sweep", "pendulum"], ["argument MODEL", "invalid choice"]),
     # -- sensitivity ------------------------------------------------------------------------------
     ("sens --wrt unknown", SENS + ["--wrt", "bogus"], ["--wrt: unknown parameter 'bogus'"]),
@@ -248,21 +435,42 @@ CASES = parameter_cases() + [
     ("sens --wrt g", SENS + ["--wrt", "g"], ["--wrt g: --g is not part of the model"]),
     ("sens --wrt missing", SENS, ["required: --wrt"]),
     ("sens --mu<0", put(SENS, "--mu", "-2") + ["--wrt", "mu"], ["--mu must be finite and >= 0"]),
-    ("sens --plot dir", SENS + ["--wrt", "mu", "--plot", "{tmp}/no/s.png"],
-     ["argument --plot", "does not exist"]),
-    ("sens stick-slip a0", ["sensitivity", "stick-slip", "--eps", "6.3", "--Omega", "0.7",
-                            "--wrt", "a0"], ["--wrt: unknown parameter 'a0' of stick-slip"]),
-    ("sens stick-slip eps", ["sensitivity", "stick-slip", "--eps", "1", "--Omega", "0.7",
-                             "--wrt", "eps"], ["--eps must be finite and > 1"]),
-    ("sens rope t1", ["sensitivity", "rope"] + put(ROPE[2:], "--t1", "-1") + ["--wrt", "T"],
-     ["--t1 must be"]),
+    (
+        "sens --plot dir",
+        SENS + ["--wrt", "mu", "--plot", "{tmp}/no/s.png"],
+        ["argument --plot", "does not exist"],
+    ),
+    (
+        "sens stick-slip a0",
+        ["sensitivity", "stick-slip", "--eps", "6.3", "--Omega", "0.7", "--wrt", "a0"],
+        ["--wrt: unknown parameter 'a0' of stick-slip"],
+    ),
+    (
+        "sens stick-slip eps",
+        ["sensitivity", "stick-slip", "--eps", "1", "--Omega", "0.7", "--wrt", "eps"],
+        ["--eps must be finite and > 1"],
+    ),
+    (
+        "sens rope t1",
+        ["sensitivity", "rope"] + put(ROPE[2:], "--t1", "-1") + ["--wrt", "T"],
+        ["--t1 must be"],
+    ),
     # -- table and figure paths -------------------------------------------------------------------
-    ("table --plot missing dir", ["table", "1", "--plot", "{tmp}/no/t.png"],
-     ["argument --plot", "does not exist"]),
-    ("table --plot a directory", ["table", "1", "--plot", "{tmp}"],
-     ["argument --plot", "is a directory"]),
-    ("table --plot format", ["table", "1", "--plot", "{tmp}/t.docx"],
-     ["argument --plot", "unknown figure format"]),
+    (
+        "table --plot missing dir",
+        ["table", "1", "--plot", "{tmp}/no/t.png"],
+        ["argument --plot", "does not exist"],
+    ),
+    (
+        "table --plot a directory",
+        ["table", "1", "--plot", "{tmp}"],
+        ["argument --plot", "is a directory"],
+    ),
+    (
+        "table --plot format",
+        ["table", "1", "--plot", "{tmp}/t.docx"],
+        ["argument --plot", "unknown figure format"],
+    ),
     # -- fit: files and options -------------------------------------------------------------------
     ("fit missing file", ["fit", "{tmp}/missing.csv"] + FIT, ["argument FILE", "no such file"]),
     ("fit a directory", ["fit", "{tmp}"] + FIT, ["argument FILE", "is a directory"]),
@@ -276,21 +484,39 @@ CASES = parameter_cases() + [
     ("fit NaN row", ["fit", "{tmp}/nan.csv"] + FIT, ["nan.csv", "line 3", "not a finite"]),
     ("fit BOM bad row", ["fit", "{tmp}/bom.csv"] + FIT, ["bom.csv", "line 3", "'x'"]),
     ("fit CRLF bad row", ["fit", "{tmp}/crlf.csv"] + FIT, ["crlf.csv", "line 3", "'x'"]),
-    ("fit --set nan", ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set", "zeta=nan"],
-     ["--set zeta: not a finite number"]),
-    ("fit --set 1e300", ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set",
-                         "zeta=1e300"], ["--set zeta", "magnitude"]),
-    ("fit --set no =", ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set", "zeta"],
-     ["--set takes NAME=VALUE"]),
-    ("fit --model", ["fit", "{tmp}/good.csv", "--model", "spring"],
-     ["argument --model", "invalid choice"]),
-    ("fit --plot dir", ["fit", "{tmp}/good.csv", "--plot", "{tmp}/no/f.png"] + FIT,
-     ["argument --plot", "does not exist"]),
+    (
+        "fit --set nan",
+        ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set", "zeta=nan"],
+        ["--set zeta: not a finite number"],
+    ),
+    (
+        "fit --set 1e300",
+        ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set", "zeta=1e300"],
+        ["--set zeta", "magnitude"],
+    ),
+    (
+        "fit --set no =",
+        ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set", "zeta"],
+        ["--set takes NAME=VALUE"],
+    ),
+    (
+        "fit --model",
+        ["fit", "{tmp}/good.csv", "--model", "spring"],
+        ["argument --model", "invalid choice"],
+    ),
+    (
+        "fit --plot dir",
+        ["fit", "{tmp}/good.csv", "--plot", "{tmp}/no/f.png"] + FIT,
+        ["argument --plot", "does not exist"],
+    ),
     # -- the command line itself ------------------------------------------------------------------
     ("no command", [], ["required: COMMAND"]),
     ("unknown command", ["dcay"], ["argument COMMAND", "invalid choice: 'dcay'"]),
-    ("--cache-dir a file", ["--cache-dir", "{tmp}/good.csv"] + VM,
-     ["--cache-dir", "cannot use", "good.csv"]),
+    (
+        "--cache-dir a file",
+        ["--cache-dir", "{tmp}/good.csv"] + VM,
+        ["--cache-dir", "cannot use", "good.csv"],
+    ),
 ]
 
 
@@ -344,11 +570,14 @@ def test_bad_input_is_one_clear_line(name, argv, want, files, capsys):
     assert sorted(os.listdir(files)) == before  # no output (or temporary) file left behind
 
 
-@pytest.mark.parametrize("argv", [
-    ["decay", "variable-mass", "--m0", "nan"],                   # an argument error
-    put(VM, "--FT", "-1"),                                        # a value error after parsing
-    ["fit", "{tmp}/header.csv", "--model", "oscillator"],         # a bad input file
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["decay", "variable-mass", "--m0", "nan"],  # an argument error
+        put(VM, "--FT", "-1"),  # a value error after parsing
+        ["fit", "{tmp}/header.csv", "--model", "oscillator"],  # a bad input file
+    ],
+)
 def test_no_traceback_reaches_the_terminal(argv, files):
     argv = [a.replace("{tmp}", str(files)) for a in argv]
     run = subprocess.run([sys.executable, "-m", "vmj.cli", *argv], capture_output=True, text=True)
@@ -377,21 +606,46 @@ API = [
     ("n", lambda: vmj.turning_points(vmj.VariableMass(**_vm()), 0.06, 0), "n must be an integer"),
     ("Omega", lambda: vmj.StickSlip(6.3, 0.0), "Omega must be finite and > 0"),
     ("stick-slip eps", lambda: vmj.StickSlip(1.0, 1.0), "eps must be finite and > 1"),
-    ("T", lambda: vmj.Rope(2.0, 1e-4, 1e11, 0.0, 0.0, -1.0, vmj.ConstantSpeed(10.0)),
-     "T must be finite and >= 0"),
+    (
+        "T",
+        lambda: vmj.Rope(2.0, 1e-4, 1e11, 0.0, 0.0, -1.0, vmj.ConstantSpeed(10.0)),
+        "T must be finite and >= 0",
+    ),
     ("l0", lambda: vmj.ConstantSpeed(0.0), "l0 must be finite and > 0"),
     ("t_stop", lambda: vmj.Braking(10.0, 1.0, 2.0, 1.0), "t_stop must be finite and > t_brake"),
     ("k", lambda: vmj.LinearOscillator(1.0, 1.0, 0.0), "k must be finite and > 0"),
-    ("grid axis", lambda: vmj.grid(vmj.VariableMass(**_vm()), eps=[0.0, 2.0]),
-     "eps must be finite and in [0, 1]"),
-    ("grid name", lambda: vmj.grid(vmj.VariableMass(**_vm()), bogus=[0.0]),
-     "'bogus' is not a parameter"),
-    ("sweep chunk", lambda: vmj.sweep(vmj.energy_balance, vmj.grid(vmj.VariableMass(**_vm()),
-                                                                   eps=[0.0]), a0=0.06, n=2,
-                                      chunk_size=0), "chunk_size must be an integer >= 1"),
-    ("sensitivity wrt", lambda: vmj.sensitivity(
-        lambda m, a0, n: vmj.turning_points(m, a0, n).amplitudes, vmj.VariableMass(**_vm()),
-        ["bogus"], a0=0.06, n=2), "'bogus' is not a parameter"),
+    (
+        "grid axis",
+        lambda: vmj.grid(vmj.VariableMass(**_vm()), eps=[0.0, 2.0]),
+        "eps must be finite and in [0, 1]",
+    ),
+    (
+        "grid name",
+        lambda: vmj.grid(vmj.VariableMass(**_vm()), bogus=[0.0]),
+        "'bogus' is not a parameter",
+    ),
+    (
+        "sweep chunk",
+        lambda: vmj.sweep(
+            vmj.energy_balance,
+            vmj.grid(vmj.VariableMass(**_vm()), eps=[0.0]),
+            a0=0.06,
+            n=2,
+            chunk_size=0,
+        ),
+        "chunk_size must be an integer >= 1",
+    ),
+    (
+        "sensitivity wrt",
+        lambda: vmj.sensitivity(
+            lambda m, a0, n: vmj.turning_points(m, a0, n).amplitudes,
+            vmj.VariableMass(**_vm()),
+            ["bogus"],
+            a0=0.06,
+            n=2,
+        ),
+        "'bogus' is not a parameter",
+    ),
 ]
 
 
@@ -405,8 +659,10 @@ def test_bom_and_crlf_files_are_read_like_plain_ones(files):
     import fits
 
     plain = (files / "good.csv").read_bytes()
-    variants = {"good_bom.csv": b"\xef\xbb\xbf" + plain,
-                "good_crlf.csv": plain.replace(b"\n", b"\r\n")}
+    variants = {
+        "good_bom.csv": b"\xef\xbb\xbf" + plain,
+        "good_crlf.csv": plain.replace(b"\n", b"\r\n"),
+    }
     ref = fits.read_record(str(files / "good.csv"))
     for name, data in variants.items():
         path = files.parent / name

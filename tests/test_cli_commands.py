@@ -13,8 +13,22 @@ import vmj
 from vmj._files import check_writable, replacing
 from vmj.cli import main
 
-VM = ["--m0", "5", "--c", "4900", "--delta", "3", "--eps", "0", "--mu", "2", "--FT", "14.7",
-      "--a0", "0.06"]
+VM = [
+    "--m0",
+    "5",
+    "--c",
+    "4900",
+    "--delta",
+    "3",
+    "--eps",
+    "0",
+    "--mu",
+    "2",
+    "--FT",
+    "14.7",
+    "--a0",
+    "0.06",
+]
 MODEL = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
 
 
@@ -31,19 +45,32 @@ def central(f, x, h):
 def test_sensitivity_variable_mass_against_finite_differences(capsys, tmp_path):
     # the energy balance compiles fastest; differentiation through the exact solver is tested in
     # test_sensitivity.py
-    out = run_json(capsys, ["sensitivity", "variable-mass", *VM, "--n", "4", "--wrt",
-                            "FT,mu,a0", "--method", "energy"])
-    assert out["wrt"] == ["FT", "mu", "a0"] and out["units"] == {"FT": "N", "mu": "kg/s",
-                                                                 "a0": "m"}
+    out = run_json(
+        capsys,
+        [
+            "sensitivity",
+            "variable-mass",
+            *VM,
+            "--n",
+            "4",
+            "--wrt",
+            "FT,mu,a0",
+            "--method",
+            "energy",
+        ],
+    )
+    assert out["wrt"] == ["FT", "mu", "a0"] and out["units"] == {"FT": "N", "mu": "kg/s", "a0": "m"}
     seq = vmj.energy_balance(MODEL, 0.06, 4)
     np.testing.assert_allclose(out["amplitudes"], np.asarray(seq.amplitudes), rtol=1e-14)
     amp = lambda m, a0=0.06: vmj.energy_balance(m, a0, 4).amplitudes  # noqa: E731
     times = lambda m, a0=0.06: vmj.energy_balance(m, a0, 4).times  # noqa: E731
     fd = {
-        "FT": lambda g: central(lambda F: g(vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0,
-                                                             vmj.Coulomb(F))), 14.7, 1e-4),
-        "mu": lambda g: central(lambda mu: g(vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu,
-                                                              vmj.Coulomb(14.7))), 2.0, 1e-5),
+        "FT": lambda g: central(
+            lambda F: g(vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(F))), 14.7, 1e-4
+        ),
+        "mu": lambda g: central(
+            lambda mu: g(vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(14.7))), 2.0, 1e-5
+        ),
         "a0": lambda g: central(lambda a0: g(MODEL, a0), 0.06, 1e-7),
     }
     for name, diff in fd.items():
@@ -52,8 +79,24 @@ def test_sensitivity_variable_mass_against_finite_differences(capsys, tmp_path):
     assert all(d < 0 for d in out["d_amplitudes"]["FT"])  # more friction, smaller swings
     # text and figure from the same computation
     fig = tmp_path / "s.png"
-    assert main(["sensitivity", "variable-mass", *VM, "--n", "4", "--wrt", "FT,mu,a0",
-                 "--method", "energy", "--plot", str(fig)]) == 0
+    assert (
+        main(
+            [
+                "sensitivity",
+                "variable-mass",
+                *VM,
+                "--n",
+                "4",
+                "--wrt",
+                "FT,mu,a0",
+                "--method",
+                "energy",
+                "--plot",
+                str(fig),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out.splitlines()
     assert "d|x|/dFT [m/N]" in text[0] and "d|x|/dmu [m/(kg/s)]" in text[0]
     assert len(text) == 1 + 4 + 1
@@ -61,26 +104,72 @@ def test_sensitivity_variable_mass_against_finite_differences(capsys, tmp_path):
 
 
 def test_sensitivity_stick_slip_against_finite_differences(capsys):
-    out = run_json(capsys, ["sensitivity", "stick-slip", "--eps", "6.3", "--Omega", "0.7",
-                            "--wrt", "eps,Omega", "--method", "closed"])
-    assert set(out) >= {"period", "slip_time", "stick_time", "d_period", "d_slip_time",
-                        "d_stick_time", "wrt", "units"}
+    out = run_json(
+        capsys,
+        [
+            "sensitivity",
+            "stick-slip",
+            "--eps",
+            "6.3",
+            "--Omega",
+            "0.7",
+            "--wrt",
+            "eps,Omega",
+            "--method",
+            "closed",
+        ],
+    )
+    assert set(out) >= {
+        "period",
+        "slip_time",
+        "stick_time",
+        "d_period",
+        "d_slip_time",
+        "d_stick_time",
+        "wrt",
+        "units",
+    }
 
     def cycle(eps, Omega):
         c = vmj.limit_cycle(vmj.StickSlip(eps, Omega), vmj.ClosedForm())
         return np.array([float(c.period), float(c.slip_time), float(c.stick_time)])
 
-    for name, diff in {"eps": central(lambda e: cycle(e, 0.7), 6.3, 1e-6),
-                       "Omega": central(lambda w: cycle(6.3, w), 0.7, 1e-7)}.items():
+    for name, diff in {
+        "eps": central(lambda e: cycle(e, 0.7), 6.3, 1e-6),
+        "Omega": central(lambda w: cycle(6.3, w), 0.7, 1e-7),
+    }.items():
         got = [out["d_period"][name], out["d_slip_time"][name], out["d_stick_time"][name]]
         np.testing.assert_allclose(got, diff, rtol=1e-6)
 
 
 @pytest.mark.slow
 def test_sensitivity_rope(capsys):
-    argv = ["sensitivity", "rope", "--m", "2", "--A", "1.74", "--e", "0.8e6", "--d", "0.8e11",
-            "--T", "4", "--l0", "10", "--u", "-3", "--a0", "1", "--t1", "0.05", "--units",
-            "technical", "--wrt", "T"]
+    argv = [
+        "sensitivity",
+        "rope",
+        "--m",
+        "2",
+        "--A",
+        "1.74",
+        "--e",
+        "0.8e6",
+        "--d",
+        "0.8e11",
+        "--T",
+        "4",
+        "--l0",
+        "10",
+        "--u",
+        "-3",
+        "--a0",
+        "1",
+        "--t1",
+        "0.05",
+        "--units",
+        "technical",
+        "--wrt",
+        "T",
+    ]
     out = run_json(capsys, argv)
     assert out["units"] == {"T": "Pa"} and max(out["times"]) <= 0.05
     assert all(d < 0 for d in out["d_amplitudes"]["T"])  # more friction, smaller swings
@@ -89,8 +178,23 @@ def test_sensitivity_rope(capsys):
 # -- vmj sweep rope | stick-slip | linear ---------------------------------------------------------
 def test_sweep_stick_slip_matches_single_cycles(tmp_path, capsys):
     path = tmp_path / "c.csv"
-    assert main(["sweep", "stick-slip", "--Omega", "0.5,1.5", "--eps", "3.5:8.5:3", "--method",
-                 "closed", "--out", str(path)]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "stick-slip",
+                "--Omega",
+                "0.5,1.5",
+                "--eps",
+                "3.5:8.5:3",
+                "--method",
+                "closed",
+                "--out",
+                str(path),
+            ]
+        )
+        == 0
+    )
     assert "6 points (eps 3 x Omega 2), method closed" in capsys.readouterr().out
     back = vmj.SweepResult.read_csv(str(path))
     assert back.dims == ("eps", "Omega")  # the order of the model's parameters
@@ -103,13 +207,42 @@ def test_sweep_stick_slip_matches_single_cycles(tmp_path, capsys):
 
 def test_sweep_linear_matches_vmj_linear(tmp_path, capsys):
     path = tmp_path / "l.csv"
-    assert main(["sweep", "linear", "--c", "1,20", "--set", "m=1,k=14.5,v0=0.1,F0=4,p=15",
-                 "--out", str(path)]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "linear",
+                "--c",
+                "1,20",
+                "--set",
+                "m=1,k=14.5,v0=0.1,F0=4,p=15",
+                "--out",
+                str(path),
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     back = vmj.SweepResult.read_csv(str(path))
     for i, c in enumerate(["1", "20"]):  # under-damped, then over-damped (no free amplitude)
-        one = run_json(capsys, ["linear", "--m", "1", "--c", c, "--k", "14.5", "--v0", "0.1",
-                                "--F0", "4", "--p", "15"])
+        one = run_json(
+            capsys,
+            [
+                "linear",
+                "--m",
+                "1",
+                "--c",
+                c,
+                "--k",
+                "14.5",
+                "--v0",
+                "0.1",
+                "--F0",
+                "4",
+                "--p",
+                "15",
+            ],
+        )
         for key, value in one.items():
             got = back.values[key][i]
             if value is None:
@@ -120,24 +253,49 @@ def test_sweep_linear_matches_vmj_linear(tmp_path, capsys):
 
 def test_sweep_rope_in_technical_units(tmp_path, capsys):
     path = tmp_path / "r.csv"
-    argv = ["sweep", "rope", "--T", "0,4", "--l0", "8,10", "--set",
-            "m=2,A=1.74,e=0.8e6,d=0.8e11,u=0,a0=1", "--units", "technical", "--n", "3",
-            "--method", "energy", "--out", str(path)]
+    argv = [
+        "sweep",
+        "rope",
+        "--T",
+        "0,4",
+        "--l0",
+        "8,10",
+        "--set",
+        "m=2,A=1.74,e=0.8e6,d=0.8e11,u=0,a0=1",
+        "--units",
+        "technical",
+        "--n",
+        "3",
+        "--method",
+        "energy",
+        "--out",
+        str(path),
+    ]
     assert main(argv) == 0
     assert "4 points (T 2 x l0 2)" in capsys.readouterr().out
     back = vmj.SweepResult.read_csv(str(path))
     np.testing.assert_allclose(back.coords["T"], [0.0, 4 * vmj.KGF * 1e4])  # SI coordinates
     one = vmj.turning_points(vmj.Rope.paper(T=4.0, l0=8.0), 0.01, 3, vmj.EnergyBalance())
-    np.testing.assert_allclose(back.values["positions"][1, 0], np.asarray(one.positions),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        back.values["positions"][1, 0], np.asarray(one.positions), rtol=1e-12
+    )
 
 
 def test_technical_units_convert_as_the_library_does():
     from vmj.cli._params import MODELS
 
     spec = MODELS["rope"]
-    given = {"m": 2.0, "A": 1.74, "e": 0.8e6, "b": 0.5, "d": 0.8e11, "T": 4.0, "l0": 10.0,
-             "u": -3.0, "a0": 1.0}
+    given = {
+        "m": 2.0,
+        "A": 1.74,
+        "e": 0.8e6,
+        "b": 0.5,
+        "d": 0.8e11,
+        "T": 4.0,
+        "l0": 10.0,
+        "u": -3.0,
+        "a0": 1.0,
+    }
     values = spec.resolve({k: (v, f"--{k}") for k, v in given.items()}, technical=True)
     ours = spec.build(values)
     ref = vmj.Rope.from_technical(2.0, 1.74, 0.8e6, 0.5, 0.8e11, 4.0, vmj.ConstantSpeed(10.0, -3.0))
@@ -155,11 +313,34 @@ def test_force_runs_work_above_the_limit(capsys):
 
 
 def test_exponent_and_negative_values(capsys):
-    out = run_json(capsys, ["decay", "variable-mass", "--m0", "5e0", "--c", "4.9e3", "--delta",
-                            "-3e0", "--eps", "1", "--mu", "5", "--f", "3e-1", "--a0", "6e-2",
-                            "--method", "energy", "--n", "3"])
-    ref = vmj.energy_balance(vmj.VariableMass(5, 4900, -3, 1, 5, vmj.MassProportional(0.3)),
-                             0.06, 3)
+    out = run_json(
+        capsys,
+        [
+            "decay",
+            "variable-mass",
+            "--m0",
+            "5e0",
+            "--c",
+            "4.9e3",
+            "--delta",
+            "-3e0",
+            "--eps",
+            "1",
+            "--mu",
+            "5",
+            "--f",
+            "3e-1",
+            "--a0",
+            "6e-2",
+            "--method",
+            "energy",
+            "--n",
+            "3",
+        ],
+    )
+    ref = vmj.energy_balance(
+        vmj.VariableMass(5, 4900, -3, 1, 5, vmj.MassProportional(0.3)), 0.06, 3
+    )
     np.testing.assert_allclose(out["amplitudes"], np.asarray(ref.amplitudes), rtol=1e-15)
 
 
@@ -206,8 +387,18 @@ def test_sweep_store_and_resume(tmp_path, capsys):
     from vmj.cli import main
 
     store = str(tmp_path / "s.zarr")
-    base = ["sweep", "variable-mass", "--eps", "0:1:3", "--mu", "0,9",
-            "--set", "m0=5,c=4900,FT=14.7,a0=0.06,delta=1", "--n", "6"]
+    base = [
+        "sweep",
+        "variable-mass",
+        "--eps",
+        "0:1:3",
+        "--mu",
+        "0,9",
+        "--set",
+        "m0=5,c=4900,FT=14.7,a0=0.06,delta=1",
+        "--n",
+        "6",
+    ]
     assert main(base + ["--store", store, "--out", str(tmp_path / "a.csv")]) == 0
     capsys.readouterr()
     assert main(base + ["--store", store]) == 2

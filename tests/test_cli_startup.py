@@ -21,8 +21,12 @@ HEAVY = ("jax", "diffrax", "matplotlib", "fits", "equinox")
 
 def _fresh_python(code: str) -> str:
     """Run `code` in a new interpreter outside the repository (so the installed vmj is used)."""
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         cwd=os.path.dirname(os.path.dirname(vmj.__file__)) + "/tests")
+    run = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        cwd=os.path.dirname(os.path.dirname(vmj.__file__)) + "/tests",
+    )
     assert run.returncode == 0, run.stderr
     return run.stdout
 
@@ -124,12 +128,10 @@ def test_cache_directory(monkeypatch, tmp_path):
     argv = ["linear", "--m", "1", "--c", "1", "--k", "1"]
     monkeypatch.delenv("VMJ_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    assert _app.cache_directory(parse(argv)) == (str(tmp_path / "xdg" / "vmj" / "jax"),
-                                                 "default")
+    assert _app.cache_directory(parse(argv)) == (str(tmp_path / "xdg" / "vmj" / "jax"), "default")
     monkeypatch.delenv("XDG_CACHE_HOME")
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
-    assert _app.cache_directory(parse(argv))[0] == str(tmp_path / "home" / ".cache" / "vmj" /
-                                                       "jax")
+    assert _app.cache_directory(parse(argv))[0] == str(tmp_path / "home" / ".cache" / "vmj" / "jax")
     monkeypatch.setenv("VMJ_CACHE_DIR", str(tmp_path / "env"))
     assert _app.cache_directory(parse(argv)) == (str(tmp_path / "env"), "VMJ_CACHE_DIR")
     assert _app.cache_directory(parse(["--cache-dir", "flag"] + argv)) == ("flag", "--cache-dir")
@@ -163,9 +165,32 @@ def test_the_command_fills_its_persistent_cache(tmp_path):
     """A decay compiled by `vmj` lands in the cache directory (its executable holds no host
     callback); a repeat reads it from there."""
     cache = tmp_path / "cache"
-    argv = [sys.executable, "-m", "vmj.cli", "--cache-dir", str(cache), "decay", "variable-mass",
-            "--m0", "5", "--c", "4900", "--delta", "3", "--eps", "0", "--mu", "2", "--FT",
-            "14.7", "--a0", "0.06", "--n", "2", "--json"]
+    argv = [
+        sys.executable,
+        "-m",
+        "vmj.cli",
+        "--cache-dir",
+        str(cache),
+        "decay",
+        "variable-mass",
+        "--m0",
+        "5",
+        "--c",
+        "4900",
+        "--delta",
+        "3",
+        "--eps",
+        "0",
+        "--mu",
+        "2",
+        "--FT",
+        "14.7",
+        "--a0",
+        "0.06",
+        "--n",
+        "2",
+        "--json",
+    ]
     env = {**os.environ, "JAX_EXPLAIN_CACHE_MISSES": "1"}
     first = subprocess.run(argv, capture_output=True, text=True, env=env)
     assert first.returncode == 0, first.stderr

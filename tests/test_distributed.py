@@ -40,8 +40,9 @@ class SharedCompilationCache(distributed.WorkerPlugin):
 
 @pytest.fixture(scope="module")
 def client():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None)
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    )
     with cluster, distributed.Client(cluster) as c:
         cache = jax.config.jax_compilation_cache_dir
         if cache:
@@ -52,8 +53,14 @@ def client():
 @pytest.fixture(scope="module")
 def points():
     rng = np.random.default_rng(13)
-    return vmj.VariableMass(5.0, 4900.0, rng.uniform(-3, 3, N), rng.uniform(0, 1, N),
-                            rng.uniform(0, 10, N), vmj.Coulomb(rng.uniform(5, 20, N)))
+    return vmj.VariableMass(
+        5.0,
+        4900.0,
+        rng.uniform(-3, 3, N),
+        rng.uniform(0, 1, N),
+        rng.uniform(0, 10, N),
+        vmj.Coulomb(rng.uniform(5, 20, N)),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -103,8 +110,7 @@ def test_worker_killed_mid_sweep(client, points, in_process, tmp_path):
             killed["at"] = (done, total)
 
     store = tmp_path / "killed.zarr"
-    r = vmj.sweep(vmj.turning_points, points, client=client, store=str(store), progress=kill,
-                  **KW)
+    r = vmj.sweep(vmj.turning_points, points, client=client, store=str(store), progress=kill, **KW)
     assert killed["at"] == (3, 20)  # while 17 chunks were still to do
     assert_bitwise_equal(r.values, in_process.values)
     # every chunk written once: 20 computed and handed to the store, all marked done
@@ -116,8 +122,9 @@ def test_worker_killed_mid_sweep(client, points, in_process, tmp_path):
     assert victim not in client.run(os.getpid).values()
 
 
-def test_interrupted_sweep_resumes_with_only_the_missing_chunks(client, points, in_process,
-                                                                 tmp_path):
+def test_interrupted_sweep_resumes_with_only_the_missing_chunks(
+    client, points, in_process, tmp_path
+):
     store = str(tmp_path / "stopped.zarr")
     other = distributed.Client(client.scheduler.address)
 
@@ -148,22 +155,27 @@ def test_ctrl_c_in_process_then_resume(points, in_process, tmp_path):
     assert_bitwise_equal(r.values, in_process.values)
 
 
-def test_store_refuses_another_definition_and_recomputes_damaged_chunks(points, in_process,
-                                                                         tmp_path):
+def test_store_refuses_another_definition_and_recomputes_damaged_chunks(
+    points, in_process, tmp_path
+):
     store = tmp_path / "sweep.zarr"
     first = vmj.sweep(vmj.turning_points, points, store=str(store), **KW)
     assert_bitwise_equal(first.values, in_process.values)
     with pytest.raises(ValueError, match="already holds this sweep: pass resume=True"):
         vmj.sweep(vmj.turning_points, points, store=str(store), **KW)
-    with pytest.raises(ValueError, match=r"holds a different sweep: solver arguments \(stored "
-                                         r"a0=0.06, n=6"):
-        vmj.sweep(vmj.turning_points, points, store=str(store), resume=True,
-                  **{**KW, "a0": 0.05})
+    with pytest.raises(
+        ValueError,
+        match=r"holds a different sweep: solver arguments \(stored "
+        r"a0=0.06, n=6",
+    ):
+        vmj.sweep(vmj.turning_points, points, store=str(store), resume=True, **{**KW, "a0": 0.05})
     with pytest.raises(ValueError, match=r"chunk_size \(stored 5000, now 4000\)"):
-        vmj.sweep(vmj.turning_points, points, store=str(store), resume=True,
-                  **{**KW, "chunk_size": 4000})
-    changed = vmj.VariableMass(5.0, 4900.0, points.delta, points.eps.at[17].set(0.5),
-                               points.mu, points.friction)
+        vmj.sweep(
+            vmj.turning_points, points, store=str(store), resume=True, **{**KW, "chunk_size": 4000}
+        )
+    changed = vmj.VariableMass(
+        5.0, 4900.0, points.delta, points.eps.at[17].set(0.5), points.mu, points.friction
+    )
     with pytest.raises(ValueError, match=r"model \(stored VariableMass \(parameters"):
         vmj.sweep(vmj.turning_points, changed, store=str(store), resume=True, **KW)
     with pytest.raises(ValueError, match="fn .*energy_balance"):
@@ -199,17 +211,25 @@ def failing_grid():
 @pytest.mark.parametrize("where", ["in-process", "cluster"])
 def test_failed_chunk_is_recorded_and_the_sweep_goes_on(where, client, tmp_path):
     store = str(tmp_path / "failing.zarr")
-    kw = dict(a0=0.06, n=40, throw=True, chunk_size=1, store=store,
-              client=client if where == "cluster" else None)
+    kw = dict(
+        a0=0.06,
+        n=40,
+        throw=True,
+        chunk_size=1,
+        store=store,
+        client=client if where == "cluster" else None,
+    )
     with pytest.raises(vmj.SweepError, match="1 of 2 chunks failed") as info:
         vmj.sweep(vmj.turning_points, failing_grid(), **kw)
     err = info.value
     code = int(vmj.RESULTS.mass_exhausted)
     assert err.failures == {1: (1, 1, code, vmj.RESULTS.mass_exhausted.message)}
-    ok = vmj.turning_points(vmj.VariableMass(5.0, 4900.0, -3.0, 0.0, 0.0, vmj.Coulomb(14.7)),
-                            0.06, 40)
-    np.testing.assert_allclose(err.result.values.positions[0], ok.positions, rtol=0,
-                               atol=1e-12 * 0.06)
+    ok = vmj.turning_points(
+        vmj.VariableMass(5.0, 4900.0, -3.0, 0.0, 0.0, vmj.Coulomb(14.7)), 0.06, 40
+    )
+    np.testing.assert_allclose(
+        err.result.values.positions[0], ok.positions, rtol=0, atol=1e-12 * 0.06
+    )
     assert np.isnan(err.result.values.positions[1]).all()
     assert list(status(store)) == [1, 2]
     failures = zarr.open_group(store, mode="r").attrs["vmj_failures"]
@@ -229,13 +249,18 @@ def test_sensitivity_over_a_grid_on_the_cluster(client, tmp_path):
     g = vmj.grid(model, eps=np.linspace(0, 1, 7), mu=np.linspace(0, 9, 5))
     wrt = ("mu", "F", "a0")
     here = vmj.sensitivity(energy_amplitudes, g, wrt, a0=0.06, n=8)
-    there = vmj.sensitivity(energy_amplitudes, g, wrt, a0=0.06, n=8, client=client,
-                            store=str(tmp_path / "sens.zarr"))
+    there = vmj.sensitivity(
+        energy_amplitudes, g, wrt, a0=0.06, n=8, client=client, store=str(tmp_path / "sens.zarr")
+    )
     assert set(here.values) == {"d_mu", "d_F", "d_a0"} and here.dims == ("eps", "mu")
     assert_bitwise_equal(here.values, there.values)
-    one = vmj.sensitivity(energy_amplitudes, vmj.VariableMass(5.0, 4900.0, 3.0, 0.5, 4.5,
-                                                              vmj.Coulomb(14.7)),
-                          wrt, a0=0.06, n=8)
+    one = vmj.sensitivity(
+        energy_amplitudes,
+        vmj.VariableMass(5.0, 4900.0, 3.0, 0.5, 4.5, vmj.Coulomb(14.7)),
+        wrt,
+        a0=0.06,
+        n=8,
+    )
     for w in wrt:
         np.testing.assert_allclose(here.values[f"d_{w}"][3, 2], one[w], rtol=1e-12)
     ds = vmj.SweepResult.read_zarr(str(tmp_path / "sens.zarr")).to_xarray()
@@ -268,8 +293,7 @@ def test_bad_arguments(points, tmp_path):
     with pytest.raises(ValueError, match="resume=True needs a store"):
         vmj.sweep(vmj.turning_points, points, resume=True, **KW)
     with pytest.raises(ValueError, match="resume must be True or False"):
-        vmj.sweep(vmj.turning_points, points, store=str(tmp_path / "s.zarr"), resume="yes",
-                  **KW)
+        vmj.sweep(vmj.turning_points, points, store=str(tmp_path / "s.zarr"), resume="yes", **KW)
     with pytest.raises(ValueError, match="client must be a dask.distributed.Client"):
         vmj.sweep(vmj.turning_points, points, client=3, **KW)
     (tmp_path / "plain").mkdir()
@@ -286,8 +310,9 @@ def synthetic_records(count):
     records = []
     for i in range(count):
         F, mu = rng.uniform(8, 20), rng.uniform(0.5, 4)
-        seq = vmj.energy_balance(vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(F)),
-                                 0.06, 8)
+        seq = vmj.energy_balance(
+            vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(F)), 0.06, 8
+        )
         n = int(seq.count)
         positions = np.concatenate([[-0.06], np.asarray(seq.positions)[:n]])
         positions = positions + rng.normal(0, 2e-4, n + 1)
@@ -304,22 +329,39 @@ def test_batched_fit_of_200_records_on_the_cluster(client, tmp_path):
     given = {"m0": 5.0, "c": 4900.0, "delta": 3.0, "eps": 0.0, "a0": 0.06}
     kw = dict(forward="energy", compare=False, chunk_size=50)
     here = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, **kw)
-    there = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, client=client,
-                           store=str(tmp_path / "fits.zarr"), **kw)
+    there = fits.fit_batch(
+        records,
+        "variable-mass",
+        ("FT", "mu"),
+        given,
+        client=client,
+        store=str(tmp_path / "fits.zarr"),
+        **kw,
+    )
     assert len(here) == len(there) == 200
     for a, b in zip(here, there):
         assert a.params == b.params and a.stderr == b.stderr and a.iterations == b.iterations
         assert a.record.source == b.record.source
         for name in a.residuals:
-            assert np.asarray(a.residuals[name]).tobytes() == \
-                np.asarray(b.residuals[name]).tobytes()
+            assert (
+                np.asarray(a.residuals[name]).tobytes() == np.asarray(b.residuals[name]).tobytes()
+            )
     # all 200 in one batch: the same fits to within the solver's convergence (the chunks pad
     # and batch the records differently)
-    whole = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, forward="energy",
-                           compare=False)
+    whole = fits.fit_batch(
+        records, "variable-mass", ("FT", "mu"), given, forward="energy", compare=False
+    )
     for a, b in zip(here, whole):
         for name in a.params:
             np.testing.assert_allclose(a.params[name], b.params[name], rtol=1e-6)
-    again = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, client=client,
-                           store=str(tmp_path / "fits.zarr"), resume=True, **kw)
+    again = fits.fit_batch(
+        records,
+        "variable-mass",
+        ("FT", "mu"),
+        given,
+        client=client,
+        store=str(tmp_path / "fits.zarr"),
+        resume=True,
+        **kw,
+    )
     assert [r.params for r in again] == [r.params for r in there]

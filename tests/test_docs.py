@@ -93,11 +93,13 @@ def environment(**extra) -> dict:
 
 
 def run(args: list[str], cwd: Path, timeout: float, **env) -> subprocess.CompletedProcess:
-    got = subprocess.run(args, cwd=cwd, env=environment(**env), capture_output=True, text=True,
-                         timeout=timeout)
+    got = subprocess.run(
+        args, cwd=cwd, env=environment(**env), capture_output=True, text=True, timeout=timeout
+    )
     assert got.returncode == 0, (
         f"{' '.join(map(str, args))} failed ({got.returncode}):\n{got.stdout[-3000:]}\n"
-        f"{got.stderr[-6000:]}")
+        f"{got.stderr[-6000:]}"
+    )
     return got
 
 
@@ -148,9 +150,15 @@ for args in json.load(sys.stdin):
 def _run_commands(commands: list[list[str]], tmp_path: Path, timeout: float):
     import json
 
-    got = subprocess.run([sys.executable, "-c", _RUN_COMMANDS], cwd=scratch(tmp_path),
-                         input=json.dumps(commands), env=environment(),
-                         capture_output=True, text=True, timeout=timeout)
+    got = subprocess.run(
+        [sys.executable, "-c", _RUN_COMMANDS],
+        cwd=scratch(tmp_path),
+        input=json.dumps(commands),
+        env=environment(),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
     assert got.returncode == 0, f"{got.stdout[-3000:]}\n{got.stderr[-6000:]}"
 
 
@@ -169,8 +177,12 @@ def test_long_vmj_commands_run(page, tmp_path):
 # -- the site ------------------------------------------------------------------------------------
 def test_site_builds_strict(tmp_path):
     """`mkdocs build --strict`: no broken link, anchor or cross-reference (docstrings included)."""
-    run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
-        ROOT, timeout=300, NO_MKDOCS_2_WARNING="1")
+    run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        ROOT,
+        timeout=300,
+        NO_MKDOCS_2_WARNING="1",
+    )
     assert (tmp_path / "site" / "api" / "models" / "index.html").is_file()
 
 
@@ -186,10 +198,16 @@ def test_api_reference_is_complete():
     import vmj
 
     missing = set(vmj.__all__) - _documented("vmj")
-    missing |= {f"fits.{n}" for n in fits.__all__ if n not in _documented("fits")
-                and not (n in vmj.__all__ and getattr(fits, n) is getattr(vmj, n))}
+    missing |= {
+        f"fits.{n}"
+        for n in fits.__all__
+        if n not in _documented("fits")
+        and not (n in vmj.__all__ and getattr(fits, n) is getattr(vmj, n))
+    }
     assert not missing, f"not in docs/api/*.md: {sorted(missing)}"
-    unknown = (_documented("vmj") - set(vmj.__all__) - {"plot"}) | (_documented("fits") - set(fits.__all__))
+    unknown = (_documented("vmj") - set(vmj.__all__) - {"plot"}) | (
+        _documented("fits") - set(fits.__all__)
+    )
     assert not unknown, f"docs/api/*.md documents names that are not public: {sorted(unknown)}"
 
 

@@ -41,14 +41,19 @@ def _ar1(rng, n, rho):
 
 
 def _variable_mass_records(forward):
-    model = vmj.VariableMass(PAPER["m0"], PAPER["c"], 0.0, 0.0, VM_TRUTH["mu"],
-                             fits.AffineFriction(VM_TRUTH["FT"], 0.0))
+    model = vmj.VariableMass(
+        PAPER["m0"], PAPER["c"], 0.0, 0.0, VM_TRUTH["mu"], fits.AffineFriction(VM_TRUTH["FT"], 0.0)
+    )
     seq = vmj.turning_points(model, VM_A0, 24, method=forward)
     m = int(seq.count)
     clean = np.concatenate([[-VM_A0], np.asarray(seq.positions)[:m]])
-    return [fits.record_from_sequence(
-        positions=clean + np.random.default_rng(s).normal(0, 0.002 * VM_A0, m + 1),
-        source=f"variable-mass seed {s}") for s in SEEDS]
+    return [
+        fits.record_from_sequence(
+            positions=clean + np.random.default_rng(s).normal(0, 0.002 * VM_A0, m + 1),
+            source=f"variable-mass seed {s}",
+        )
+        for s in SEEDS
+    ]
 
 
 def _oscillator_clean(model, n=92):
@@ -64,12 +69,18 @@ def _oscillator_records(pos, times, rho=0.0, seeds=SEEDS):
     out = []
     for s in seeds:
         rng = np.random.default_rng(s)
-        noise = 0.002 * OSC_TRUTH["a0"] * (_ar1(rng, pos.size, rho) * np.sqrt(1 - rho**2)
-                                           if rho else rng.normal(size=pos.size))
+        noise = (
+            0.002
+            * OSC_TRUTH["a0"]
+            * (_ar1(rng, pos.size, rho) * np.sqrt(1 - rho**2) if rho else rng.normal(size=pos.size))
+        )
         side = np.sign(pos - OSC_TRUTH["offset"])
         t = times + np.concatenate([[0.0], rng.normal(0, 1e-4, times.size - 1)])
-        out.append(fits.record_from_sequence(positions=pos + side * noise, times=t,
-                                             source=f"oscillator seed {s}"))
+        out.append(
+            fits.record_from_sequence(
+                positions=pos + side * noise, times=t, source=f"oscillator seed {s}"
+            )
+        )
     return out
 
 
@@ -81,12 +92,22 @@ def _rope_records(u, forward):
     records = []
     for s in SEEDS:
         rng = np.random.default_rng(s)
-        records.append(fits.record_from_sequence(
-            positions=pos + rng.normal(0, 0.002 * ROPE_A0, pos.size),
-            times=times + np.concatenate([[0.0], rng.normal(0, 1e-4, times.size - 1)]),
-            source=f"rope seed {s}"))
-    given = {"m": float(rope.m), "A": float(rope.A), "e": float(rope.e), "d": float(rope.d),
-             "l0": 10.0, "u": u, "a0": ROPE_A0}
+        records.append(
+            fits.record_from_sequence(
+                positions=pos + rng.normal(0, 0.002 * ROPE_A0, pos.size),
+                times=times + np.concatenate([[0.0], rng.normal(0, 1e-4, times.size - 1)]),
+                source=f"rope seed {s}",
+            )
+        )
+    given = {
+        "m": float(rope.m),
+        "A": float(rope.A),
+        "e": float(rope.e),
+        "d": float(rope.d),
+        "l0": 10.0,
+        "u": u,
+        "a0": ROPE_A0,
+    }
     return records, given, {"T": float(rope.T)}
 
 
@@ -97,8 +118,9 @@ def _fit(records, model, free, given=None, forward="exact"):
 
 
 def _flagged(result) -> bool:
-    return any(w.startswith("the model does not explain the data")
-               for w in result.diagnostics["warnings"])
+    return any(
+        w.startswith("the model does not explain the data") for w in result.diagnostics["warnings"]
+    )
 
 
 def _counts(results, truth):
@@ -148,8 +170,13 @@ def _check_coverage(results, truth, what):
 @pytest.mark.slow
 def test_coverage_variable_mass_energy_balance():
     """The closed-form forward model (8 s cold): FT 46/50, mu 46/50 (GN 45, 45)."""
-    results = _fit(_variable_mass_records("energy"), "variable-mass", tuple(VM_TRUTH), VM_GIVEN,
-                   forward="energy")
+    results = _fit(
+        _variable_mass_records("energy"),
+        "variable-mass",
+        tuple(VM_TRUTH),
+        VM_GIVEN,
+        forward="energy",
+    )
     _check_coverage(results, VM_TRUTH, "variable-mass energy")
 
 
@@ -166,8 +193,9 @@ def test_coverage_variable_mass_exact():
 def test_coverage_rope_fixed_length():
     """A rope of fixed length, its exact energy map as the forward model: T 49/50 (GN 49)."""
     records, given, truth = _rope_records(0.0, "energy")
-    _check_coverage(_fit(records, "rope", tuple(truth), given, forward="energy"), truth,
-                    "rope fixed length")
+    _check_coverage(
+        _fit(records, "rope", tuple(truth), given, forward="energy"), truth, "rope fixed length"
+    )
 
 
 @pytest.mark.long
@@ -206,11 +234,16 @@ def test_model_error_is_flagged(oscillator_model):
     """Data with quadratic drag fitted with viscous + Coulomb damping only: the residuals are
     structured, the diagnostics say so and the standard errors are widened. Measured: 50/50
     flagged, median inflation 7.0, omega covered 50/50 corrected against 34/50 Gauss-Newton."""
-    truth = vmj.Oscillator(OSC_TRUTH["omega"], vmj.LinearRestoring(),
-                           (vmj.ViscousDamping(OSC_TRUTH["zeta"]),
-                            vmj.CoulombDamping(OSC_TRUTH["xF"]), vmj.QuadraticDamping(0.0005)))
-    results = _fit(_oscillator_records(*_oscillator_clean(truth)), "oscillator",
-                   tuple(OSC_TRUTH))
+    truth = vmj.Oscillator(
+        OSC_TRUTH["omega"],
+        vmj.LinearRestoring(),
+        (
+            vmj.ViscousDamping(OSC_TRUTH["zeta"]),
+            vmj.CoulombDamping(OSC_TRUTH["xF"]),
+            vmj.QuadraticDamping(0.0005),
+        ),
+    )
+    results = _fit(_oscillator_records(*_oscillator_clean(truth)), "oscillator", tuple(OSC_TRUTH))
     flagged = sum(_flagged(r) for r in results)
     inflation = np.median([(r.stderr["zeta"] / r.stderr_gn["zeta"]) ** 2 for r in results])
     counts = _counts(results, {"omega": OSC_TRUTH["omega"]})
@@ -227,8 +260,7 @@ def test_autocorrelated_errors_widen_the_errors(oscillator_model, tmp_path):
     flagged, and the corrected errors cover where the Gauss-Newton ones do not (measured
     over these seeds: zeta 10/10 corrected against 7/10 Gauss-Newton, xF 10 vs 8, a0 10 vs 7).
     The report and the figure of one of these fits are written."""
-    records = _oscillator_records(*_oscillator_clean(oscillator_model), rho=0.8,
-                                  seeds=range(10))
+    records = _oscillator_records(*_oscillator_clean(oscillator_model), rho=0.8, seeds=range(10))
     results = _fit(records, "oscillator", tuple(OSC_TRUTH))
     counts = _counts(results, OSC_TRUTH)
     print("oscillator AR(1), 10 seeds", counts)
@@ -238,8 +270,14 @@ def test_autocorrelated_errors_widen_the_errors(oscillator_model, tmp_path):
         assert counts[name]["interval"] >= 9 and counts[name]["stderr"] >= 9, counts[name]
     assert sum(counts[n]["stderr_gn"] for n in ("zeta", "xF", "a0")) <= 24  # under 80 %
     text = results[0].report()
-    for part in ("95 % [", "(gn +-", "lag-1 autocorrelation", "runs test", "[rad/s]",
-                 "the model does not explain the data"):
+    for part in (
+        "95 % [",
+        "(gn +-",
+        "lag-1 autocorrelation",
+        "runs test",
+        "[rad/s]",
+        "the model does not explain the data",
+    ):
         assert part in text, part
     path = tmp_path / "fit.png"
     fits.plot_fit(results[0], path)

@@ -46,8 +46,11 @@ def test_cli_model_choices_are_the_spaces():
 @pytest.fixture(scope="module")
 def viscous_decay(tmp_path_factory):
     t = np.linspace(0.0, 60.0, 20000)
-    path = _csv(tmp_path_factory.mktemp("visc") / "v.csv",
-                [t, 10 * np.exp(-0.05 * t) * np.sin(21.7 * t)], "t,x")
+    path = _csv(
+        tmp_path_factory.mktemp("visc") / "v.csv",
+        [t, 10 * np.exp(-0.05 * t) * np.sin(21.7 * t)],
+        "t,x",
+    )
     record = fits.read_record(path, series=True)
     free = ("omega", "zeta", "xF", "a0", "offset")
     with warnings.catch_warnings():
@@ -85,12 +88,26 @@ def test_converged_rules_at_bounds(viscous_decay):
 
 def test_json_contract(viscous_decay, capsys):
     path, _, _ = viscous_decay
-    assert main(["fit", path, "--series", "--model", "oscillator", "--bounds", "xF=0:0.5",
-                 "--json"]) == 0
+    assert (
+        main(["fit", path, "--series", "--model", "oscillator", "--bounds", "xF=0:0.5", "--json"])
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
-    assert list(out) == ["model", "params", "stderr", "stderr_gn", "intervals", "correlation",
-                         "converged", "iterations", "rms", "diagnostics", "model_comparison",
-                         "clock", "units"]
+    assert list(out) == [
+        "model",
+        "params",
+        "stderr",
+        "stderr_gn",
+        "intervals",
+        "correlation",
+        "converged",
+        "iterations",
+        "rms",
+        "diagnostics",
+        "model_comparison",
+        "clock",
+        "units",
+    ]
     assert set(out["diagnostics"]) == {"lag1", "runs_p", "n_eff", "warnings"}
     assert set(out["intervals"]) == set(out["params"])
     assert all(len(v) == 2 for v in out["intervals"].values())
@@ -113,18 +130,20 @@ def test_required_parameter_is_named(viscous_decay, capsys):
         fits.fit(record, "variable-mass", ("FT", "mu"), {"c": 4900.0})
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--bounds", "xF=1"], "--bounds"),
-    (["--bounds", "xF=a:b"], "--bounds"),
-    (["--bounds", "xF=2:1"], "--bounds"),
-    (["--bounds", "nope=0:1"], "--bounds"),
-    (["--set", "xF=2", "--fit", "zeta", "--bounds", "xF=0:1"], "outside --bounds"),
-    (["--angle-unit", "rad"], "--angle-unit"),
-    (["--shared", "zeta"], "--shared"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--bounds", "xF=1"], "--bounds"),
+        (["--bounds", "xF=a:b"], "--bounds"),
+        (["--bounds", "xF=2:1"], "--bounds"),
+        (["--bounds", "nope=0:1"], "--bounds"),
+        (["--set", "xF=2", "--fit", "zeta", "--bounds", "xF=0:1"], "outside --bounds"),
+        (["--angle-unit", "rad"], "--angle-unit"),
+        (["--shared", "zeta"], "--shared"),
+    ],
+)
 def test_bad_options_exit_2(tmp_path, capsys, args, message):
-    path = _csv(tmp_path / "p.csv", [np.arange(6), [10.0, 9.0, 8.1, 7.2, 6.4, 5.7]],
-                "k,amplitude")
+    path = _csv(tmp_path / "p.csv", [np.arange(6), [10.0, 9.0, 8.1, 7.2, 6.4, 5.7]], "k,amplitude")
     assert main(["fit", path, "--model", "oscillator", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
@@ -137,8 +156,7 @@ def test_degenerate_inputs(tmp_path):
     t = np.linspace(0, 5, 2000)
     flat = _csv(tmp_path / "flat.csv", [t, np.full_like(t, 3.0)], "t,x")
     with pytest.raises(ValueError):
-        fits.fit(fits.read_record(flat, series=True), "oscillator", ("zeta", "xF"),
-                 {"omega": 20.0})
+        fits.fit(fits.read_record(flat, series=True), "oscillator", ("zeta", "xF"), {"omega": 20.0})
     three = fits.record_from_sequence(amplitudes=[0.06, 0.05, 0.041], crossed=[1, 1, 1])
     with pytest.raises(ValueError, match="too few"):
         fits.fit(three, "variable-mass", ("FT", "mu", "delta"), {"m0": 5.0, "c": 4900.0})
@@ -148,8 +166,10 @@ def test_degenerate_inputs(tmp_path):
 
 # -- amplitude-only records --------------------------------------------------------------------
 #: (law, delta [kg/s], mu [kg/s]) whose records end in a swing that does not cross the centre
-AMPLITUDE_CASES = {"FT": ((0.0, 3.0), (3.0, 4.0), (-3.0, 4.0)),
-                   "f": ((0.0, 3.0), (3.0, 3.0), (-3.0, 3.0))}
+AMPLITUDE_CASES = {
+    "FT": ((0.0, 3.0), (3.0, 4.0), (-3.0, 4.0)),
+    "f": ((0.0, 3.0), (3.0, 3.0), (-3.0, 3.0)),
+}
 
 
 def _amplitude_record(law, delta, mu):
@@ -173,24 +193,30 @@ def variable_mass_batch(request):
     law = request.param
     cases = AMPLITUDE_CASES[law]
     records = [_amplitude_record(law, d, mu) for d, mu in cases]
-    given = [{"m0": PAPER["m0"], "c": PAPER["c"], "delta": d, "a0": PAPER["a0"]}
-             for d, _ in cases]
+    given = [{"m0": PAPER["m0"], "c": PAPER["c"], "delta": d, "a0": PAPER["a0"]} for d, _ in cases]
     truth = [mu for _, mu in cases]
     if law == "FT":
         col = next(c for c in fits.paper_records(1) if c["mu"] == 2 and c["eps"] == 0)
         rec = col["record"]
-        records.append(fits.record_from_sequence(amplitudes=rec.amplitudes, k=rec.k,
-                                                 source="table 1 without crossed"))
+        records.append(
+            fits.record_from_sequence(
+                amplitudes=rec.amplitudes, k=rec.k, source="table 1 without crossed"
+            )
+        )
         given.append(col["given"])
         truth.append(2.0)
-        records.append(fits.record_from_sequence(amplitudes=[0.06, 0.05, 0.041],
-                                                 crossed=[1, 1, 1], source="three swings"))
+        records.append(
+            fits.record_from_sequence(
+                amplitudes=[0.06, 0.05, 0.041], crossed=[1, 1, 1], source="three swings"
+            )
+        )
         given.append({"m0": PAPER["m0"], "c": PAPER["c"]})
         truth.append(None)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        results = fits.fit_batch(records, "variable-mass", (law, "mu"), given, compare=False,
-                                 intervals=False)
+        results = fits.fit_batch(
+            records, "variable-mass", (law, "mu"), given, compare=False, intervals=False
+        )
     return law, records, truth, results
 
 
@@ -227,19 +253,20 @@ def _release(a0, offset, seed):
     pos = pos + rng.normal(0, 0.002 * a0, n + 1)
     times = times + rng.normal(0, 2e-4, n + 1) * (np.arange(n + 1) > 0)
     rec = fits.record_from_sequence(positions=pos, times=times, source=f"release a0={a0}")
-    return fits.Record(k=rec.k, positions=rec.positions, times=rec.times, centre=offset,
-                       source=rec.source)
+    return fits.Record(
+        k=rec.k, positions=rec.positions, times=rec.times, centre=offset, source=rec.source
+    )
 
 
 def test_joint_fit_narrows_the_shared_intervals():
-    records = [_release(a0, off, s) for a0, off, s in ((10.0, 1.0, 1), (8.0, -0.5, 2),
-                                                       (6.0, 0.3, 3))]
+    records = [
+        _release(a0, off, s) for a0, off, s in ((10.0, 1.0, 1), (8.0, -0.5, 2), (6.0, 0.3, 3))
+    ]
     free = ("omega", "zeta", "xF", "a0", "offset")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         singles = fits.fit_batch(records, "oscillator", free, compare=False)
-        joint = fits.fit(records, "oscillator", free, shared=("omega", "zeta", "xF"),
-                         compare=False)
+        joint = fits.fit(records, "oscillator", free, shared=("omega", "zeta", "xF"), compare=False)
     assert set(joint.params) == {"omega", "zeta", "xF"}
     assert len(joint.records) == 3 and set(joint.records[0]["params"]) == {"a0", "offset"}
     for name, true in OSC.items():
@@ -256,8 +283,9 @@ def test_joint_fit_from_the_command_line(tmp_path, capsys):
     for i, (a0, off, s) in enumerate(((10.0, 1.0, 1), (8.0, -0.5, 2), (6.0, 0.3, 3))):
         rec = _release(a0, off, s)
         paths.append(_csv(tmp_path / f"r{i}.csv", [rec.times, rec.positions], "time,position"))
-    assert main(["fit", *paths, "--model", "oscillator", "--shared", "omega,zeta,xF",
-                 "--json"]) == 0
+    assert (
+        main(["fit", *paths, "--model", "oscillator", "--shared", "omega,zeta,xF", "--json"]) == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert set(out["params"]) == {"omega", "zeta", "xF"} and len(out["records"]) == 3
     assert set(out["records"][2]["params"]) == {"a0", "offset"}
@@ -275,8 +303,9 @@ def test_select_reports_the_bic_preferred_variant(viscous_decay, monkeypatch):
     monkeypatch.setitem(SPACES, space.name, space)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = fits.fit(fits.read_record(path, series=True), space.name,
-                     ("omega", "zeta", "xF", "a0", "offset"))
+        r = fits.fit(
+            fits.read_record(path, series=True), space.name, ("omega", "zeta", "xF", "a0", "offset")
+        )
     assert r.label == "viscous" and set(r.params) == {"omega", "zeta", "a0", "offset"}
     assert r.converged
     assert r.params["zeta"] == pytest.approx(plain.params["zeta"], rel=1e-6)
@@ -284,8 +313,7 @@ def test_select_reports_the_bic_preferred_variant(viscous_decay, monkeypatch):
 
 def test_sensor_asymmetry_is_fitted():
     """Readings `offset + y (1 + asym sign(y))`: asym and offset recovered beside the friction."""
-    seq = vmj.turning_points(vmj.Oscillator.linear(OSC["omega"], OSC["zeta"], OSC["xF"]), 10.0,
-                             40)
+    seq = vmj.turning_points(vmj.Oscillator.linear(OSC["omega"], OSC["zeta"], OSC["xF"]), 10.0, 40)
     n = int(seq.count)
     y = np.concatenate([[-10.0], np.asarray(seq.positions)[:n]])
     times = np.concatenate([[0.0], np.asarray(seq.times)[:n]])
@@ -295,10 +323,10 @@ def test_sensor_asymmetry_is_fitted():
     rec = fits.Record(k=rec.k, positions=rec.positions, times=rec.times, centre=1.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = fits.fit(rec, "oscillator", ("omega", "zeta", "xF", "a0", "offset", "asym"),
-                     compare=False)
+        r = fits.fit(
+            rec, "oscillator", ("omega", "zeta", "xF", "a0", "offset", "asym"), compare=False
+        )
     assert r.converged
-    for name, true in (("asym", 0.05), ("offset", 1.0), ("zeta", OSC["zeta"]),
-                       ("xF", OSC["xF"])):
+    for name, true in (("asym", 0.05), ("offset", 1.0), ("zeta", OSC["zeta"]), ("xF", OSC["xF"])):
         lo, hi = r.intervals[name]
         assert lo < true < hi, (name, r.params[name], r.intervals[name])

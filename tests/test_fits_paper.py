@@ -28,11 +28,11 @@ def _synthetic(law: str, delta: float, seed: int):
     n = int(seq.count)
     noise = np.random.default_rng(seed).normal(0.0, 0.002 * A0, n + 1)
     positions = np.concatenate([[-A0], np.asarray(seq.positions)[:n]]) + noise
-    record = fits.record_from_sequence(positions=positions,
-                                       source=f"synthetic {law} delta={delta} seed={seed}")
+    record = fits.record_from_sequence(
+        positions=positions, source=f"synthetic {law} delta={delta} seed={seed}"
+    )
     given = {"m0": PAPER["m0"], "c": PAPER["c"], "delta": delta, "eps": 0.0, "a0": A0}
-    return {"record": record, "given": given, "truth": {law: value, "mu": MU_SYNTH},
-            "delta": delta}
+    return {"record": record, "given": given, "truth": {law: value, "mu": MU_SYNTH}, "delta": delta}
 
 
 def _batch(law: str, tables, loss: str):
@@ -41,8 +41,14 @@ def _batch(law: str, tables, loss: str):
     items = columns + synthetic
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        results = fits.fit_batch([it["record"] for it in items], "variable-mass", (law, "mu"),
-                                 [it["given"] for it in items], loss=loss, intervals=False)
+        results = fits.fit_batch(
+            [it["record"] for it in items],
+            "variable-mass",
+            (law, "mu"),
+            [it["given"] for it in items],
+            loss=loss,
+            intervals=False,
+        )
     return list(zip(items, results))
 
 

@@ -41,9 +41,15 @@ DAMPING = ("zeta", "xF", "cq")  #: within 10 %; every other parameter within 3 %
 def oscillator(truth: dict, sine: bool) -> vmj.Oscillator:
     """The true model in radians (`truth` in degrees, as the fit reports it)."""
     law = (vmj.SineRestoring if sine else vmj.PolynomialRestoring)(truth["b2"], 0.0)
-    return vmj.Oscillator(truth["omega"], law, (vmj.ViscousDamping(truth.get("zeta", 0.0)),
-                                                vmj.CoulombDamping(truth.get("xF", 0.0) * DEGREE),
-                                                vmj.QuadraticDamping(truth.get("cq", 0.0) / DEGREE)))
+    return vmj.Oscillator(
+        truth["omega"],
+        law,
+        (
+            vmj.ViscousDamping(truth.get("zeta", 0.0)),
+            vmj.CoulombDamping(truth.get("xF", 0.0) * DEGREE),
+            vmj.QuadraticDamping(truth.get("cq", 0.0) / DEGREE),
+        ),
+    )
 
 
 def simulate(truth: dict, sine: bool):
@@ -55,8 +61,11 @@ def simulate(truth: dict, sine: bool):
     with vmj.assume_valid():
         traj = vmj.simulate(model, -RELEASE * DEGREE, 0.0, (n - 1) / FS, n_save=n)
         seq = vmj.turning_points(model, RELEASE * DEGREE, 200, vmj.Exact())
-    return (np.asarray(traj.ts)[first:], np.asarray(traj.xs)[first:] / DEGREE,
-            (np.asarray(seq.times), np.asarray(seq.positions) / DEGREE))
+    return (
+        np.asarray(traj.ts)[first:],
+        np.asarray(traj.xs)[first:] / DEGREE,
+        (np.asarray(seq.times), np.asarray(seq.positions) / DEGREE),
+    )
 
 
 def write_raw(path, ts, angles, seed: int):
@@ -80,8 +89,9 @@ def write_raw(path, ts, angles, seed: int):
         h, rest = divmod(ms, 3_600_000)
         m, rest = divmod(rest, 60_000)
         elapsed = 0.06 * math.floor((s - stamps[0]) / 0.06)
-        lines.append(f"{h:02d}:{m:02d}:{rest // 1000:02d}.{rest % 1000:03d}, {elapsed:.3f}, "
-                     f"{y:.2f}")
+        lines.append(
+            f"{h:02d}:{m:02d}:{rest // 1000:02d}.{rest % 1000:03d}, {elapsed:.3f}, {y:.2f}"
+        )
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -137,8 +147,9 @@ def fit_law_set(trajectories, tmp_path, sine, diss, seeds, compare=True):
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        results = fits.fit_batch(recs, "pendulum", FREE, intervals=False, max_steps=MAX_STEPS,
-                                 compare=compare)
+        results = fits.fit_batch(
+            recs, "pendulum", FREE, intervals=False, max_steps=MAX_STEPS, compare=compare
+        )
     return recs, truths, results, time.perf_counter() - t0
 
 
@@ -163,16 +174,33 @@ def test_the_clock_of_a_synthetic_record_is_recovered(trajectories, tmp_path):
 def test_units_convert_between_degrees_and_radians():
     """The same pendulum in degrees (angle_unit pi/180) and in radians (angle_unit 1) gives the
     same turning points, and both are `vmj.Oscillator.pendulum`'s."""
-    deg = {"omega": 21.7, "zeta": 0.004, "xF": 0.05, "xS": 0.0, "cq": 2e-4, "b2": -0.1,
-           "b3": 0.02, "a0": 27.0, "angle_unit": DEGREE}
-    rad = {**deg, "xF": deg["xF"] * DEGREE, "cq": deg["cq"] / DEGREE, "a0": deg["a0"] * DEGREE,
-           "angle_unit": 1.0}
+    deg = {
+        "omega": 21.7,
+        "zeta": 0.004,
+        "xF": 0.05,
+        "xS": 0.0,
+        "cq": 2e-4,
+        "b2": -0.1,
+        "b3": 0.02,
+        "a0": 27.0,
+        "angle_unit": DEGREE,
+    }
+    rad = {
+        **deg,
+        "xF": deg["xF"] * DEGREE,
+        "cq": deg["cq"] / DEGREE,
+        "a0": deg["a0"] * DEGREE,
+        "angle_unit": 1.0,
+    }
     with vmj.assume_valid():
         t_deg, x_deg = PENDULUM.predict(deg, 40, "exact")
         t_rad, x_rad = PENDULUM.predict(rad, 40, "exact")
         direct = vmj.turning_points(
             vmj.Oscillator.pendulum(21.7, 0.004, 0.05 * DEGREE, None, 2e-4 / DEGREE, -0.1, 0.02),
-            27.0 * DEGREE, 40, vmj.Exact())
+            27.0 * DEGREE,
+            40,
+            vmj.Exact(),
+        )
     np.testing.assert_allclose(np.asarray(x_deg) * DEGREE, np.asarray(x_rad), rtol=1e-12)
     np.testing.assert_allclose(np.asarray(t_deg), np.asarray(t_rad), rtol=1e-12)
     np.testing.assert_allclose(np.asarray(x_rad)[1:], np.asarray(direct.positions), rtol=1e-12)
@@ -208,11 +236,17 @@ def test_law_sets_over_seeds(trajectories, tmp_path, sine, diss):
     _, truths, results, dt = fit_law_set(trajectories, tmp_path, sine, diss, range(SEEDS))
     chosen = [res.label == label(sine, diss) for res in results]
     good = [ok and within(errors(res, truth)) for ok, res, truth in zip(chosen, results, truths)]
-    worst = {name: max(errors(res, truth)[name] for res, truth in zip(results, truths)
-                       if name in res.params) for name in results[0].params}
+    worst = {
+        name: max(
+            errors(res, truth)[name] for res, truth in zip(results, truths) if name in res.params
+        )
+        for name in results[0].params
+    }
     picks = collections.Counter(res.label for res in results)
-    print(f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS} ({dict(picks)}), all "
-          f"parameters within tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s")
+    print(
+        f"{label(sine, diss)}: BIC choice {sum(chosen)}/{SEEDS} ({dict(picks)}), all "
+        f"parameters within tolerance {sum(good)}/{SEEDS}, worst errors {worst}, {dt:.0f} s"
+    )
     assert sum(chosen) >= 0.9 * SEEDS
     assert sum(good) >= 0.9 * SEEDS
 
@@ -238,8 +272,9 @@ def test_80p_residuals_lose_their_structure(record_80p):
     120-point record, about 5 minutes on 2 cores."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        plain = fits.fit(record_80p, "oscillator", ("omega", "zeta", "xF", "a0", "offset"),
-                         intervals=False)
+        plain = fits.fit(
+            record_80p, "oscillator", ("omega", "zeta", "xF", "a0", "offset"), intervals=False
+        )
         pend = fits.fit(record_80p, "pendulum", FREE, intervals=False)
     before, after = lag1(plain.residuals["position"]), lag1(pend.residuals["position"])
     assert before > 0.9

@@ -22,10 +22,18 @@ def lowering(tmp_path_factory):
     pos = np.concatenate([[-A0], np.asarray(seq.positions)]) + rng.normal(0, 0.002 * A0, 41)
     times = np.concatenate([[0.0], np.asarray(seq.times) + rng.normal(0, 1e-4, 40)])
     path = tmp_path_factory.mktemp("rope") / "peaks.csv"
-    np.savetxt(path, np.column_stack([times, pos]), delimiter=",", header="time,position",
-               comments="")
-    given = {"m": float(rope.m), "A": float(rope.A), "e": float(rope.e), "d": float(rope.d),
-             "l0": 10.0, "u": U, "a0": A0}
+    np.savetxt(
+        path, np.column_stack([times, pos]), delimiter=",", header="time,position", comments=""
+    )
+    given = {
+        "m": float(rope.m),
+        "A": float(rope.A),
+        "e": float(rope.e),
+        "d": float(rope.d),
+        "l0": 10.0,
+        "u": U,
+        "a0": A0,
+    }
     return str(path), given, float(rope.T)
 
 

@@ -13,9 +13,9 @@ import pytest
 
 import fits
 from fits._fit import _bucket, _init_weights, _make_job, _problem
-from fits._solve import _Data, _job_arrays, _residual_and_jacobian, _Shape, _values
 from fits._models import SPACES
 from fits._params import HELD, derivative
+from fits._solve import _Data, _job_arrays, _residual_and_jacobian, _Shape, _values
 from vmj.cli import main
 
 HERE = os.path.dirname(__file__)
@@ -42,8 +42,12 @@ def _oscillator_signal(omega, zeta, xF, a0, offset, t_end, seed, n_spikes=3):
         sel = (t >= start) & (t < start + half)
         tau = t[sel] - start
         u0 = xs + s * xF
-        x[sel] = u0 * np.exp(-zeta * omega * tau) * (np.cos(wd * tau)
-                                                     + zeta * omega / wd * np.sin(wd * tau)) - s * xF
+        x[sel] = (
+            u0
+            * np.exp(-zeta * omega * tau)
+            * (np.cos(wd * tau) + zeta * omega / wd * np.sin(wd * tau))
+            - s * xF
+        )
         xs = -s * xF - np.exp(-zeta * omega * half) * u0
         start += half
         turning.append((start, xs))
@@ -79,16 +83,19 @@ def _write(tmp_path, text, name="f.csv"):
     return str(p)
 
 
-@pytest.mark.parametrize("text, message", [
-    ("", "empty"),
-    ("k,amplitude\n", "no data rows"),
-    ("k,value\n0,1\n1,0.5\n", "missing column"),
-    ("amplitude\n1\n0.5\n", "missing column"),
-    ("k,amplitude\n0,1\n1,abc\n", "not a number"),
-    ("k,amplitude\n0,1\n1,nan\n", "not a finite number"),
-    ("time,amplitude\n0,1\n0.2,0.8\n0.2,0.6\n", "strictly increasing"),
-    ("k,amplitude\n0,1\n1,-0.5\n", ">= 0"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("", "empty"),
+        ("k,amplitude\n", "no data rows"),
+        ("k,value\n0,1\n1,0.5\n", "missing column"),
+        ("amplitude\n1\n0.5\n", "missing column"),
+        ("k,amplitude\n0,1\n1,abc\n", "not a number"),
+        ("k,amplitude\n0,1\n1,nan\n", "not a finite number"),
+        ("time,amplitude\n0,1\n0.2,0.8\n0.2,0.6\n", "strictly increasing"),
+        ("k,amplitude\n0,1\n1,-0.5\n", ">= 0"),
+    ],
+)
 def test_peak_file_errors(tmp_path, text, message):
     with pytest.raises(ValueError, match=message):
         fits.read_peaks(_write(tmp_path, text))
@@ -163,8 +170,13 @@ def test_hold_before_the_release_is_not_a_swing(synthetic_signal, tmp_path):
     nudge = -0.04 * TRUE["a0"] * np.clip((t_hold + 0.3) / 0.3, 0, 1) ** 2  # further from centre
     y_hold = y0 + 0.03 * TRUE["a0"] + nudge + rng.normal(0, 0.002 * TRUE["a0"], t_hold.size)
     held = tmp_path / "held.csv"
-    np.savetxt(held, np.column_stack([np.concatenate([t_hold, t]), np.concatenate([y_hold, y])]),
-               delimiter=",", header="t,angle", comments="")
+    np.savetxt(
+        held,
+        np.column_stack([np.concatenate([t_hold, t]), np.concatenate([y_hold, y])]),
+        delimiter=",",
+        header="t,angle",
+        comments="",
+    )
     rec = fits.read_record(str(held), series=True)
     plain = fits.read_record(path, series=True)
     n = min(len(rec), len(plain))
@@ -194,18 +206,24 @@ def test_batched_equals_single_and_adam_agrees(synthetic_signal):
     path, _ = synthetic_signal
     rec = fits.read_record(path, series=True)
     peaks = fits.record_from_sequence(positions=rec.positions[:40], times=rec.times[:40])
-    peaks = fits.Record(k=peaks.k, positions=peaks.positions, times=peaks.times,
-                        centre=rec.centre)
+    peaks = fits.Record(k=peaks.k, positions=peaks.positions, times=peaks.times, centre=rec.centre)
     free = ("zeta", "xF", "a0", "offset")
     given = {"omega": float(np.pi / np.median(np.diff(rec.times)))}
     one = fits.fit(peaks, "oscillator", free, given, compare=False, intervals=False)
-    both = fits.fit_batch([peaks, peaks], "oscillator", free, given, compare=False,
-                          intervals=False)
+    both = fits.fit_batch([peaks, peaks], "oscillator", free, given, compare=False, intervals=False)
     for name in free:
         assert both[0].params[name] == pytest.approx(one.params[name], rel=1e-8)
         assert both[1].params[name] == pytest.approx(one.params[name], rel=1e-8)
-    adam = fits.fit(peaks, "oscillator", free, given, compare=False, optimizer="adam",
-                    loss="huber", intervals=False)
+    adam = fits.fit(
+        peaks,
+        "oscillator",
+        free,
+        given,
+        compare=False,
+        optimizer="adam",
+        loss="huber",
+        intervals=False,
+    )
     assert abs(adam.params["zeta"] / one.params["zeta"] - 1) < 0.05
     assert abs(adam.params["xF"] - one.params["xF"]) < 3 * one.stderr["xF"]
 
@@ -224,14 +242,44 @@ def test_pendulum_80P_end_to_end(pendulum):
 
 
 def test_cli_json_shape_and_errors(tmp_path, capsys):
-    path = _write(tmp_path, "k,amplitude\n" + "\n".join(
-        f"{k},{a}" for k, a in enumerate([10.0, 9.3, 8.62, 7.95, 7.3, 6.67, 6.05, 5.45])))
-    assert main(["fit", path, "--model", "oscillator", "--fit", "zeta,xF", "--set",
-                 "a0=10,offset=0", "--json"]) == 0
+    path = _write(
+        tmp_path,
+        "k,amplitude\n"
+        + "\n".join(
+            f"{k},{a}" for k, a in enumerate([10.0, 9.3, 8.62, 7.95, 7.3, 6.67, 6.05, 5.45])
+        ),
+    )
+    assert (
+        main(
+            [
+                "fit",
+                path,
+                "--model",
+                "oscillator",
+                "--fit",
+                "zeta,xF",
+                "--set",
+                "a0=10,offset=0",
+                "--json",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
-    assert list(out) == ["model", "params", "stderr", "stderr_gn", "intervals", "correlation",
-                         "converged", "iterations", "rms", "diagnostics", "model_comparison",
-                         "units"]
+    assert list(out) == [
+        "model",
+        "params",
+        "stderr",
+        "stderr_gn",
+        "intervals",
+        "correlation",
+        "converged",
+        "iterations",
+        "rms",
+        "diagnostics",
+        "model_comparison",
+        "units",
+    ]
     assert set(out["params"]) == {"zeta", "xF"} and out["converged"] is True
     assert len(out["correlation"]) == 2
     assert main(["fit", _write(tmp_path, "", "e.csv"), "--model", "oscillator"]) == 2
@@ -250,11 +298,11 @@ def test_energy_forward_model_agrees_with_the_exact_one(pendulum):
     assert abs(r.params["xF"] - exact.params["xF"]) < 3 * exact.stderr["xF"]
 
 
-
 def _held(d, slot, value):
     """`d` with slot `slot` held at `value` (no longer moved by p)."""
-    return eqx.tree_at(lambda z: (z.code, z.held), d,
-                       (d.code.at[slot].set(HELD), d.held.at[slot].set(value)))
+    return eqx.tree_at(
+        lambda z: (z.code, z.held), d, (d.code.at[slot].set(HELD), d.held.at[slot].set(value))
+    )
 
 
 def test_fit_jacobian_matches_finite_differences(synthetic_signal):
@@ -278,13 +326,19 @@ def test_fit_jacobian_matches_finite_differences(synthetic_signal):
         h = 1e-6 * max(abs(float(values[i])), 1e-3)
         up = _residual_and_jacobian(space, "exact", n, p, _held(d, i, values[i] + h))[0]
         dn = _residual_and_jacobian(space, "exact", n, p, _held(d, i, values[i] - h))[0]
-        np.testing.assert_allclose(np.asarray(J[:, i]), np.asarray((up - dn) / (2 * h)),
-                                   rtol=1e-5, atol=1e-6 * float(jnp.max(jnp.abs(J[:, i]))))
+        np.testing.assert_allclose(
+            np.asarray(J[:, i]),
+            np.asarray((up - dn) / (2 * h)),
+            rtol=1e-5,
+            atol=1e-6 * float(jnp.max(jnp.abs(J[:, i]))),
+        )
     dp = jnp.ones_like(p)
-    _, (tangent, _) = jax.jvp(lambda q: _residual_and_jacobian(space, "exact", n, q, d), (p,),
-                              (dp,))
-    np.testing.assert_allclose(np.asarray(tangent),
-                               np.asarray(J @ (derivative(d.code, d.lo, d.hi, d.scale, p) * dp)))
+    _, (tangent, _) = jax.jvp(
+        lambda q: _residual_and_jacobian(space, "exact", n, q, d), (p,), (dp,)
+    )
+    np.testing.assert_allclose(
+        np.asarray(tangent), np.asarray(J @ (derivative(d.code, d.lo, d.hi, d.scale, p) * dp))
+    )
 
 
 def test_identifiability_warning(synthetic_signal):

@@ -158,33 +158,69 @@ def _result(records, residuals, params, stderr):
 
     rec = records[0]
     warn = ["xF is not identified by these data: no standard error"]
-    per = [{"source": r.source, "params": {"offset": 0.0}, "stderr": {"offset": None},
-            "intervals": {"offset": (math.nan, math.nan)}, "residuals": res, "rms": 0.1}
-           for r, res in zip(records, residuals)] if len(records) > 1 else []
+    per = (
+        [
+            {
+                "source": r.source,
+                "params": {"offset": 0.0},
+                "stderr": {"offset": None},
+                "intervals": {"offset": (math.nan, math.nan)},
+                "residuals": res,
+                "rms": 0.1,
+            }
+            for r, res in zip(records, residuals)
+        ]
+        if len(records) > 1
+        else []
+    )
     return fits.FitResult(
-        model="oscillator", forward="exact", loss="l2", optimizer="lm", params=params,
-        fixed={"offset": 0.0, "asym": 0.0}, stderr=stderr,
-        correlation=[[1.0, float("nan")], [float("nan"), 1.0]], converged=False, iterations=7,
-        rms=0.1, rms_time=None, model_comparison={}, residuals=residuals[0], outliers=[],
+        model="oscillator",
+        forward="exact",
+        loss="l2",
+        optimizer="lm",
+        params=params,
+        fixed={"offset": 0.0, "asym": 0.0},
+        stderr=stderr,
+        correlation=[[1.0, float("nan")], [float("nan"), 1.0]],
+        converged=False,
+        iterations=7,
+        rms=0.1,
+        rms_time=None,
+        model_comparison={},
+        residuals=residuals[0],
+        outliers=[],
         warnings=warn,
-        decrement=fits.decrement(rec), record=rec, stderr_gn={"zeta": 0.001, "xF": None},
+        decrement=fits.decrement(rec),
+        record=rec,
+        stderr_gn={"zeta": 0.001, "xF": None},
         intervals={"zeta": (0.009, 0.011), "xF": (math.nan, math.nan)},
         diagnostics={"lag1": 0.7, "runs_p": 1e-5, "n_eff": 3.2, "warnings": list(warn)},
-        n_residuals=12, records=per, units={"zeta": "-", "xF": "signal", "offset": "signal"},
-        label="both")
+        n_residuals=12,
+        records=per,
+        units={"zeta": "-", "xF": "signal", "offset": "signal"},
+        label="both",
+    )
 
 
 def test_report_and_figure_of_a_joint_amplitude_only_result(tmp_path):
     import fits
 
     amps = 10 * 0.9 ** np.arange(12)
-    records = [fits.record_from_sequence(amplitudes=amps * s, source=f"r{i}")
-               for i, s in enumerate((1.0, 1.1))]
+    records = [
+        fits.record_from_sequence(amplitudes=amps * s, source=f"r{i}")
+        for i, s in enumerate((1.0, 1.1))
+    ]
     assert not records[0].sides_known
-    residuals = [{"k": list(range(12)), "position": list(0.01 * np.sin(np.arange(12))),
-                  "time": None, "outlier": [False] * 11 + [True]} for _ in records]
-    result = _result(records, residuals, {"zeta": 0.01, "xF": 0.02},
-                     {"zeta": 0.002, "xF": None})
+    residuals = [
+        {
+            "k": list(range(12)),
+            "position": list(0.01 * np.sin(np.arange(12))),
+            "time": None,
+            "outlier": [False] * 11 + [True],
+        }
+        for _ in records
+    ]
+    result = _result(records, residuals, {"zeta": 0.01, "xF": 0.02}, {"zeta": 0.002, "xF": None})
     text = result.report()
     assert "2 records" in text and "per record:" in text and "r1: offset=0" in text
     assert "xF =         0.02 +- nan" in text and "95 % [0.009, 0.011]" in text

@@ -12,11 +12,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
+from scipy_oscillator import oscillator_turning_points
 
 import vmj
-from scipy_oscillator import oscillator_turning_points
 
 OMEGA, A0, N = 6.0, 1.0, 24
 
@@ -35,8 +34,7 @@ DISSIPATION = {
     "all": dict(zeta=0.005, xF=0.005, xS=0.012, cq=0.03),
 }
 #: the model structures: one per restoring law class
-STRUCTURES = {"linear": ["linear"], "polynomial": ["polynomial"],
-              "sine": ["sine", "sine+cubic"]}
+STRUCTURES = {"linear": ["linear"], "polynomial": ["polynomial"], "sine": ["sine", "sine+cubic"]}
 
 
 def law(name):
@@ -47,9 +45,11 @@ def law(name):
 
 
 def model(restoring, zeta=0.0, xF=0.0, xS=None, cq=0.0, omega=OMEGA):
-    return vmj.Oscillator(omega, law(restoring), (vmj.ViscousDamping(zeta),
-                                                  vmj.CoulombDamping(xF, xS),
-                                                  vmj.QuadraticDamping(cq)))
+    return vmj.Oscillator(
+        omega,
+        law(restoring),
+        (vmj.ViscousDamping(zeta), vmj.CoulombDamping(xF, xS), vmj.QuadraticDamping(cq)),
+    )
 
 
 def stack(models):
@@ -75,8 +75,9 @@ _cache = {}
 def solved(structure, name):
     key = (structure, name)
     if key not in _cache:
-        solver = {"exact": vmj.Exact(), "smooth": vmj.Smoothed(),
-                  "energy": vmj.EnergyBalance()}[name]
+        solver = {"exact": vmj.Exact(), "smooth": vmj.Smoothed(), "energy": vmj.EnergyBalance()}[
+            name
+        ]
         _cache[key] = batched(structure, solver)
     return _cache[key]
 
@@ -91,8 +92,8 @@ def test_exact_matches_scipy(structure):
         kind, b2, b3 = RESTORING[r]
         rt, rx = oscillator_turning_points(OMEGA, A0, N, kind, b2=b2, b3=b3, **DISSIPATION[d])
         assert count[i] == len(rx), (r, d)
-        np.testing.assert_allclose(positions[i, :len(rx)], rx, rtol=1e-9, err_msg=f"{r} {d}")
-        np.testing.assert_allclose(times[i, :len(rt)], rt, rtol=1e-10, err_msg=f"{r} {d}")
+        np.testing.assert_allclose(positions[i, : len(rx)], rx, rtol=1e-9, err_msg=f"{r} {d}")
+        np.testing.assert_allclose(times[i, : len(rt)], rt, rtol=1e-10, err_msg=f"{r} {d}")
 
 
 # -- the smoothed and energy-balance solutions against the exact one ----------------------------
@@ -128,6 +129,7 @@ def test_energy_balance_matches_exact(structure):
 def test_averaged_energy_map_is_third_order_in_zeta():
     """The averaged map's amplitude error per half-swing is O(zeta^3): halving zeta divides the
     error after a fixed number of half-swings by about 8 (measured 7.9)."""
+
     def error(zeta):
         m = model("sine", zeta=zeta)
         ex = vmj.turning_points(m, A0, 8).positions
@@ -146,7 +148,7 @@ def test_linear_oscillator_is_the_closed_form_map(omega, zeta, xF):
     constant-mass variable-mass model agree with the map `x -> -s xF - rho (x + s xF)` written
     out here, `rho = exp(-zeta omega pi / omega_d)`, `pi/omega_d` per half-swing."""
     a0, n = 1.0, 12
-    wd = omega * np.sqrt(1 - zeta ** 2)
+    wd = omega * np.sqrt(1 - zeta**2)
     rho = np.exp(-zeta * omega * np.pi / wd)
     x, xs = -a0, []
     for _ in range(n):
@@ -156,19 +158,23 @@ def test_linear_oscillator_is_the_closed_form_map(omega, zeta, xF):
         x = -s * xF - rho * (x + s * xF)
         xs.append(x)
     osc = vmj.Oscillator.linear(omega, zeta, xF)
-    vm = vmj.VariableMass(1.0, omega ** 2, 0.0, 0.0, 2 * zeta * omega,
-                          vmj.Coulomb(omega ** 2 * xF))
-    for seq in (vmj.turning_points(osc, a0, n, vmj.EnergyBalance()),
-                vmj.turning_points(osc, a0, n), vmj.turning_points(vm, a0, n)):
+    vm = vmj.VariableMass(1.0, omega**2, 0.0, 0.0, 2 * zeta * omega, vmj.Coulomb(omega**2 * xF))
+    for seq in (
+        vmj.turning_points(osc, a0, n, vmj.EnergyBalance()),
+        vmj.turning_points(osc, a0, n),
+        vmj.turning_points(vm, a0, n),
+    ):
         assert int(seq.count) == len(xs)
-        np.testing.assert_allclose(np.asarray(seq.positions)[:len(xs)], xs, atol=1e-10)
-        np.testing.assert_allclose(np.asarray(seq.times)[:len(xs)],
-                                   np.pi / wd * np.arange(1, len(xs) + 1), rtol=1e-10)
+        np.testing.assert_allclose(np.asarray(seq.positions)[: len(xs)], xs, atol=1e-10)
+        np.testing.assert_allclose(
+            np.asarray(seq.times)[: len(xs)], np.pi / wd * np.arange(1, len(xs) + 1), rtol=1e-10
+        )
 
 
 def test_sine_tends_to_linear_at_small_amplitude():
     """The pendulum's turning points approach the linear oscillator's as `a0 -> 0`, the
     relative difference falling as `a0^2` (the frequency is `1 - a0^2/16 + ...`)."""
+
     def difference(a0):
         sine = vmj.Oscillator.pendulum(OMEGA, zeta=0.01, xF=0.01 * a0)
         lin = vmj.Oscillator.linear(OMEGA, zeta=0.01, xF=0.01 * a0)
@@ -181,8 +187,12 @@ def test_sine_tends_to_linear_at_small_amplitude():
 
 
 @settings(max_examples=8)
-@given(xF=st.floats(0.01, 0.05), extra=st.floats(0.0, 0.3), b3=st.floats(-0.05, 0.3),
-       sine=st.booleans())
+@given(
+    xF=st.floats(0.01, 0.05),
+    extra=st.floats(0.0, 0.3),
+    b3=st.floats(-0.05, 0.3),
+    sine=st.booleans(),
+)
 def test_static_level_decides_where_the_mass_sticks(xF, extra, b3, sine):
     """The mass stops exactly at the first turning point where `|r(x)| <= xS`."""
     xS = xF + extra
@@ -215,8 +225,9 @@ NAMES = ("omega", "zeta", "xF", "cq", "b2", "b3", "a0")
 def _sequence(p, restoring):
     omega, zeta, xF, cq, b2, b3, a0 = p
     law = vmj.SineRestoring(b2, b3) if restoring == "sine" else vmj.PolynomialRestoring(b2, b3)
-    osc = vmj.Oscillator(omega, law, (vmj.ViscousDamping(zeta), vmj.CoulombDamping(xF),
-                                      vmj.QuadraticDamping(cq)))
+    osc = vmj.Oscillator(
+        omega, law, (vmj.ViscousDamping(zeta), vmj.CoulombDamping(xF), vmj.QuadraticDamping(cq))
+    )
     seq = vmj.turning_points(osc, a0, 10)
     return jnp.concatenate([seq.positions, seq.times])
 
@@ -231,12 +242,10 @@ def test_gradients_match_finite_differences(restoring):
     h = 1e-6 * np.maximum(np.abs(np.asarray(p)), 1e-2)
     steps = np.diag(h)
     both = jax.vmap(f)(jnp.concatenate([p + steps, p - steps]))
-    fd = np.asarray((both[:len(p)] - both[len(p):]) / (2 * h[:, None])).T
+    fd = np.asarray((both[: len(p)] - both[len(p) :]) / (2 * h[:, None])).T
     for i, name in enumerate(NAMES):
         scale = np.max(np.abs(fd[:, i]))
-        np.testing.assert_allclose(jac[:, i], fd[:, i], rtol=1e-5, atol=1e-6 * scale,
-                                   err_msg=name)
-
+        np.testing.assert_allclose(jac[:, i], fd[:, i], rtol=1e-5, atol=1e-6 * scale, err_msg=name)
 
 
 @pytest.mark.slow
@@ -245,8 +254,9 @@ def test_reverse_mode_matches_forward_mode():
     reverse-mode compilation of the Taylor march takes about 10 s)."""
     p = jnp.array([6.0, 0.01, 0.01, 0.05, 0.04, 0.2, 1.1])
     f = lambda q: _sequence(q, "sine")[7]  # noqa: E731
-    np.testing.assert_allclose(np.asarray(jax.grad(f)(p)), np.asarray(jax.jacfwd(f)(p)),
-                               rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(
+        np.asarray(jax.grad(f)(p)), np.asarray(jax.jacfwd(f)(p)), rtol=1e-8, atol=1e-12
+    )
 
 
 # -- batching, simulation and input checks ------------------------------------------------------
@@ -266,20 +276,23 @@ def test_simulate_passes_the_turning_points():
     np.testing.assert_allclose(np.asarray(traj.xs)[k], np.asarray(seq.positions), atol=1e-6)
 
 
-@pytest.mark.parametrize("build, name", [
-    (lambda: vmj.Oscillator(0.0), "omega"),
-    (lambda: vmj.Oscillator.pendulum(6.0, zeta=-0.1), "zeta"),
-    (lambda: vmj.Oscillator.pendulum(6.0, xF=-0.01), "xF"),
-    (lambda: vmj.Oscillator.pendulum(6.0, xF=0.02, xS=0.01), "xS"),
-    (lambda: vmj.Oscillator.pendulum(6.0, cq=-1.0), "cq"),
-    (lambda: vmj.Oscillator.pendulum(6.0, b3=np.nan), "b3"),
-    (lambda: vmj.PolynomialRestoring(b2=np.inf), "b2"),
-    (lambda: vmj.Oscillator(6.0, "sine"), "restoring"),
-    (lambda: vmj.Oscillator(6.0, dissipation=(0.1,)), "dissipation"),
-    (lambda: vmj.turning_points(vmj.Oscillator.pendulum(6.0), -1.0, 5), r"a0 .*\[rad\]"),
-    (lambda: vmj.turning_points(vmj.Oscillator.pendulum(6.0), 80.0, 5), r"a0 .*deg2rad"),
-    (lambda: vmj.turning_points(vmj.Oscillator.linear(6.0), 0.0, 5), r"a0 .*> 0"),
-])
+@pytest.mark.parametrize(
+    "build, name",
+    [
+        (lambda: vmj.Oscillator(0.0), "omega"),
+        (lambda: vmj.Oscillator.pendulum(6.0, zeta=-0.1), "zeta"),
+        (lambda: vmj.Oscillator.pendulum(6.0, xF=-0.01), "xF"),
+        (lambda: vmj.Oscillator.pendulum(6.0, xF=0.02, xS=0.01), "xS"),
+        (lambda: vmj.Oscillator.pendulum(6.0, cq=-1.0), "cq"),
+        (lambda: vmj.Oscillator.pendulum(6.0, b3=np.nan), "b3"),
+        (lambda: vmj.PolynomialRestoring(b2=np.inf), "b2"),
+        (lambda: vmj.Oscillator(6.0, "sine"), "restoring"),
+        (lambda: vmj.Oscillator(6.0, dissipation=(0.1,)), "dissipation"),
+        (lambda: vmj.turning_points(vmj.Oscillator.pendulum(6.0), -1.0, 5), r"a0 .*\[rad\]"),
+        (lambda: vmj.turning_points(vmj.Oscillator.pendulum(6.0), 80.0, 5), r"a0 .*deg2rad"),
+        (lambda: vmj.turning_points(vmj.Oscillator.linear(6.0), 0.0, 5), r"a0 .*> 0"),
+    ],
+)
 def test_bad_input_names_the_parameter(build, name):
     with pytest.raises(ValueError, match=name):
         build()
@@ -287,6 +300,7 @@ def test_bad_input_names_the_parameter(build, name):
 
 def test_traced_bad_static_level_is_refused():
     """Inside `jit` a static level below the kinetic one raises at run time."""
+
     @jax.jit
     def stop(xS):
         osc = vmj.Oscillator(OMEGA, vmj.SineRestoring(), (vmj.CoulombDamping(0.02, xS),))
