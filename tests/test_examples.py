@@ -11,7 +11,13 @@ import sys
 import pytest
 from test_docs import ROOT, run, scratch
 
-EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
+# the pendulum example fits a 120-point measured record with the exact sine law (a minute even as
+# a smoke run): with the long runs (`make test-long`)
+LONG = {"fit_pendulum.py"}
+EXAMPLES = [
+    pytest.param(p, marks=pytest.mark.long) if p.name in LONG else p
+    for p in sorted((ROOT / "examples").glob("*.py"))
+]
 
 
 @pytest.mark.slow

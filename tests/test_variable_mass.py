@@ -261,7 +261,7 @@ def test_decay_sequence_invariants(m0, c, delta, eps, mu, F, f, use_f):
 
 def energy_balance_reference(m0, c, delta, eps, mu, F, f, use_f, a0, n):
     """The recurrences of `vmj.energy_balance`'s docstring, swing by swing in plain Python
-    (math.expm1), with the stick, release and exhaustion rules written out."""
+    (math.expm1), with the stick, release, over-damping and exhaustion rules written out."""
     g = 9.81
     force = (lambda m: f * g * m) if use_f else (lambda m: F)
     lam = delta - 2 * delta * eps - 2 * mu
@@ -271,10 +271,16 @@ def energy_balance_reference(m0, c, delta, eps, mu, F, f, use_f, a0, n):
         if c * a <= force(m):
             if use_f and f > 0 and delta < 0:  # friction falls with the mass: wait, move on
                 m_go = c * a / (f * g)
+                if not math.isfinite(t + (m_go - m) / delta):  # a denormal delta: never moves
+                    result = vmj.RESULTS.stopped
+                    break
                 t, m = t + (m_go - m) / delta, m_go
             else:
                 result = vmj.RESULTS.stopped
                 break
+        if lam * lam >= 16 * m * c:  # over-damped (or running away): no turning point
+            result = vmj.RESULTS.step_limit
+            break
         half = math.pi * math.sqrt(m / c)
         if m + delta * half <= 0:
             result = vmj.RESULTS.mass_exhausted

@@ -176,7 +176,9 @@ def energy_balance(
     evaluated so that `lambda -> 0` tends smoothly to `a_k = a_{k-1} - 2 F/c`. `F_k = F_T`, or
     `f g (m_{k-1} + (pi delta/2) sqrt(m_{k-1}/c))` for mass-proportional friction. A negative
     `a_k` is a swing that did not pass `x = 0` (the tables' `*`); the mass stops when
-    `c |a_k| <= F`. Times are the sums of the half-periods `pi sqrt(m_{k-1}/c)`.
+    `c |a_k| <= F`. Times are the sums of the half-periods `pi sqrt(m_{k-1}/c)`. The map needs
+    an oscillation: where `lambda^2 >= 16 m c` the swing is over-damped (or runs away) and has
+    no turning point, reported as `RESULTS.step_limit`, as the exact solver reports it.
 
     **Arguments:** `model` ([`vmj.VariableMass`][], or any model with an energy map), `a0` [m]
     `> 0`, `n` (number of swings), `throw` as in [`vmj.turning_points`][].
