@@ -189,7 +189,7 @@ def test_coverage_variable_mass_exact():
     _check_coverage(results, VM_TRUTH, "variable-mass exact")
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_coverage_rope_fixed_length():
     """A rope of fixed length, its exact energy map as the forward model: T 49/50 (GN 49)."""
     records, given, truth = _rope_records(0.0, "energy")

@@ -184,7 +184,10 @@ def _amplitude_record(law, delta, mu):
     return fits.record_from_sequence(amplitudes=amps, source=f"{law} delta={delta} mu={mu}")
 
 
-@pytest.fixture(scope="module", params=["FT", pytest.param("f", marks=pytest.mark.long)])
+@pytest.fixture(
+    scope="module",
+    params=[pytest.param("FT", marks=pytest.mark.long), pytest.param("f", marks=pytest.mark.long)],
+)
 def variable_mass_batch(request):
     """The module's variable-mass records of one friction law in one batched solve: constant,
     growing and shrinking mass as amplitude-only records; for FT also table 1 (mu = 2,

@@ -211,6 +211,7 @@ def within(err: dict) -> bool:
     return all(e < (0.10 if name in DAMPING else 0.03) for name, e in err.items())
 
 
+@pytest.mark.long  # 30-40 s: with the long runs, for CI's time
 def test_synthetic_law_set_is_recovered(trajectories, tmp_path):
     """Default suite: one seed of the richest law set, fitted as that law set alone (one
     compiled model; the comparison of the eight law sets over 50 seeds is the slow test
