@@ -20,13 +20,14 @@ demo: $(STAMP)
 	$(BIN)/vmj table 1 --plot out/table1.png
 	@echo "figure written to out/table1.png"
 
-# lint, then the suite: it includes the documentation (every snippet and example runs, and
-# `mkdocs build --strict`, tests/test_docs.py) and the wheel (tests/test_wheel.py)
+# lint, then the suite: it includes the documentation (every snippet runs, and
+# `mkdocs build --strict`, tests/test_docs.py) and the wheel (tests/test_wheel.py); the examples
+# and the long acceptance runs are in `make test-long`
 test: lint
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not long"
 
-# the long acceptance runs (50-seed law-set choices, exact coverage runs, the pendulum on 80P.txt):
-# about an hour on 2 cores
+# the long runs (50-seed law-set choices, exact coverage runs, the pendulum on 80P.txt, the
+# examples, the heaviest fits tests): about an hour on 2 cores
 test-long: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m long
 

@@ -11,12 +11,10 @@ import sys
 import pytest
 from test_docs import ROOT, run, scratch
 
-# the pendulum example fits a 120-point measured record with the exact sine law (a minute even as
-# a smoke run): with the long runs (`make test-long`)
-LONG = {"fit_pendulum.py"}
+# each example is a fresh process that compiles its models (15-30 s each; the pendulum example a
+# minute even as a smoke run): with the long runs (`make test-long`), for CI's 15 minutes
 EXAMPLES = [
-    pytest.param(p, marks=pytest.mark.long) if p.name in LONG else p
-    for p in sorted((ROOT / "examples").glob("*.py"))
+    pytest.param(p, marks=pytest.mark.long) for p in sorted((ROOT / "examples").glob("*.py"))
 ]
 
 

@@ -79,6 +79,7 @@ def _mu_ok(estimate, truth, rel):
     return abs(estimate - truth) <= (rel * truth if truth > 0 else 0.3)
 
 
+@pytest.mark.long  # 40-60 s: with the long runs, for CI's time
 @pytest.mark.parametrize("which", ["coulomb_l2", "proportional_l2"])
 def test_synthetic_records_constant_growing_shrinking_mass(which, request):
     pairs = _synthetics(request.getfixturevalue(which))

@@ -37,6 +37,7 @@ def lowering(tmp_path_factory):
     return str(path), given, float(rope.T)
 
 
+@pytest.mark.long  # 30 s: with the long runs, for CI's time
 def test_rope_T_from_a_lowering_rope(lowering):
     path, given, T = lowering
     with warnings.catch_warnings():

@@ -202,6 +202,7 @@ def test_oscillator_fit_of_a_raw_signal(synthetic_signal):
     assert abs(r.decrement["zeta"] / TRUE["zeta"] - 1) < 0.2
 
 
+@pytest.mark.long  # 20-25 s: with the long runs, for CI's time
 def test_batched_equals_single_and_adam_agrees(synthetic_signal):
     path, _ = synthetic_signal
     rec = fits.read_record(path, series=True)
