@@ -320,7 +320,7 @@ def synthetic_records(count):
     return records
 
 
-@pytest.mark.slow
+@pytest.mark.long
 @pytest.mark.filterwarnings("ignore::UserWarning")  # FT and mu correlated in short records
 def test_batched_fit_of_200_records_on_the_cluster(client, tmp_path):
     import fits

@@ -333,7 +333,7 @@ def test_cli_sweep(tmp_path, capsys):
     assert "--set a0= (initial deflection [m])" in capsys.readouterr().err
 
 
-@pytest.mark.slow
+@pytest.mark.long  # 25 s: with the long runs, for CI's time
 def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
     # The smoothed solve's working memory per point is what XLA's memory analysis says (a few
     # kilobytes: its turning points come from events, not from a stored dense solution). Here
