@@ -210,6 +210,7 @@ class _Problem:
     robust_t: list = None
     sx: list = None  # per record: noise scale of positions [data units]
     st: list = None  # per record: noise scale of times [s]
+    tw: list = None  # per record: relative precision of each time (1: the noise scale `st`)
 
 
 @dataclass
@@ -360,7 +361,20 @@ def _psi_weight(loss, u):
     return 1.0 / (1.0 + (u / c) ** 2)
 
 
-def _init_weights(prob, N):
+def _time_precision(space, rec, N) -> np.ndarray:
+    """Relative precision of each turning point's time (padded to `N`): 1, or with
+    `space.time_noise == "amplitude"` the point's amplitude over the record's largest (the
+    vertex of an extremum of amplitude `a` is timed to about `noise / (a omega^2)`), at least
+    0.02."""
+    out = np.ones(N)
+    if space.time_noise == "amplitude":
+        a = np.asarray(rec.amplitudes, dtype=float)
+        out[: a.size] = np.maximum(a / max(float(np.max(a)), 1e-300), 0.02)
+    return out
+
+
+def _init_weights(prob, N, space):
+    prob.tw = [_time_precision(space, rec, N) for rec in prob.records]
     prob.sx = [max(rec.noise or 0.0, 1e-3 * float(np.max(rec.amplitudes))) for rec in prob.records]
     prob.st = [
         1e-3 * float(np.median(np.diff(rec.times))) if rec.times is not None else 1.0
@@ -384,7 +398,7 @@ def _set_weights(prob, N):
             ont = on.copy()
             if rec.k[0] == 0:
                 ont[0] = 0.0  # the release time is zero by definition
-            prob.wt.append(ont * np.sqrt(prob.robust_t[r]) / prob.st[r])
+            prob.wt.append(ont * np.sqrt(prob.robust_t[r]) * prob.tw[r] / prob.st[r])
 
 
 def _reweight(prob, job, loss, N):
@@ -397,7 +411,7 @@ def _reweight(prob, job, loss, N):
         amp = float(np.max(rec.amplitudes))
         prob.sx[i] = _robust_scale(rx[wx > 0], 1e-6 * amp)
         if rec.times is not None:
-            rt = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
+            rt = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0) * prob.tw[i][:m]  # in units of st
             prob.st[i] = _robust_scale(rt[wt > 0], 1e-9)
         if loss != "l2":
             prob.robust_x[i][:m] = np.nan_to_num(_psi_weight(loss, rx / prob.sx[i]), nan=0.0)
@@ -608,7 +622,7 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
         per_round[(len(j.slots), j.space)] = per_round.get((len(j.slots), j.space), 0) + starts
     shape = _Shape(N, q, max(n_model, 1), max(per_round.values()), settings)
     for prob in problems:
-        _init_weights(prob, N)
+        _init_weights(prob, N, space)
     has_times = any(rec.times is not None for prob in problems for rec in prob.records)
     passes = 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
     for it in range(passes):

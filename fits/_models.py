@@ -63,7 +63,9 @@ class Space:
     by BIC); `bounds` (`{name: (lo, hi)}`, narrower physical ranges than the kind's);
     `label` (the label of the full model in the comparison); `start(record, values, dec)`
     (optional: starting values from a record, the known values and its decrement estimate,
-    instead of `fits._decrement.starting_guess`'s).
+    instead of `fits._decrement.starting_guess`'s); `time_noise` (`"constant"`: every turning
+    point's time equally precise; `"amplitude"`: the times' noise inversely proportional to the
+    amplitude, as for extrema located in a sampled signal, weighted accordingly).
 
     Sensor parameters, applied by the fit when present in `names`: `offset` (the reading's
     zero) and `asym` (side-dependent gain): the reading is
@@ -84,6 +86,7 @@ class Space:
     bounds: Mapping = field(default_factory=dict)
     label: str = "both"
     start: Callable | None = None  #: `start(record, given, dec) -> {name: value}` (optional)
+    time_noise: str = "constant"  #: how the times' noise scales: "constant" or "amplitude"
 
     def index(self, name: str) -> int:
         return self.names.index(name)

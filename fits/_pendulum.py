@@ -4,11 +4,13 @@ set of dissipation laws, compared by BIC (issue 11).
 The model is [`vmj.Oscillator`][] with
 
     theta'' + 2 zeta omega theta' + omega^2 xF sign(theta') + cq theta' |theta'|
-            + omega^2 r(theta) = 0,      r(theta) = s(theta) + b2 theta^2 + b3 theta^3,
+            + omega^2 r(theta) = 0,   r(theta) = w sin(theta) + (1 - w) theta + b2 theta^2
+                                                  + b3 theta^3,
 
-`theta` the angle [rad] from the hanging position, `s` the sine (`SineRestoring`, the pendulum)
-or the identity (`PolynomialRestoring`, a linear spring), released from rest at `-a0`, read by
-a sensor with an offset and a side-dependent gain (applied by the fit, see `fits.Space`).
+`theta` the angle [rad] from the hanging position, `w` the sine's share of the restoring law
+(`vmj.SineRestoring(b2, b3, w)`: `w = 1` the pendulum, `w = 0` a linear spring), released from
+rest at `-a0`, read by a sensor with an offset and a side-dependent gain (applied by the fit,
+see `fits.Space`).
 
 **Units.** Angles of the record (and `a0`, `offset`, `xF`, `xS`) are in the signal's unit; the
 non-fitted `angle_unit` [rad per signal unit] converts them (default `pi/180`: degrees; the
@@ -16,17 +18,20 @@ command line's `--angle-unit`). `cq` is per signal unit [1/signal unit], like th
 The restoring law is written in radians whatever the signal's unit, so that `b2` [1/rad] and
 `b3` [1/rad^2] compare directly with the sine's own `-1/6` cubic term.
 
-**Variants.** The user-facing model `"pendulum"` is the sine space; its variants are the law
-sets a decay record can identify, restoring {sine, linear} x dissipation {viscous, Coulomb,
-viscous + Coulomb, viscous + Coulomb + quadratic}: eight fits, two compiled models (the
-linear and the sine restoring law). Every variant keeps the sensor (`offset`, `asym`), the
-release `a0`, `omega` and the even restoring term `b2` free when they are asked for: the
-centre of the turning points moves with the amplitude through the sensor's gain (`asym`,
-proportional to the amplitude) and through an even restoring term (`b2`, to its square), and
-a real record needs both (docs/pendulum-fits.md). `b3` and `xS` are held at 0 in every
-variant (`xS = 0` means "no static level above the kinetic one"); a fit that frees them is
-compared with the variants as asked. The headline result is the variant with the lowest BIC
-(`select=True`).
+**Variants.** The user-facing model `"pendulum"` is the sine law with every dissipation law;
+its variants are the law sets a decay record can identify, restoring {sine (`w = 1`), linear
+(`w = 0`)} x dissipation {viscous, Coulomb, viscous + Coulomb, viscous + Coulomb +
+quadratic}: eight fits of one compiled model, each law set holding the parameters it lacks at
+0. Every variant keeps the sensor (`offset`, `asym`), the release `a0`, `omega` and the even
+restoring term `b2` free when they are asked for: the centre of the turning points moves with
+the amplitude through the sensor's gain (`asym`, proportional to the amplitude) and through an
+even restoring term (`b2`, to its square), and a real record needs both
+(docs/pendulum-fits.md). `w` is held at 1 or 0 (fit it with `free + ("w",)`: a pendulum with a
+torsional stiffness at its pivot), `b3` and `xS` at 0 in every variant (`xS = 0` means "no
+static level above the kinetic one"); a fit that frees them is compared with the variants as
+asked. The times of the turning points are weighted by their amplitude (`time_noise =
+"amplitude"`: an extremum of a sampled signal is timed the less sharply the smaller it is).
+The headline result is the variant with the lowest BIC (`select=True`).
 """
 
 from __future__ import annotations
@@ -44,11 +49,11 @@ from ._io import Record
 from ._models import Space, Variant, first_amplitude, record_centre
 from ._sensor import _opposite, sensor_start
 
-__all__ = ["PENDULUM", "PENDULUM_LINEAR", "DEGREE", "DISSIPATION_SETS", "FREE"]
+__all__ = ["PENDULUM", "DEGREE", "DISSIPATION_SETS", "FREE"]
 
 DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: degrees
 
-NAMES = ("omega", "zeta", "xF", "xS", "cq", "b2", "b3", "a0", "offset", "asym", "angle_unit")
+NAMES = ("omega", "zeta", "xF", "xS", "cq", "b2", "b3", "w", "a0", "offset", "asym", "angle_unit")
 KINDS = (
     "positive",
     "damping",
@@ -57,6 +62,7 @@ KINDS = (
     "positive",
     "real",
     "real",
+    "unit",
     "positive",
     "real",
     "real",
@@ -70,6 +76,7 @@ UNITS = (
     "1/signal",
     "1/rad",
     "1/rad^2",
+    "-",
     "signal",
     "signal",
     "-",
@@ -90,9 +97,7 @@ DISSIPATION_SETS = {
 _SOLVERS = {"exact": vmj.Exact, "smooth": vmj.Smoothed, "energy": vmj.EnergyBalance}
 
 
-def _predictor(sine: bool):
-    law_of = vmj.SineRestoring if sine else vmj.PolynomialRestoring
-
+def _predictor():
     def predict(theta: dict, n: int, forward: str):
         """Release and first `n` turning points `(times [s], signed angles [signal unit])`."""
         u = theta["angle_unit"]
@@ -100,7 +105,7 @@ def _predictor(sine: bool):
         static = jnp.maximum(theta["xS"], theta["xF"]) * u  # xS below xF: no static excess
         model = vmj.Oscillator(
             theta["omega"],
-            law_of(theta["b2"], theta["b3"]),
+            vmj.SineRestoring(theta["b2"], theta["b3"], theta["w"]),
             (
                 vmj.ViscousDamping(theta["zeta"]),
                 vmj.CoulombDamping(kinetic, static),
@@ -196,8 +201,8 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
         xF, zeta, cq = losses
     omega = dec["omega"] or 1.0
     # the sine's frequency falls with the amplitude: the mean half-period is about that of
-    # 0.6 of the release amplitude, where the sine's frequency is 1 - A^2/16
-    omega /= 1 - (0.6 * a0 * u) ** 2 / 16
+    # 0.6 of the release amplitude, where the sine's frequency is 1 - A^2/16 (its share w)
+    omega /= 1 - float(given.get("w", 1.0)) * (0.6 * a0 * u) ** 2 / 16
     return {
         "omega": omega,
         "zeta": min(max(zeta, 1e-4), 0.5),
@@ -206,6 +211,7 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
         "cq": max(cq, 1e-4 / a0),
         "b2": b2,
         "b3": 0.0,
+        "w": float(given.get("w", 1.0)),
         "a0": a0,
         "offset": offset,
         "asym": asym,
@@ -213,16 +219,16 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
     }
 
 
-def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) -> Space:
+def _space(variants: tuple = (), select: bool = False) -> Space:
     return Space(
-        name=name,
+        name="pendulum",
         names=NAMES,
         kinds=KINDS,
         units=UNITS,
         dry=("xF",),
         viscous=("zeta",),
         required=("omega",),
-        predict=_predictor(sine),
+        predict=_predictor(),
         defaults={
             "zeta": 0.0,
             "xF": 0.0,
@@ -230,6 +236,7 @@ def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) ->
             "cq": 0.0,
             "b2": 0.0,
             "b3": 0.0,
+            "w": 1.0,
             "asym": 0.0,
             "angle_unit": DEGREE,
             "a0": first_amplitude,
@@ -238,23 +245,25 @@ def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) ->
         variants=variants,
         select=select,
         bounds={"asym": (-0.5, 0.5)},
-        label=("sine" if sine else "linear") + ":viscous+coulomb+quadratic",
+        label="sine:viscous+coulomb+quadratic",
         start=_start,
+        time_noise="amplitude",
     )
 
 
-#: the linear-restoring space (compiled separately; reached through the pendulum's variants)
-PENDULUM_LINEAR = _space("pendulum-linear", sine=False)
+#: the space of the variants: equal to `PENDULUM` (by name), so one compiled solve serves all
+_VARIANT_SPACE = _space()
 
 
 def _variants() -> tuple:
     out = []
-    for restoring, space in (("sine", None), ("linear", PENDULUM_LINEAR)):
+    for restoring, w in (("sine", 1.0), ("linear", 0.0)):
         for label, zero in DISSIPATION_SETS.items():
-            hold = {"b3": 0.0, "xS": 0.0, **{n: 0.0 for n in zero}}
-            out.append(Variant(f"{restoring}:{label}", space, hold))
+            hold = {"b3": 0.0, "xS": 0.0, "w": w, **{n: 0.0 for n in zero}}
+            headline = restoring == "sine" and not zero  # the model asked for (`Space.label`)
+            out.append(Variant(f"{restoring}:{label}", None if headline else _VARIANT_SPACE, hold))
     return tuple(out)
 
 
-#: the pendulum model (`"pendulum"`): sine restoring law, every law set compared by BIC
-PENDULUM = _space("pendulum", sine=True, variants=_variants(), select=True)
+#: the pendulum model (`"pendulum"`): every restoring x dissipation law set compared by BIC
+PENDULUM = _space(variants=_variants(), select=True)

@@ -163,10 +163,15 @@ def _used(job, prob, N):
 def _information(job, prob, N):
     idx, _ = _used(job, prob, N)
     n = idx.size
-    q = int(np.sum(job.code != HELD))
+    q = int(np.sum(job.code != HELD))  # moved by the solver: the residuals' degrees of freedom
+    # the criteria count every free parameter of the model, also one that ended on a bound (a
+    # law whose level went to 0 is still a law of the model: counting only the moved ones
+    # would tie a model whose extra law vanished with its sub-model, and a tie or a 1e-9 lower
+    # rss would then report the larger law set)
+    k = len(job.slots)
     rss = job.rss
     ll = n * math.log(max(rss, 1e-300) / n)
-    return {"aic": ll + 2 * q, "bic": ll + q * math.log(n), "rss": rss, "n": n, "q": q}
+    return {"aic": ll + 2 * k, "bic": ll + k * math.log(n), "rss": rss, "n": n, "q": q}
 
 
 # -- results -----------------------------------------------------------------------------------

@@ -14,17 +14,31 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 
-def restoring(kind: str, b2=0.0, b3=0.0):
-    base = {"linear": lambda x: x, "sine": np.sin}[kind]
-    return lambda x: base(x) + b2 * x * x + b3 * x**3
+def restoring(kind: str, b2=0.0, b3=0.0, w=1.0):
+    """`r(x)`: the linear law, or the sine with a share `1 - w` of the linear one, plus the
+    polynomial terms."""
+    if kind == "linear":
+        return lambda x: x + b2 * x * x + b3 * x**3
+    return lambda x: w * np.sin(x) + (1 - w) * x + b2 * x * x + b3 * x**3
 
 
 def oscillator_turning_points(
-    omega, a0, n, kind="linear", zeta=0.0, xF=0.0, xS=None, cq=0.0, b2=0.0, b3=0.0, rtol=1e-12
+    omega,
+    a0,
+    n,
+    kind="linear",
+    zeta=0.0,
+    xF=0.0,
+    xS=None,
+    cq=0.0,
+    b2=0.0,
+    b3=0.0,
+    w=1.0,
+    rtol=1e-12,
 ):
     """(times, positions) of the first `n` turning points (fewer if the mass sticks)."""
     xS = xF if xS is None else xS
-    r = restoring(kind, b2, b3)
+    r = restoring(kind, b2, b3, w)
     t, x = 0.0, -a0
     out_t, out_x = [], []
     for _ in range(n):

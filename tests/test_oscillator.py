@@ -19,12 +19,13 @@ import vmj
 
 OMEGA, A0, N = 6.0, 1.0, 24
 
-#: restoring laws: (reference kind, b2, b3)
+#: restoring laws: (reference kind, b2, b3, the sine's share w)
 RESTORING = {
-    "linear": ("linear", 0.0, 0.0),
-    "polynomial": ("linear", 0.05, 0.3),
-    "sine": ("sine", 0.0, 0.0),
-    "sine+cubic": ("sine", 0.03, -0.02),
+    "linear": ("linear", 0.0, 0.0, 1.0),
+    "polynomial": ("linear", 0.05, 0.3, 1.0),
+    "sine": ("sine", 0.0, 0.0, 1.0),
+    "sine+cubic": ("sine", 0.03, -0.02, 1.0),
+    "sine+spring": ("sine", 0.03, 0.0, 0.5),
 }
 DISSIPATION = {
     "viscous": dict(zeta=0.01),
@@ -34,13 +35,17 @@ DISSIPATION = {
     "all": dict(zeta=0.005, xF=0.005, xS=0.012, cq=0.03),
 }
 #: the model structures: one per restoring law class
-STRUCTURES = {"linear": ["linear"], "polynomial": ["polynomial"], "sine": ["sine", "sine+cubic"]}
+STRUCTURES = {
+    "linear": ["linear"],
+    "polynomial": ["polynomial"],
+    "sine": ["sine", "sine+cubic", "sine+spring"],
+}
 
 
 def law(name):
-    kind, b2, b3 = RESTORING[name]
+    kind, b2, b3, w = RESTORING[name]
     if kind == "sine":
-        return vmj.SineRestoring(b2, b3)
+        return vmj.SineRestoring(b2, b3, w)
     return vmj.LinearRestoring() if name == "linear" else vmj.PolynomialRestoring(b2, b3)
 
 
@@ -89,8 +94,8 @@ def test_exact_matches_scipy(structure):
     5e-12 and 6e-13)."""
     times, positions, count = solved(structure, "exact")
     for i, (r, d) in enumerate(cases(structure)):
-        kind, b2, b3 = RESTORING[r]
-        rt, rx = oscillator_turning_points(OMEGA, A0, N, kind, b2=b2, b3=b3, **DISSIPATION[d])
+        kind, b2, b3, w = RESTORING[r]
+        rt, rx = oscillator_turning_points(OMEGA, A0, N, kind, b2=b2, b3=b3, w=w, **DISSIPATION[d])
         assert count[i] == len(rx), (r, d)
         np.testing.assert_allclose(positions[i, : len(rx)], rx, rtol=1e-9, err_msg=f"{r} {d}")
         np.testing.assert_allclose(times[i, : len(rt)], rt, rtol=1e-10, err_msg=f"{r} {d}")

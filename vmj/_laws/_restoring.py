@@ -18,7 +18,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array
 
-from .._checks import AbstractParams, _float, anything
+from .._checks import AbstractParams, _float, anything, unit_interval
 from .._numerics._series import cauchy_term
 
 __all__ = ["RestoringLaw", "LinearRestoring", "PolynomialRestoring", "SineRestoring"]
@@ -181,9 +181,14 @@ class PolynomialRestoring(RestoringLaw):
         return xs[n] + extra, work
 
     def radius(self, a):
-        # the Duffing solution a cn(Omega t, k) has its poles at distance K'(k)/Omega >= 1.85/
-        # Omega; pi/2 over the root of the tangent-stiffness bound is below that
-        return 0.5 * jnp.pi / jnp.sqrt(self.stiffness_bound(a))
+        # the Duffing solution a cn(Omega t, k), k^2 ~ |b3| a^2 / 2, has its poles at distance
+        # K'(k)/Omega > max(pi/2, ln(4/k))/Omega from the real axis; the quadratic term's poles
+        # (a Weierstrass function) lie about ln(1/(|b2| a)) + 2 away (measured from the
+        # series' root test for |b2| a in [0.002, 0.5]), more than ln(4/(|b2| a)): the bound
+        # takes the two terms' k added, over the root of the tangent-stiffness bound
+        a = jnp.abs(a)
+        k = jnp.maximum((jnp.abs(self.b2) + jnp.sqrt(0.5 * jnp.abs(self.b3))) * a, 1e-300)
+        return jnp.maximum(0.5 * jnp.pi, jnp.log(4 / k)) / jnp.sqrt(self.stiffness_bound(a))
 
     def frequency(self, a):
         return _cubic_frequency(self, a)
@@ -193,37 +198,49 @@ class PolynomialRestoring(RestoringLaw):
 
 
 class SineRestoring(RestoringLaw):
-    """The pendulum, `r(x) = sin(x) + b2 x^2 + b3 x^3`, `x` the angle [rad] from the hanging
-    position and `omega = sqrt(g/l)` (`sqrt(m g d / J)` for a physical pendulum) [rad/s].
+    """The pendulum, `r(x) = w sin(x) + (1 - w) x + b2 x^2 + b3 x^3`, `x` the angle [rad] from
+    the hanging position and `omega = sqrt(g/l)` (`sqrt(m g d / J)` for a physical pendulum)
+    [rad/s].
 
     **Arguments:**
 
     - `b2`: quadratic correction [1/rad], default 0 (an asymmetric restoring torque).
     - `b3`: cubic correction [1/rad^2], default 0 (a restoring law between the sine and the
       linear one, or stiffer, as measured large-angle data may ask for).
+    - `w`: the sine's share of the restoring torque [-], in `[0, 1]`, default 1 (gravity
+      alone). A pendulum whose pivot also has a torsional stiffness `k` has
+      `w = m g d / (m g d + k)` (and `omega^2 = (m g d + k) / J`); `w = 0` is the linear
+      (polynomial) law.
     """
 
     angular: ClassVar[bool] = True
 
     b2: Array = eqx.field(converter=_float, default=0.0)
     b3: Array = eqx.field(converter=_float, default=0.0)
+    w: Array = eqx.field(converter=_float, default=1.0)
     _limits: ClassVar[dict] = {
         "b2": (anything, "a real number [1/rad]"),
         "b3": (anything, "a real number [1/rad^2]"),
+        "w": (unit_interval, "in [0, 1] [-]"),
     }
 
     def value(self, x):
-        return jnp.sin(x) + _cubic(self, x)
+        return self.w * jnp.sin(x) + (1 - self.w) * x + _cubic(self, x)
 
     def stiffness(self, x):
-        return jnp.cos(x) + _cubic_stiffness(self, x)
+        return self.w * jnp.cos(x) + (1 - self.w) + _cubic_stiffness(self, x)
 
     def potential(self, x):
-        return 2 * jnp.sin(0.5 * x) ** 2 + _cubic_potential(self, x)
+        return (
+            self.w * 2 * jnp.sin(0.5 * x) ** 2
+            + (1 - self.w) * 0.5 * x * x
+            + _cubic_potential(self, x)
+        )
 
     def chord(self, x, z):
         # (cos x - cos(x + z)) / z = sin(x + z/2) sinc(z/2)
-        return jnp.sin(x + 0.5 * z) * jnp.sinc(z / (2 * jnp.pi)) + _cubic_chord(self, x, z)
+        sine = jnp.sin(x + 0.5 * z) * jnp.sinc(z / (2 * jnp.pi))
+        return self.w * sine + (1 - self.w) * (x + 0.5 * z) + _cubic_chord(self, x, z)
 
     def series_start(self, x0, k):
         zeros = jnp.zeros(k, dtype=jnp.result_type(x0, self.b3))
@@ -238,20 +255,27 @@ class SineRestoring(RestoringLaw):
         s = s.at[n].set(jnp.where(n == 0, s[0], cauchy_term(jx, c, n) / m))
         c = c.at[n].set(jnp.where(n == 0, c[0], -cauchy_term(jx, s, n) / m))
         extra, x2 = _cubic_term(self, n, xs, x2)
-        return s[n] + extra, (s, c, x2)
+        return self.w * s[n] + (1 - self.w) * xs[n] + extra, (s, c, x2)
 
     def radius(self, a):
         # x = 2 arcsin(k sn(omega t, k)), k = sin(a/2), is singular at distance K'(k)/omega from
-        # the real axis, and K'(k) > max(pi/2, ln(4/k))
-        k = jnp.sin(0.5 * jnp.clip(jnp.abs(a), 1e-300, jnp.pi))
+        # the real axis, and K'(k) > max(pi/2, ln(4/k)); a share w of the sine is a softening
+        # cubic -w x^3/6 to leading order (k ~ sqrt(w) sin(a/2)); the polynomial terms add their
+        # own k (see PolynomialRestoring.radius)
+        a = jnp.abs(a)
+        poly = (jnp.abs(self.b2) + jnp.sqrt(0.5 * jnp.abs(self.b3))) * a
+        k = jnp.sqrt(self.w) * jnp.sin(0.5 * jnp.clip(a, 1e-300, jnp.pi))
+        k = jnp.maximum(k + jnp.where(self.w == 1, 0.0, poly), 1e-300)
         return jnp.maximum(0.5 * jnp.pi, jnp.log(4 / k)) / jnp.sqrt(self.stiffness_bound(a))
 
     def frequency(self, a):
-        # pi / (2 K(sin(a/2))) = AGM(1, cos(a/2)), times the polynomial terms' factor
+        # pi / (2 K(sin(a/2))) = AGM(1, cos(a/2)) for the sine, 1 for the linear share (their
+        # squares mixed by the shares), times the polynomial terms' factor
         p, q = jnp.ones_like(a), jnp.maximum(jnp.cos(0.5 * jnp.minimum(jnp.abs(a), 3.1)), 1e-3)
         for _ in range(6):
             p, q = 0.5 * (p + q), jnp.sqrt(p * q)
-        return p * _cubic_frequency(self, a)
+        mixed = jnp.where(self.w == 1, p, jnp.sqrt(self.w * p * p + 1 - self.w))
+        return mixed * _cubic_frequency(self, a)
 
     def stiffness_bound(self, a):
         return _cubic_bound(self, a)
