@@ -207,6 +207,45 @@ def test_units_convert_between_degrees_and_radians():
     np.testing.assert_allclose(np.asarray(x_rad)[1:], np.asarray(direct.positions), rtol=1e-12)
 
 
+def test_law_sets_share_one_compiled_model():
+    """The eight law sets are one space (the restoring law's sine share `w` held at 1 or 0):
+    one compiled solve serves the comparison."""
+    labels = {v.label for v in PENDULUM.variants}
+    assert labels == {label(sine, d) for sine, d in LAW_SETS}
+    assert all(v.space is None or v.space == PENDULUM for v in PENDULUM.variants)
+    assert {v.hold["w"] for v in PENDULUM.variants} == {0.0, 1.0}
+    assert PENDULUM.time_noise == "amplitude"
+
+
+def test_bic_counts_a_law_that_ended_on_its_bound():
+    """A law set whose extra law went to 0 (its slot held at the bound by the solver) counts
+    that parameter: with the sub-model's residuals it is `log n` behind it in BIC, not tied."""
+    from fits._fit import _Problem, _time_precision
+    from fits._params import HELD, LOWER
+    from fits._result import _information
+
+    N, m = 16, 12
+    rec = fits.record_from_sequence(
+        positions=[(-1) ** (k + 1) * (10.0 - 0.5 * k) for k in range(m)],
+        times=[0.1 * k for k in range(m)],
+    )
+    on = np.r_[np.ones(m), np.zeros(N - m)]
+    prob = _Problem([rec], [{}], (), (), [None], wx=[on], wt=[on])
+
+    class Job:
+        slots = [("zeta", None), ("xF", None), ("cq", None)]
+        code = np.array([LOWER, LOWER, HELD])  # cq ran into 0
+        rss = 30.0
+
+    sub = type("Sub", (), {"slots": Job.slots[:2], "code": Job.code[:2], "rss": 30.0})
+    big, small = _information(Job, prob, N), _information(sub, prob, N)
+    assert big["q"] == small["q"] == 2  # the residuals' degrees of freedom
+    assert big["bic"] - small["bic"] == pytest.approx(math.log(2 * m))
+    # the times of smaller extrema weigh less: precision proportional to the amplitude
+    tw = _time_precision(PENDULUM, rec, N)
+    np.testing.assert_allclose(tw[:m], rec.amplitudes / np.max(rec.amplitudes))
+
+
 def within(err: dict) -> bool:
     return all(e < (0.10 if name in DAMPING else 0.03) for name, e in err.items())
 
