@@ -581,6 +581,38 @@ def _fit_all(jobs, problems, shape, first_pass):
             best = subs.get(id(job))
             if best is not None and not job.rss <= best.rss * (1 + 1e-9):
                 _adopt(job, best, problems, shape)
+    if first_pass:
+        _restart_from_larger(jobs, problems, shape)
+
+
+def _restart_from_larger(jobs, problems, shape):
+    """A sub-model that ended worse than a larger model it is nested in (stuck in another
+    basin) is solved again from that model's optimum, its own held parameters at their values
+    (the larger model's extra laws removed), and keeps the better; the larger models are then
+    checked again against their sub-models (never reported worse)."""
+    twins = {}
+    for job in jobs:
+        larger = [b for b in jobs if b.out is not None and _nested_in(job, b) and b.rss < job.rss]
+        if larger:
+            twin = _twin(job)
+            twin.p = _coordinates(twin, _values_of(min(larger, key=lambda b: b.rss)))
+            twins[id(job)] = twin
+    if not twins:
+        return
+    _fit_jobs(list(twins.values()), problems, shape)
+    for job in jobs:
+        twin = twins.get(id(job))
+        if twin is not None:
+            job.iterations += twin.iterations
+            if twin.rss < job.rss:
+                for name in ("code", "held", "p", "bound_hit", "out", "rss"):
+                    setattr(job, name, getattr(twin, name))
+    for job in sorted(jobs, key=lambda j: len(j.slots)):
+        nested = [a for a in jobs if a.out is not None and _nested_in(a, job)]
+        if nested:
+            best = min(nested, key=lambda a: a.rss)
+            if not job.rss <= best.rss * (1 + 1e-9):
+                _adopt(job, best, problems, shape)
 
 
 # -- the driver --------------------------------------------------------------------------------
