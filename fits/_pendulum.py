@@ -94,12 +94,10 @@ DISSIPATION_SETS = {
     "viscous+coulomb+quadratic": (),
 }
 
-_SOLVERS = {"exact": vmj.Exact, "smooth": vmj.Smoothed, "energy": vmj.EnergyBalance}
 
-
-def _predictor():
-    def predict(theta: dict, n: int, forward: str):
-        """Release and first `n` turning points `(times [s], signed angles [signal unit])`."""
+def _builder():
+    def build(theta: dict):
+        """The vmj oscillator in radians, its release angle [rad] and `angle_unit`."""
         u = theta["angle_unit"]
         kinetic = theta["xF"] * u
         static = jnp.maximum(theta["xS"], theta["xF"]) * u  # xS below xF: no static excess
@@ -112,13 +110,9 @@ def _predictor():
                 vmj.QuadraticDamping(theta["cq"] / u),
             ),
         )
-        a0 = theta["a0"]
-        seq = vmj.turning_points(model, a0 * u, n, _SOLVERS[forward]())
-        times = jnp.concatenate([jnp.zeros((1,)), seq.times])
-        angles = jnp.concatenate([-jnp.reshape(a0, (1,)), seq.positions / u])
-        return times, angles
+        return model, theta["a0"] * u, u
 
-    return predict
+    return build
 
 
 def _losses(amplitudes: np.ndarray) -> tuple[float, float, float]:
@@ -228,7 +222,7 @@ def _space(variants: tuple = (), select: bool = False) -> Space:
         dry=("xF",),
         viscous=("zeta",),
         required=("omega",),
-        predict=_predictor(),
+        model=_builder(),
         defaults={
             "zeta": 0.0,
             "xF": 0.0,
