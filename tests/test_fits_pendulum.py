@@ -5,7 +5,7 @@ side-dependent gain, noise 0.2 % of the amplitude), must give every parameter wi
 (residual lag-1 autocorrelation at least halved against the plain oscillator fit).
 
 The records are simulated once per law set (module fixture) and fitted with `fits.fit_batch`
-over the seeds: one compiled solve per restoring law.
+over the seeds: one compiled solve for every law set.
 """
 
 import collections
@@ -305,11 +305,11 @@ def lag1(r) -> float:
 @pytest.mark.long
 def test_80p_residuals_lose_their_structure(record_80p):
     """The pendulum model at least halves the residual lag-1 autocorrelation of the plain
-    oscillator fit (issue 11; measured 0.944 -> 0.02 on the positions), with a position RMS
-    below a quarter of it (0.290 -> 0.0215 deg). The times keep a smooth wander of +-2 ms
+    oscillator fit (issue 11; measured 0.944 -> -0.16 on the positions), with a position RMS
+    below a quarter of it (0.290 -> 0.0198 deg). The times keep a smooth wander of +-2 ms
     (the logger's clock, not a law: it is not monotonic in the amplitude), so the pooled
-    lag-1 of positions and times falls less (0.955 -> 0.70). Slow: the eight law sets of a
-    120-point record, about 5 minutes on 2 cores."""
+    lag-1 of the weighted positions and times falls less (0.955 -> 0.51). Slow: the eight law
+    sets of a 120-point record, 2.5 minutes of CPU."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         plain = fits.fit(
