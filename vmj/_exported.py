@@ -100,8 +100,11 @@ class _ExportedJit:
         leaves, treedef = jax.tree.flatten(dynamic)
         if any(isinstance(x, jax.core.Tracer) for x in leaves):
             return self.jitted(*args)
+        typeof = getattr(jax, "typeof", None)  # (JAX >= 0.4.36; before, the plain path)
+        if typeof is None:
+            return self.jitted(*args)
         try:
-            avals = tuple(jax.typeof(x) for x in leaves)
+            avals = tuple(typeof(x) for x in leaves)
             key = (_directory[0], jax.config.jax_enable_x64, static, treedef, avals)
             entry = self.loaded.get(key)
         except TypeError:  # a leaf that is no array, or an unhashable static argument
