@@ -117,6 +117,14 @@ def add_arguments(p):
         action="store_true",
         help="FILE is a raw signal: extract the turning points first",
     )
+    p.add_argument(
+        "--residuals",
+        choices=("turning-points", "series"),
+        default="turning-points",
+        help="what the fit compares: the turning points (default) or, with --series, every "
+        "sample of the raw signal against the exact motion between the turning points (the "
+        "turning-point fit starts it; the release's time shift t0 is fitted)",
+    )
     p.add_argument("--time-col", help="raw signal: time column (name or 0-based index)")
     p.add_argument("--signal-col", help="raw signal: signal column (name or 0-based index)")
     p.add_argument(
@@ -144,7 +152,7 @@ def add_arguments(p):
         action="store_true",
         help="print one JSON object: model, params, stderr, stderr_gn, intervals, "
         "correlation, converged, iterations, rms, diagnostics, "
-        "model_comparison[, records, clock], units",
+        "model_comparison, residuals_of[, records, clock], units",
     )
     p.add_argument("--plot", metavar="PATH", type=figure_path, help="write a figure (PNG) to PATH")
 
@@ -190,6 +198,7 @@ def run(args) -> int:
             forward=args.forward,
             loss=args.loss,
             optimizer=args.optimizer,
+            residuals=args.residuals,
         )
     if args.plot:
         fits.plot_fit(result, args.plot)
@@ -198,7 +207,8 @@ def run(args) -> int:
         for w in result.warnings:
             print(f"vmj: warning: {w}", file=sys.stderr)
         if result.outliers:
-            print(f"vmj: warning: outliers at k = {result.outliers}", file=sys.stderr)
+            where = "samples" if result.residuals_of == "series" else "k ="
+            print(f"vmj: warning: outliers at {where} {result.outliers}", file=sys.stderr)
     else:
         print(result.report())
     return 0

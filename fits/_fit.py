@@ -42,7 +42,7 @@ import vmj
 
 from ._decrement import decrement, starting_guess
 from ._io import Record
-from ._models import FORWARDS, SPACES, Space
+from ._models import FORWARDS, SPACES, Space, series_space
 from ._params import (
     HELD,
     INTERVAL,
@@ -58,9 +58,10 @@ from ._params import (
 from ._result import FitResult, _information, _result, _robust_scale, _values_of
 from ._solve import _TUNING, _job_arrays, _rss, _Shape, _solve
 
-__all__ = ["FitResult", "fit", "fit_batch", "LOSSES", "OPTIMIZERS"]
+__all__ = ["FitResult", "fit", "fit_batch", "LOSSES", "OPTIMIZERS", "RESIDUALS"]
 
 LOSSES = ("l2", "huber", "cauchy")
+RESIDUALS = ("turning-points", "series")
 OPTIMIZERS = ("lm", "adam")
 _ROBUST_PASSES = 10
 
@@ -210,6 +211,7 @@ class _Problem:
     robust_t: list = None
     sx: list = None  # per record: noise scale of positions [data units]
     st: list = None  # per record: noise scale of times [s]
+    turning: list = None  # series fits: the turning-point records the samples belong to
 
 
 @dataclass
@@ -239,23 +241,15 @@ class _Job:
     signs: list = None  # per record: sides assumed for amplitude-only data (a start hypothesis)
 
 
-def _make_job(index, prob, space, label, free, hold, bounds, headline):
+def _make_job(index, prob, space, label, free, hold, bounds, headline, fixed=None, start=None):
+    """A job of problem `index`; `fixed` and `start` (per record dicts) default to the
+    parameters' given or default values and the starting guess from the decrement estimate."""
     R = len(prob.records)
-    fixed = [
+    fixed = fixed or [
         _fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names}, hold)
         for rec, g in zip(prob.records, prob.givens)
     ]
-    start = []
-    for rec, g, dec, fx in zip(prob.records, prob.givens, prob.decs, fixed):
-        guess = starting_guess(
-            space, rec, {**fx, **{k: v for k, v in g.items() if k in space.names}}, dec
-        )
-        defaults = {n: space.default(n, rec) for n in free if n in space.defaults}
-        st = {**{n: v for n, v in defaults.items() if v is not None}, **guess, **fx}
-        for name in free:
-            if name not in st:
-                raise ValueError(f"no starting value for {name}: give one with --set {name}=VALUE")
-        start.append(st)
+    start = start or _starts(prob, space, free, fixed)
     slots = []
     for name in free:
         if R == 1 or name in prob.shared:
@@ -294,6 +288,22 @@ def _make_job(index, prob, space, label, free, hold, bounds, headline):
     )
     job.p = _coordinates(job, [dict(s) for s in start])
     return job
+
+
+def _starts(prob, space, free, fixed) -> list:
+    """Per record the starting value of every parameter: fixed, given, else the decrement
+    estimate's guess, else the physical default."""
+    out = []
+    for rec, g, dec, fx in zip(prob.records, prob.givens, prob.decs, fixed):
+        given = {**fx, **{k: v for k, v in g.items() if k in space.names}}
+        guess = starting_guess(space, rec, given, dec)
+        defaults = {n: space.default(n, rec) for n in free if n in space.defaults}
+        st = {**{n: v for n, v in defaults.items() if v is not None}, **guess, **fx}
+        for name in free:
+            if name not in st:
+                raise ValueError(f"no starting value for {name}: give one with --set {name}=VALUE")
+        out.append(st)
+    return out
 
 
 def _slot_start(job, s):
@@ -344,9 +354,10 @@ def _jobs_for(index, prob, space, bounds, compare) -> list:
     return jobs
 
 
-def _bucket(n: int) -> int:
-    """Round a length up to a multiple of 8, so records of similar length share a compilation."""
-    return max(8, -(-n // 8) * 8)
+def _bucket(n: int, step: int = 8) -> int:
+    """Round a length up to a multiple of `step`, so records of similar length share a
+    compilation."""
+    return max(step, -(-n // step) * step)
 
 
 # -- weights -----------------------------------------------------------------------------------
@@ -371,6 +382,12 @@ def _init_weights(prob, N):
     _set_weights(prob, N)
 
 
+def _timed(prob, rec) -> bool:
+    """Whether the record's times are data (turning-point records with times; the sample times
+    of a series fit are not)."""
+    return rec.times is not None and prob.turning is None
+
+
 def _set_weights(prob, N):
     prob.wx, prob.wt = [], []
     for r, rec in enumerate(prob.records):
@@ -378,7 +395,7 @@ def _set_weights(prob, N):
         on = np.zeros(N)
         on[:m] = 1.0
         prob.wx.append(on * np.sqrt(prob.robust_x[r]) / prob.sx[r])
-        if rec.times is None:
+        if not _timed(prob, rec):
             prob.wt.append(np.zeros(N))
         else:
             ont = on.copy()
@@ -396,12 +413,12 @@ def _reweight(prob, job, loss, N):
         rx = r_all[i, 0, :m] / np.where(wx > 0, wx, 1.0)
         amp = float(np.max(rec.amplitudes))
         prob.sx[i] = _robust_scale(rx[wx > 0], 1e-6 * amp)
-        if rec.times is not None:
+        if _timed(prob, rec):
             rt = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
             prob.st[i] = _robust_scale(rt[wt > 0], 1e-9)
         if loss != "l2":
             prob.robust_x[i][:m] = np.nan_to_num(_psi_weight(loss, rx / prob.sx[i]), nan=0.0)
-            if rec.times is not None:
+            if _timed(prob, rec):
                 prob.robust_t[i][:m] = np.nan_to_num(_psi_weight(loss, rt / prob.st[i]), nan=0.0)
     _set_weights(prob, N)
 
@@ -594,29 +611,108 @@ def _problem(space, records, givens, free, shared):
     return _Problem(recs, [dict(g) for g in givens], tuple(free), tuple(shared), decs)
 
 
-def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
-    jobs = []
-    for i, prob in enumerate(problems):
-        jobs.extend(_jobs_for(i, prob, space, bounds, compare))
-    N = _bucket(max(len(rec) for prob in problems for rec in prob.records))
-    n_model = _bucket(max(int(rec.k[-1]) for prob in problems for rec in prob.records))
+def _shape(jobs, problems, settings, n_model) -> _Shape:
+    """The compiled shape of a set of jobs: points per record, slots, turning points
+    predicted, and jobs per solve (the most that one round solves for one space, counting the
+    extra starts of the first pass, see `_fit_all`)."""
+    step = 8 if problems[0].turning is None else 512  # series: thousands of samples
+    N = _bucket(max(len(rec) for prob in problems for rec in prob.records), step)
     q = max(len(j.slots) for j in jobs)
     per_round = {}
-    for j in jobs:  # extra starts on the first pass (see _fit_all)
+    for j in jobs:
         amp_only = not all(rec.sides_known for rec in problems[j.problem].records)
         starts = 1 + any(_nested_in(a, j) for a in jobs) + amp_only * len(_HYPOTHESES)
         per_round[(len(j.slots), j.space)] = per_round.get((len(j.slots), j.space), 0) + starts
-    shape = _Shape(N, q, max(n_model, 1), max(per_round.values()), settings)
+    return _Shape(N, q, max(_bucket(n_model), 1), max(per_round.values()), settings)
+
+
+def _passes(jobs, problems, shape, settings):
+    """Every job solved in rounds (`_fit_all`), the noise scales (and robust weights) of each
+    problem re-estimated from its headline fit between passes: once more with times (the
+    scales of positions and times set their relative weights), ten times for a robust loss."""
     for prob in problems:
-        _init_weights(prob, N)
-    has_times = any(rec.times is not None for prob in problems for rec in prob.records)
+        _init_weights(prob, shape.N)
+    has_times = any(_timed(prob, rec) for prob in problems for rec in prob.records)
     passes = 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
     for it in range(passes):
         _fit_all(jobs, problems, shape, first_pass=it == 0)
         if it + 1 < passes:
             for i, prob in enumerate(problems):
                 lead = next(j for j in jobs if j.problem == i and j.headline)
-                _reweight(prob, lead, settings["loss"], N)
+                _reweight(prob, lead, settings["loss"], shape.N)
+
+
+_SERIES_MARGIN = 8  #: turning points the series model computes past the record's last one
+
+
+def _samples(rec: Record) -> Record:
+    """The raw samples of an extracted record from its release to its last turning point: the
+    data of a fit on the whole time series (`k` numbers the samples)."""
+    if rec.signal is None:
+        raise ValueError(
+            f"{rec.source or 'record'}: residuals='series' needs a raw signal (vmj fit --series "
+            "FILE; fits.read_record(path, series=True))"
+        )
+    t = np.asarray(rec.signal.t, dtype=float) - rec.time_origin
+    keep = (t >= 0) & (t <= rec.times[-1])
+    return dataclasses.replace(
+        rec,
+        k=np.arange(int(np.sum(keep))),
+        positions=np.asarray(rec.signal.y, dtype=float)[keep],
+        times=t[keep],
+    )
+
+
+def _series_stage(problems, jobs, bounds, settings):
+    """The fits on the whole time series: each turning-point job refitted on its records'
+    samples (its space's `series_space`, with the release's time shift `t0` free per record),
+    started from the turning-point solution; the same rounds, nested starts and passes."""
+    sprobs = [
+        _Problem(
+            [_samples(rec) for rec in prob.records],
+            prob.givens,
+            prob.free + ("t0",),
+            prob.shared,
+            prob.decs,
+            turning=prob.records,
+        )
+        for prob in problems
+    ]
+    sjobs = []
+    for job in jobs:
+        space = series_space(job.space)
+        start = [dict(v, t0=0.0) for v in _values_of(job)]
+        b = {k: v for k, v in bounds.items() if k in space.names}
+        sjobs.append(
+            _make_job(
+                job.problem,
+                sprobs[job.problem],
+                space,
+                job.label,
+                job.free + ("t0",),
+                job.hold,
+                b,
+                job.headline,
+                fixed=job.fixed,
+                start=start,
+            )
+        )
+    n_model = max(int(rec.k[-1]) for prob in problems for rec in prob.records) + _SERIES_MARGIN
+    shape = _shape(sjobs, sprobs, settings, n_model)
+    _passes(sjobs, sprobs, shape, settings)
+    return sprobs, sjobs, shape
+
+
+def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
+    jobs = []
+    for i, prob in enumerate(problems):
+        jobs.extend(_jobs_for(i, prob, space, bounds, compare))
+    n_model = max(int(rec.k[-1]) for prob in problems for rec in prob.records)
+    shape = _shape(jobs, problems, settings, n_model)
+    _passes(jobs, problems, shape, settings)
+    if settings["residuals"] == "series":
+        problems, jobs, shape = _series_stage(problems, jobs, bounds, settings)
+    N = shape.N
     results = []
     for i, prob in enumerate(problems):
         mine = [j for j in jobs if j.problem == i]
@@ -640,11 +736,37 @@ def _parse_given(given, n):
 
 
 def _settings(
-    space, free, shared, givens, bounds, forward, loss, optimizer, max_steps, adam_steps, intervals
+    space,
+    free,
+    shared,
+    givens,
+    bounds,
+    forward,
+    loss,
+    optimizer,
+    max_steps,
+    adam_steps,
+    intervals,
+    residuals,
+    records,
 ):
     bounds = {k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}
     for g in givens:
         free = _check_inputs(space, free, shared, g, bounds, forward, loss, optimizer)
+    if residuals not in RESIDUALS:
+        raise ValueError(f"residuals must be one of {list(RESIDUALS)} (got {residuals!r})")
+    if residuals == "series":
+        if forward == "smooth":
+            raise ValueError(
+                "residuals 'series' needs the exact motion between turning points: "
+                "forward 'exact' or 'energy' (got 'smooth')"
+            )
+        for rec in records:
+            if isinstance(rec, Record) and rec.signal is None:
+                raise ValueError(
+                    f"{rec.source or 'record'}: residuals 'series' needs a raw signal "
+                    "(vmj fit --series FILE; fits.read_record(path, series=True))"
+                )
     return (
         free,
         bounds,
@@ -655,6 +777,7 @@ def _settings(
             "max_steps": max_steps,
             "adam_steps": adam_steps,
             "intervals": intervals,
+            "residuals": residuals,
         },
     )
 
@@ -674,6 +797,7 @@ def fit_batch(
     adam_steps: int = 3000,
     outlier_sigma: float = 5.0,
     intervals: bool = True,
+    residuals: str = "turning-points",
     chunk_size: int | None = None,
     client=None,
     store=None,
@@ -701,7 +825,19 @@ def fit_batch(
         raise ValueError("no records to fit")
     givens = _parse_given(given, len(records))
     free, bounds, settings = _settings(
-        space, free, (), givens, bounds, forward, loss, optimizer, max_steps, adam_steps, intervals
+        space,
+        free,
+        (),
+        givens,
+        bounds,
+        forward,
+        loss,
+        optimizer,
+        max_steps,
+        adam_steps,
+        intervals,
+        residuals,
+        records,
     )
     if chunk_size is not None or client is not None or store is not None:
         chunk = functools.partial(
@@ -717,6 +853,7 @@ def fit_batch(
             adam_steps=adam_steps,
             outlier_sigma=outlier_sigma,
             intervals=intervals,
+            residuals=residuals,
         )
         return vmj.map_chunks(
             chunk,
@@ -759,6 +896,7 @@ def fit(
     adam_steps: int = 3000,
     outlier_sigma: float = 5.0,
     intervals: bool = True,
+    residuals: str = "turning-points",
 ) -> FitResult:
     """Identify friction and damping from one measured decay, or from several jointly.
 
@@ -793,6 +931,14 @@ def fit(
     - `max_steps`: Levenberg-Marquardt step limit per pass.
     - `outlier_sigma`: residuals beyond this many robust standard deviations are flagged.
     - `intervals`: compute 95 % profile-likelihood intervals (else Wald intervals).
+    - `residuals`: `"turning-points"` (default: the turning points' positions and times) or
+      `"series"`: every sample of the raw signal between the release and the last turning
+      point (records read with `series=True`), compared with the exact motion of the model
+      between its turning points (`vmj.decay_trajectory`), with the release's time shift
+      `t0` [s] fitted per record. The turning-point fit (every variant) runs first and starts
+      the series fit; the comparison, diagnostics and intervals are those of the series fit.
+      Use it where the turning points lose information (few swings, a noisy signal, a
+      restoring law shaping the swings between them).
 
     **Returns:** a [`fits.FitResult`][].
 
@@ -821,6 +967,8 @@ def fit(
         max_steps,
         adam_steps,
         intervals,
+        residuals,
+        records,
     )
     prob = _problem(space, records, givens, free, shared)
     return _run(space, [prob], free, bounds, settings, compare, outlier_sigma)[0]

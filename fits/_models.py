@@ -1,18 +1,23 @@
-"""Forward models of the fits: turning-point sequences as functions of a parameter vector.
+"""Forward models of the fits: turning-point sequences, and the motion at sample times, as
+functions of a parameter vector.
 
 Each model family is a `Space`: its parameter names, how each is kept in range during the fit
 (`kinds`), which parameters are dry and which viscous friction (for the model comparison), and
-`predict(theta, n, forward)` returning the release point and the first `n` turning points
-`(times [s], signed positions)` of the model released from rest at `-a0`. The constant offset
-and the orientation of the record are applied by the fit, not here.
+`model(theta)`, the vmj model it stands for. From it `Space.predict(theta, n, forward)` returns
+the release point and the first `n` turning points `(times [s], signed positions)` of the
+model released from rest at `-a0` (`vmj.turning_points`, one solver per method), and
+`Space.motion(theta, ts, n, forward)` the positions at times `ts` (`vmj.decay_trajectory`:
+the exact motion between the turning points, for fits on the whole time series). The constant
+offset, the sensor's gain and the orientation of the record are applied by the fit, not here.
 
-Every `predict` wraps `vmj.turning_points` (one solver per method); the constant-mass
-oscillator's `"exact"` method is `vmj.EnergyBalance()` of `vmj.Oscillator.linear`, its exact
-closed-form half-swing map (what the decrement method linearises).
+The constant-mass oscillator's `"exact"` method is `vmj.EnergyBalance()` of
+`vmj.Oscillator.linear`, its exact closed-form half-swing map (what the decrement method
+linearises).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -24,9 +29,10 @@ import vmj
 from ._io import Record
 from ._params import Interval, Positive, Real, Transform, transform_for
 
-__all__ = ["Space", "Variant", "SPACES", "FORWARDS"]
+__all__ = ["Space", "Variant", "SPACES", "FORWARDS", "series_space"]
 
 FORWARDS = ("exact", "smooth", "energy")
+_SOLVERS = {"exact": vmj.Exact, "smooth": vmj.Smoothed, "energy": vmj.EnergyBalance}
 
 _UNDERDAMPED = 1.0 - 1e-9  #: the damping kind's upper end (an underdamped oscillator)
 #: the range of each kind of parameter (a Space's `bounds` narrows it per parameter)
@@ -55,15 +61,17 @@ class Space:
 
     **Fields:** `name`; `names`, `kinds` (`"real"`, `"positive"`, `"unit"`, `"damping"`) and
     `units` of its parameters; `dry` and `viscous` parameters; `required` (kept for reference:
-    the parameters without a default); `predict(theta, n, forward)` -> `(times [s], signed
-    positions)` of the release and the first `n` turning points, released from rest at `-a0`;
-    `defaults` (`{name: value or function of the Record}`: physical values of parameters
+    the parameters without a default); `model(theta)` -> `(vmj model, a0, u)`: the vmj decay
+    model of the parameters `theta` (`{name: value}`), its release deflection in the model's
+    position unit and `u`, model position units per signal unit (1 but for angle records);
+    `solvers` (`{forward: vmj solver class}`); `defaults` (`{name: value or function of the Record}`: physical values of parameters
     neither fitted nor given; a parameter with none must be given or fitted); `variants`
     (sub-models compared with the fit); `select` (the headline result is the variant preferred
     by BIC); `bounds` (`{name: (lo, hi)}`, narrower physical ranges than the kind's);
     `label` (the label of the full model in the comparison); `start(record, values, dec)`
     (optional: starting values from a record, the known values and its decrement estimate,
-    instead of `fits._decrement.starting_guess`'s).
+    instead of `fits._decrement.starting_guess`'s); `series` (a space of residuals on the whole
+    time series, with the time shift `t0` [s] of the release: see `series_space`).
 
     Sensor parameters, applied by the fit when present in `names`: `offset` (the reading's
     zero) and `asym` (side-dependent gain): the reading is
@@ -77,13 +85,31 @@ class Space:
     dry: tuple  #: dry-friction parameters (fixed to 0 for the viscous-only comparison)
     viscous: tuple  #: viscous parameters (fixed to 0 for the Coulomb-only comparison)
     required: tuple  #: parameters that must be given when not fitted
-    predict: Callable = None
+    model: Callable = None
+    solvers: Mapping = field(default_factory=lambda: dict(_SOLVERS))
     defaults: Mapping = field(default_factory=dict)
     variants: tuple = ()
     select: bool = False
     bounds: Mapping = field(default_factory=dict)
     label: str = "both"
     start: Callable | None = None  #: `start(record, given, dec) -> {name: value}` (optional)
+    series: bool = False
+
+    def predict(self, theta: dict, n: int, forward: str):
+        """`(times [s], signed positions [signal units])` of the release and the first `n`
+        turning points of the model released from rest at `-a0`."""
+        model, a0, u = self.model(theta)
+        seq = vmj.turning_points(model, a0, n, self.solvers[forward]())
+        times = jnp.concatenate([jnp.zeros((1,)), seq.times])
+        positions = jnp.concatenate([-jnp.reshape(a0, (1,)), seq.positions])
+        return times, positions / u
+
+    def motion(self, theta: dict, ts, n: int, forward: str):
+        """Positions [signal units] at times `ts` [s] from the release: the exact motion between
+        the first `n` turning points (`forward` `"exact"` or `"energy"`: how the turning points
+        are found)."""
+        model, a0, u = self.model(theta)
+        return vmj.decay_trajectory(model, a0, ts, n, self.solvers[forward]()).xs / u
 
     def index(self, name: str) -> int:
         return self.names.index(name)
@@ -110,12 +136,6 @@ class Space:
 
     def __eq__(self, other):
         return isinstance(other, Space) and other.name == self.name
-
-
-def _sequence(seq, a0):
-    times = jnp.concatenate([jnp.zeros((1,)), seq.times])
-    positions = jnp.concatenate([-jnp.reshape(a0, (1,)), seq.positions])
-    return times, positions
 
 
 def record_centre(record: Record) -> float:
@@ -146,12 +166,12 @@ def friction_variants(dry: tuple, viscous: tuple) -> tuple:
 
 
 # -- variable-mass oscillator ------------------------------------------------------------------
-def _variable_mass(theta: dict, n: int, forward: str):
+def _variable_mass(theta: dict):
     law = vmj.AffineFriction(theta["FT"], theta["f"], theta["g"])
     model = vmj.VariableMass(
         theta["m0"], theta["c"], theta["delta"], theta["eps"], theta["mu"], law
     )
-    return _sequence(vmj.turning_points(model, theta["a0"], n, method=forward), theta["a0"])
+    return model, theta["a0"], 1.0
 
 
 VARIABLE_MASS = Space(
@@ -173,7 +193,7 @@ VARIABLE_MASS = Space(
     dry=("FT", "f"),
     viscous=("mu",),
     required=("m0", "c"),
-    predict=_variable_mass,
+    model=_variable_mass,
     defaults={
         "FT": 0.0,
         "f": 0.0,
@@ -189,19 +209,10 @@ VARIABLE_MASS = Space(
 
 
 # -- normalised constant-mass oscillator -------------------------------------------------------
-_OSCILLATOR_SOLVERS = {
-    "exact": vmj.EnergyBalance,
-    "smooth": vmj.Smoothed,
-    "energy": vmj.EnergyBalance,
-}
-
-
-def _oscillator(theta: dict, n: int, forward: str):
+def _oscillator(theta: dict):
     """`vmj.Oscillator.linear`: its energy balance is the exact closed-form half-swing map, so
     the "exact" forward model uses it (the same numbers as `vmj.Exact()`, cheaper)."""
-    model = vmj.Oscillator.linear(theta["omega"], theta["zeta"], theta["xF"])
-    seq = vmj.turning_points(model, theta["a0"], n, _OSCILLATOR_SOLVERS[forward]())
-    return _sequence(seq, theta["a0"])
+    return vmj.Oscillator.linear(theta["omega"], theta["zeta"], theta["xF"]), theta["a0"], 1.0
 
 
 OSCILLATOR = Space(
@@ -212,7 +223,8 @@ OSCILLATOR = Space(
     dry=("xF",),
     viscous=("zeta",),
     required=("omega",),
-    predict=_oscillator,
+    model=_oscillator,
+    solvers={**_SOLVERS, "exact": vmj.EnergyBalance},
     defaults={
         "zeta": 0.0,
         "xF": 0.0,
@@ -227,7 +239,7 @@ OSCILLATOR = Space(
 
 
 # -- mass on a rope of varying length (Osinski) ------------------------------------------------
-def _rope(theta: dict, n: int, forward: str):
+def _rope(theta: dict):
     rope = vmj.Rope(
         theta["m"],
         theta["A"],
@@ -237,7 +249,7 @@ def _rope(theta: dict, n: int, forward: str):
         theta["T"],
         vmj.ConstantSpeed(theta["l0"], theta["u"]),
     )
-    return _sequence(vmj.turning_points(rope, theta["a0"], n, method=forward), theta["a0"])
+    return rope, theta["a0"], 1.0
 
 
 ROPE = Space(
@@ -259,7 +271,7 @@ ROPE = Space(
     dry=("T",),
     viscous=(),
     required=("m", "A", "e", "l0"),
-    predict=_rope,
+    model=_rope,
     defaults={
         "T": 0.0,
         "d": 0.0,
@@ -271,6 +283,33 @@ ROPE = Space(
 )
 
 SPACES = {s.name: s for s in (VARIABLE_MASS, OSCILLATOR, ROPE)}
+
+
+_SERIES: dict = {}
+
+
+def series_space(space: Space) -> Space:
+    """The space of a fit on the whole time series: `space` with the time shift `t0` [s] of the
+    release (the model's release at `t0` on the record's clock, whose zero is the extracted
+    release), and its variants' spaces likewise. Made once per space."""
+    if space.series:
+        return space
+    if space.name not in _SERIES:
+        variants = tuple(
+            dataclasses.replace(v, space=None if v.space is None else series_space(v.space))
+            for v in space.variants
+        )
+        _SERIES[space.name] = dataclasses.replace(
+            space,
+            name=space.name + ":series",
+            names=space.names + ("t0",),
+            kinds=space.kinds + ("real",),
+            units=space.units + ("s",),
+            defaults={**space.defaults, "t0": 0.0},
+            variants=variants,
+            series=True,
+        )
+    return _SERIES[space.name]
 
 
 def theta_dict(space: Space, theta) -> dict:

@@ -87,14 +87,12 @@ DISSIPATION_SETS = {
     "viscous+coulomb+quadratic": (),
 }
 
-_SOLVERS = {"exact": vmj.Exact, "smooth": vmj.Smoothed, "energy": vmj.EnergyBalance}
 
-
-def _predictor(sine: bool):
+def _builder(sine: bool):
     law_of = vmj.SineRestoring if sine else vmj.PolynomialRestoring
 
-    def predict(theta: dict, n: int, forward: str):
-        """Release and first `n` turning points `(times [s], signed angles [signal unit])`."""
+    def build(theta: dict):
+        """The vmj oscillator in radians, its release angle [rad] and `angle_unit`."""
         u = theta["angle_unit"]
         kinetic = theta["xF"] * u
         static = jnp.maximum(theta["xS"], theta["xF"]) * u  # xS below xF: no static excess
@@ -107,13 +105,9 @@ def _predictor(sine: bool):
                 vmj.QuadraticDamping(theta["cq"] / u),
             ),
         )
-        a0 = theta["a0"]
-        seq = vmj.turning_points(model, a0 * u, n, _SOLVERS[forward]())
-        times = jnp.concatenate([jnp.zeros((1,)), seq.times])
-        angles = jnp.concatenate([-jnp.reshape(a0, (1,)), seq.positions / u])
-        return times, angles
+        return model, theta["a0"] * u, u
 
-    return predict
+    return build
 
 
 def _losses(amplitudes: np.ndarray) -> tuple[float, float, float]:
@@ -222,7 +216,7 @@ def _space(name: str, sine: bool, variants: tuple = (), select: bool = False) ->
         dry=("xF",),
         viscous=("zeta",),
         required=("omega",),
-        predict=_predictor(sine),
+        model=_builder(sine),
         defaults={
             "zeta": 0.0,
             "xF": 0.0,

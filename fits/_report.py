@@ -9,7 +9,7 @@ import numpy as np
 
 import vmj
 
-from ._io import record_from_sequence
+from ._io import Signal, extract_turning_points, record_from_sequence
 
 if TYPE_CHECKING:  # names used in annotations only
     from ._fit import FitResult
@@ -180,7 +180,8 @@ def text_report(result: FitResult) -> str:
             )
         )
     if result.outliers:
-        lines.append(f"  outliers (|residual| > 5 robust sd) at k = {result.outliers}")
+        where = "samples" if _field(result, "residuals_of") == "series" else "k ="
+        lines.append(f"  outliers (|residual| > 5 robust sd) at {where} {result.outliers}")
     lines += [f"  warning: {w}" for w in _warnings(result)]
     return "\n".join(lines)
 
@@ -255,8 +256,11 @@ def plot_fit(
         rx = np.asarray(res["position"], dtype=float)
         k = np.asarray(res.get("k", np.arange(rx.size)))
         flagged = np.asarray(res.get("outlier", np.zeros(rx.size)), dtype=bool)
+        series = "t" in res  # a fit on the whole time series: residuals per sample
         # residuals against time for one record, against the swing for several
         x_res = rec.times if rec is not None and rec.times is not None and not joint else k
+        if series:
+            x_res = np.asarray(res["t"], dtype=float)
         ax_rx.axhline(0, color="k", lw=0.5)
         ax_rx.plot(x_res, rx, ".-", lw=0.6, ms=4, color=colour, label="position" + tag)
         if flagged.any():
@@ -300,7 +304,19 @@ def plot_fit(
             continue
         x_axis = rec.times if rec.times is not None else rec.k
         data = rec.positions if rec.sides_known else rec.amplitudes + off
-        fitted = data + rx  # amplitude-only records: the residual compares amplitudes
+        if series:
+            # the model's reading at the samples, and its turning points for the diagram
+            sig = rec.signal
+            t_sig = np.asarray(sig.t, dtype=float) - rec.time_origin
+            used = (t_sig >= 0) & (t_sig <= rec.times[-1])
+            y_fit = np.asarray(sig.y, dtype=float)[used] + rx
+            ax_data.plot(x_res, y_fit, "-", lw=0.8, color="C3", label=f"fit ({result.forward})")
+            curve = extract_turning_points(Signal(t=x_res, y=y_fit, clock="uniform"))
+            n = min(len(curve), len(rec))
+            x_axis, data = x_axis[:n], data[:n]
+            fitted = curve.positions[:n]
+        else:
+            fitted = data + rx  # amplitude-only records: the residual compares amplitudes
         if rec.signal is not None:
             s = rec.signal
             ax_data.plot(s.t - rec.time_origin, s.y, lw=0.5, color="0.6", label="raw signal")
@@ -313,12 +329,13 @@ def plot_fit(
             color=colour,
             label=("turning points" if rec.sides_known else "amplitudes") + tag,
         )
-        ax_data.plot(x_axis, fitted, "-", lw=1.0, color="C3", label=f"fit ({result.forward})")
+        if not series:
+            ax_data.plot(x_axis, fitted, "-", lw=1.0, color="C3", label=f"fit ({result.forward})")
         ax_data.axhline(off, color="k", lw=0.5, ls=":")
         # decrement diagram: consecutive swings only
         amp_data = np.abs(data - off)
         amp_fit = np.abs(fitted - off)
-        nxt = np.flatnonzero(np.diff(rec.k) == 1)
+        nxt = np.flatnonzero(np.diff(rec.k[: data.size]) == 1)
         ax_dec.plot(
             amp_data[nxt],
             amp_data[nxt + 1],

@@ -43,8 +43,11 @@ class FitResult:
       (the same list).
     - `model_comparison`: `{label: {"aic", "bic", "rss", "params", "converged"}, "best_aic",
       "best_bic"}` over the sub-models fitted beside the headline (empty when none).
+    - `residuals_of`: what the residuals compare, `"turning-points"` or `"series"` (every
+      sample of the raw signal, `fits.fit(..., residuals="series")`).
     - `residuals` (per point of the first record: `k`, `position`, `time`, `standardized`,
-      `outlier`); `outliers` (the flagged `k`); `decrement` (the decrement-method estimate);
+      `outlier`; for a series fit per sample: `t` [s] from the release instead of `k` and
+      `time`); `outliers` (the flagged `k`, or sample indices); `decrement` (the decrement-method estimate);
       `record`; `records` (joint fits: per record `source`, `params`, `stderr`, `stderr_gn`,
       `intervals`, `rms`, `outliers`); `clock` (the sample-clock report of a raw signal).
     """
@@ -78,11 +81,12 @@ class FitResult:
     clock: dict | None = None
     units: dict = field(default_factory=dict)
     label: str = ""
+    residuals_of: str = "turning-points"
 
     def to_json(self) -> dict:
         """The command line's JSON object: `model`, `params`, `stderr`, `stderr_gn`,
         `intervals` (`{name: [lo, hi]}`), `correlation`, `converged`, `iterations`, `rms`,
-        `diagnostics`, `model_comparison`, then `records` (joint fits), `clock` (raw signals)
+        `diagnostics`, `model_comparison`, `residuals_of`, then `records` (joint fits), `clock` (raw signals)
         and `units`; NaN becomes `null`."""
         out = {
             "model": self.model,
@@ -96,6 +100,7 @@ class FitResult:
             "rms": self.rms,
             "diagnostics": self.diagnostics,
             "model_comparison": self.model_comparison,
+            "residuals_of": self.residuals_of,
         }
         if self.records:
             out["records"] = [
@@ -280,6 +285,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     per_record = []
     R = len(prob.records)
     r_all = job.out["r"].reshape(R, 2, N)
+    series = prob.turning is not None
     for i, rec in enumerate(prob.records):
         m = len(rec)
         wx, wt = prob.wx[i][:m], prob.wt[i][:m]
@@ -288,7 +294,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         z = res_x / _robust_scale(res_x, floor)
         flagged = np.abs(z) > outlier_sigma
         res_t = None
-        if rec.times is not None:
+        if rec.times is not None and not series:
             res_t = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
             res_t[wt == 0] = 0.0
             z_t = res_t / _robust_scale(res_t[wt > 0], 1e-12)
@@ -296,7 +302,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         per_record.append(
             {
                 "residuals": {
-                    "k": rec.k.tolist(),
+                    **({"t": rec.times.tolist()} if series else {"k": rec.k.tolist()}),
                     "position": res_x.tolist(),
                     "time": None if res_t is None else res_t.tolist(),
                     "standardized": z.tolist(),
@@ -347,11 +353,11 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         labels = [j.label for j in mine]
         comparison["best_aic"] = min(labels, key=lambda k: comparison[k]["aic"])
         comparison["best_bic"] = min(labels, key=lambda k: comparison[k]["bic"])
-    rec0 = prob.records[0]
+    rec0 = (prob.turning or prob.records)[0]
     dec = prob.decs[0]
     corr_top = corr[np.ix_(top, top)] if top else np.zeros((0, 0))
     result = FitResult(
-        model=space.name,
+        model=space.name.removesuffix(":series"),
         forward=settings["forward"],
         loss=settings["loss"],
         optimizer=settings["optimizer"],
@@ -390,6 +396,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         clock=rec0.clock,
         units={nm: space.unit(nm) for nm in space.names},
         label=job.label,
+        residuals_of=settings["residuals"],
     )
     result.decrement["pairs"] = dec["pairs"]
     return result

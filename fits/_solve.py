@@ -68,14 +68,23 @@ def _values(d: _Data, p):
 
 
 def _residual(space, forward, n, theta, d: _Data):
+    """Weighted residuals `(R * 2N,)`: per record the positions, then the times. A series space
+    compares the motion at the sample times `t` (shifted by `t0`) with the samples `x`; its
+    time residuals are zero."""
+
     def one(th_row, k, x, t, wx, wt, orient, absval):
         th = theta_dict(space, th_row)
-        times, y = space.predict(th, n, forward)
-        oy = orient * y[k]
+        if space.series:
+            y = space.motion(th, t - th["t0"], n, forward)
+            dt = jnp.zeros_like(t)
+        else:
+            times, y = space.predict(th, n, forward)
+            y, dt = y[k], times[k] - t
+        oy = orient * y
         dev = oy * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else oy
         offset = th["offset"] if "offset" in th else 0.0
         px = jnp.where(absval > 0, jnp.abs(dev), offset + dev)
-        return jnp.concatenate([wx * (px - x), wt * (times[k] - t)])
+        return jnp.concatenate([wx * (px - x), wt * dt])
 
     r = jax.vmap(one)(theta, d.k, d.x, d.t, d.wx, d.wt, d.orient, d.absval)
     return r.reshape(-1)

@@ -279,6 +279,7 @@ def test_cli_json_shape_and_errors(tmp_path, capsys):
         "rms",
         "diagnostics",
         "model_comparison",
+        "residuals_of",
         "units",
     ]
     assert set(out["params"]) == {"zeta", "xF"} and out["converged"] is True

@@ -12,7 +12,8 @@ The public API, by concern:
   built from (friction, restoring and dissipation laws, length profiles, forcing);
 - solvers ([`Exact`][vmj.Exact], [`Smoothed`][vmj.Smoothed], [`EnergyBalance`][vmj.EnergyBalance],
   [`ClosedForm`][vmj.ClosedForm]) passed to one entry point per problem type:
-  [`turning_points`][vmj.turning_points], [`simulate`][vmj.simulate],
+  [`turning_points`][vmj.turning_points] (and the motion between them,
+  [`decay_trajectory`][vmj.decay_trajectory]), [`simulate`][vmj.simulate],
   [`limit_cycle`][vmj.limit_cycle];
 - results ([`DecaySequence`][vmj.DecaySequence], [`Trajectory`][vmj.Trajectory],
   [`StickSlipCycle`][vmj.StickSlipCycle]) with their status ([`RESULTS`][vmj.RESULTS]);
@@ -32,6 +33,7 @@ if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs a
     from ._checks import AbstractParams, assume_valid
     from ._host import retain_host_memory
     from ._integrate import (
+        decay_trajectory,
         energy_balance,
         limit_cycle,
         linear_simulate,
@@ -125,6 +127,7 @@ __all__ = [
     "EnergyBalance",
     "ClosedForm",
     "turning_points",
+    "decay_trajectory",
     "simulate",
     "limit_cycle",
     # results

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import jax.numpy as jnp
+
 from ._checks import (
     _float,
     _is_traced,
@@ -26,6 +28,7 @@ from ._models._rope import Rope
 from ._models._stick_slip import MAX_REVERSALS, StickSlip, smoothed_states
 from ._solution import DecaySequence, Trajectory, throw_if_failed
 from ._solvers._closed import ClosedForm, EnergyBalance
+from ._solvers._dense import decay_motion
 from ._solvers._exact import Exact
 from ._solvers._smoothed import Smoothed
 
@@ -44,6 +47,7 @@ if TYPE_CHECKING:  # names used in annotations only
 
 __all__ = [
     "turning_points",
+    "decay_trajectory",
     "simulate",
     "limit_cycle",
     "energy_balance",
@@ -200,6 +204,65 @@ def rope_energy_map(rope: Rope, a0: ArrayLike, n: int, *, throw: bool = False) -
     if not isinstance(rope, Rope):
         raise ValueError(f"rope must be a vmj.Rope (got {type(rope).__name__})")
     return turning_points(rope, a0, n, EnergyBalance(), throw=throw)
+
+
+@exported_jit(static_argnums=(3, 5))
+def _decay_trajectory(model, a0, ts, n, solver, substeps):
+    seq = solver.turning_points(model, a0, n)
+    return decay_motion(model, a0, seq, ts, substeps)
+
+
+def decay_trajectory(
+    model: AbstractDecayModel,
+    a0: ArrayLike,
+    ts: ArrayLike,
+    n: int,
+    solver: AbstractSolver | None = None,
+    *,
+    throw: bool = False,
+) -> Trajectory:
+    """The exact motion of the free decay released from rest at `x(0) = -a0`, at times `ts`.
+
+    The turning points come from `solver`; between them the motion is the exact half-swing
+    solution (friction sign fixed) that [`vmj.Exact`][] integrates, the Taylor polynomials of
+    its substeps evaluated at each time (dense output: the cost per time is one polynomial).
+    Differentiable with `jax.grad`/`jax.jacfwd` with respect to every model parameter and `a0`,
+    through the turning points' times (implicit-function derivatives) as well.
+
+    **Arguments:**
+
+    - `model`: a decay model: [`vmj.VariableMass`][], [`vmj.Rope`][], [`vmj.Oscillator`][].
+    - `a0`: initial deflection [m] (the model's position unit), `> 0`.
+    - `ts`: times [s] from the release, a 1-D array in any order. Times before 0 give the
+      release point; times after the mass stopped for good, its rest position.
+    - `n`: number of turning points computed (static): the times must not reach past the
+      `n`-th turning point of a mass that still moves (those give NaN and
+      `RESULTS.beyond_turning_points`).
+    - `solver`: [`vmj.Exact`][] (default) or [`vmj.EnergyBalance`][] (the model's closed-form
+      half-swing map for the turning points: exact for [`vmj.Oscillator`][]'s linear law with
+      viscous and Coulomb damping; where the map is averaged, the motion between turning points
+      misses them by the map's error).
+    - `throw`: raise [`vmj.SolverError`][] on failure instead of returning it in `result`.
+
+    **Returns:** a [`vmj.Trajectory`][] (`ts`, `xs` [m], `vs` [m/s], `result`).
+    """
+    warn_if_float32()
+    solver = _solver(solver, None, None, None, Exact)
+    if not isinstance(solver, (Exact, EnergyBalance)):
+        raise ValueError(
+            f"decay_trajectory takes vmj.Exact() or vmj.EnergyBalance() (got "
+            f"{type(solver).__name__}); for the smoothed ODE use vmj.simulate"
+        )
+    n = check_int("n", n, 1)
+    require_scalar_fields(model)
+    model = _checked(solver, model, "turning_points")
+    a0 = scalar(check("a0", a0, *type(model).release_range(model)))
+    ts = check("ts", jnp.asarray(ts, dtype=jnp.result_type(float)), anything, "times [s]")
+    if ts.ndim != 1:
+        raise ValueError(f"ts must be a 1-D array of times [s] (got shape {ts.shape})")
+    substeps = getattr(solver, "max_substeps", None) or type(model).exact_substeps
+    traj = _decay_trajectory(model, a0, ts, n, solver, substeps)
+    return throw_if_failed(traj, traj.result, throw)
 
 
 # -- trajectories ------------------------------------------------------------------------------

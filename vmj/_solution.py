@@ -33,6 +33,7 @@ class RESULTS(enum.IntEnum):
     unbounded = 6  #: no turning point: the swing goes over the potential barrier
     too_many_reversals = 7  #: a stick-slip cycle with more reversals than `max_reversals`
     no_cycle = 8  #: the smoothed stick-slip model did not settle into a cycle
+    beyond_turning_points = 9  #: a time past the last computed turning point of a moving mass
 
     @property
     def message(self) -> str:
@@ -73,6 +74,8 @@ _MESSAGES = {
     "(a cycle has floor((eps - 1)/2) reversals)",
     RESULTS.no_cycle: "the smoothed model did not settle into a stick-slip cycle within the "
     "simulated periods; try a smaller smoothing",
+    RESULTS.beyond_turning_points: "a requested time lies past the last computed turning point "
+    "of a mass that still moves: raise n",
 }
 #: the messages indexed by code (for `equinox.branched_error_if` and tables)
 RESULTS.messages = tuple(_MESSAGES[r] for r in RESULTS)

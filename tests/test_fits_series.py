@@ -1,0 +1,112 @@
+"""fits on the whole time series (`residuals="series"`, `vmj fit --residuals series`): every
+sample of a raw signal against the exact motion between the model's turning points.
+
+References: synthetic signals of the linear oscillator with viscous and Coulomb damping built
+from its closed form half-swing by half-swing (`test_fits_signal._oscillator_signal`), sampled
+at irregular times with noise 0.2 % of the amplitude; the record starts before the release
+(the extracted release carries the sample clock's error, which `t0` absorbs).
+"""
+
+import contextlib
+import io
+import json
+import warnings
+
+import numpy as np
+import pytest
+from test_fits_signal import _oscillator_signal
+
+import fits
+from vmj.cli import main
+
+TRUE = {"omega": 20.0, "zeta": 0.01, "xF": 0.05, "a0": 10.0, "offset": 2.0}
+FREE = "omega,zeta,xF,a0,offset"
+
+
+def _run(argv) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def signal_file(tmp_path_factory):
+    t, y, _ = _oscillator_signal(**TRUE, t_end=6.0, seed=11, n_spikes=0)
+    path = tmp_path_factory.mktemp("series") / "signal.csv"
+    np.savetxt(path, np.column_stack([t, y]), delimiter=",", header="t,angle", comments="")
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def fits_json(signal_file):
+    """The turning-point fit and the series fit of the same signal, through `vmj fit --json`."""
+    base = ["fit", signal_file, "--series", "--model", "oscillator", "--fit", FREE, "--json"]
+    out = {}
+    for kind in ("turning-points", "series"):
+        code, text, err = _run(base + ["--residuals", kind])
+        assert code == 0, err
+        out[kind] = json.loads(text)
+    return out
+
+
+def test_series_fit_recovers_the_parameters(fits_json):
+    res = fits_json["series"]
+    assert res["residuals_of"] == "series" and res["model"] == "oscillator"
+    assert res["converged"] is True
+    p = res["params"]
+    assert abs(p["omega"] / TRUE["omega"] - 1) < 1e-4
+    assert abs(p["zeta"] / TRUE["zeta"] - 1) < 0.01
+    assert abs(p["xF"] / TRUE["xF"] - 1) < 0.03
+    assert abs(p["a0"] / TRUE["a0"] - 1) < 1e-3
+    assert abs(p["offset"] - TRUE["offset"]) < 1e-3 * TRUE["a0"]
+    # the release's time shift: the extracted release is off by a fraction of a sample
+    assert abs(p["t0"]) < 3e-3 and res["units"]["t0"] == "s"
+    for name, value in TRUE.items():
+        lo, hi = res["intervals"][name]
+        assert lo <= value <= hi, (name, lo, value, hi)
+    # white residuals: the sample noise, no structure left
+    assert abs(res["rms"] / (0.002 * TRUE["a0"]) - 1) < 0.1
+    assert abs(res["diagnostics"]["lag1"]) < 0.1
+    assert set(res["model_comparison"]) >= {"both", "coulomb", "viscous"}
+    assert res["model_comparison"]["best_bic"] == "both"
+
+
+def test_series_intervals_are_narrower_than_the_turning_points(fits_json):
+    """Every sample carries information on the damping, not the turning points alone."""
+    tp, se = fits_json["turning-points"], fits_json["series"]
+    assert tp["residuals_of"] == "turning-points" and "t0" not in tp["params"]
+    for name in ("omega", "zeta", "xF"):
+        w_tp = np.diff(tp["intervals"][name])[0]
+        w_se = np.diff(se["intervals"][name])[0]
+        assert w_se < w_tp, (name, w_se, w_tp)
+
+
+def test_series_needs_a_raw_signal_and_an_exact_forward_model(signal_file, tmp_path):
+    peaks = tmp_path / "peaks.csv"
+    peaks.write_text("k,amplitude\n" + "\n".join(f"{k},{10 * 0.9**k}" for k in range(10)))
+    code, _, err = _run(["fit", str(peaks), "--model", "oscillator", "--residuals", "series"])
+    assert code == 2 and "needs a raw signal" in err and len(err.strip().splitlines()) == 1
+    record = fits.read_record(signal_file, series=True)
+    with pytest.raises(ValueError, match="forward 'exact' or 'energy'"):
+        fits.fit(record, "oscillator", FREE.split(","), residuals="series", forward="smooth")
+    with pytest.raises(ValueError, match="residuals must be one of"):
+        fits.fit(record, "oscillator", FREE.split(","), residuals="samples")
+
+
+@pytest.mark.long
+def test_series_interval_coverage():
+    """95 % intervals of the series fit contain the true values in at least 90 % of 50 seeded
+    synthetic signals (one batched fit: `fits.fit_batch`)."""
+    records = []
+    for seed in range(50):
+        t, y, _ = _oscillator_signal(**TRUE, t_end=6.0, seed=100 + seed, n_spikes=0)
+        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = fits.fit_batch(
+            records, "oscillator", FREE.split(","), residuals="series", compare=False
+        )
+    for name, value in TRUE.items():
+        inside = sum(r.intervals[name][0] <= value <= r.intervals[name][1] for r in results)
+        assert inside >= 45, (name, inside)
