@@ -84,7 +84,12 @@ class _ExportedJit:
         self.loaded: dict = {}  # (directory, x64, static, treedef, avals) -> (call, out tree)
         functools.update_wrapper(self, fun)
 
-    def __getattr__(self, name):
+    def __reduce__(self):  # pickled by reference, as the module-level function it replaces
+        return self.__qualname__
+
+    def __getattr__(self, name):  # (only for names the instance does not have)
+        if name in ("jitted", "__setstate__"):
+            raise AttributeError(name)
         return getattr(self.jitted, name)
 
     def __call__(self, *args, **kwargs):
