@@ -2,7 +2,7 @@
 
 - `vmj --help` (goal <= 0.3 s) and `vmj table 1`, cold (a fresh compilation cache) and
   repeated (the cache filled), against `python -c "import jax"` (goal: the repeat <= 1.5 x);
-- `vmj fit examples/data/table1_mu9_eps0.csv --model variable-mass --fit FT,mu
+- `vmj fit fits/data/table1_mu9_eps0.csv --model variable-mass --fit FT,mu
   --set m0=5,c=4900,delta=3,eps=0 --loss cauchy --json`, first run in a fresh cache (goal
   <= 10 s) and repeated (goal <= 1.5 x), against a whole SciPy script doing the same fit
   (benchmarks/scipy_fit.py: least_squares over an event-driven solve_ivp model), whose answer
@@ -24,7 +24,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VMJ = os.path.join(os.path.dirname(sys.executable), "vmj")
 FIT = [
     "fit",
-    os.path.join(ROOT, "examples", "data", "table1_mu9_eps0.csv"),
+    os.path.join(ROOT, "fits", "data", "table1_mu9_eps0.csv"),
     "--model",
     "variable-mass",
     "--fit",

@@ -1,6 +1,6 @@
 """The SciPy peer of
 
-    vmj fit examples/data/table1_mu9_eps0.csv --model variable-mass --fit FT,mu \
+    vmj fit fits/data/table1_mu9_eps0.csv --model variable-mass --fit FT,mu \
         --set m0=5,c=4900,delta=3,eps=0 --loss cauchy
 
 as a whole process: the same record, the same model (the exact variable-mass decay, here an
@@ -44,7 +44,7 @@ def main():
     path = (
         sys.argv[1]
         if len(sys.argv) > 1
-        else os.path.join(HERE, "..", "examples", "data", "table1_mu9_eps0.csv")
+        else os.path.join(HERE, "..", "fits", "data", "table1_mu9_eps0.csv")
     )
     a0, data = read(path)
     n = len(data)

@@ -22,6 +22,7 @@ import optax
 import optimistix as optx
 
 import vmj
+from vmj.cli import exported_jit
 
 from ._models import theta_dict
 from ._params import HELD, apply, derivative
@@ -119,7 +120,7 @@ def _residual_and_jacobian_jvp(space, forward, n, primals, tangents):
     return (r, J), (J @ (dv * dp), jnp.zeros_like(J))
 
 
-@eqx.filter_jit
+@exported_jit(static_argnums=(0, 1, 2, 3))  # a repeated `vmj fit` loads it untraced
 def _solve_lm(space, forward, n, max_steps, d, p0):
     def one(d, p0):
         def fn(p, d):
@@ -151,7 +152,7 @@ def _rho(loss, u):
     return 0.5 * c * c * jnp.log1p((u / c) ** 2)
 
 
-@eqx.filter_jit
+@exported_jit(static_argnums=(0, 1, 2, 3, 4))
 def _solve_adam(space, forward, n, steps, loss, d, p0):
     def one(d, p0):
         def objective(p):

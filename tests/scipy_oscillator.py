@@ -35,8 +35,10 @@ def oscillator_turning_points(
     b3=0.0,
     w=1.0,
     rtol=1e-12,
+    segments=None,
 ):
-    """(times, positions) of the first `n` turning points (fewer if the mass sticks)."""
+    """(times, positions) of the first `n` turning points (fewer if the mass sticks). A list
+    `segments` receives `(t_start, t_end, dense solution)` of each half-swing."""
     xS = xF if xS is None else xS
     r = restoring(kind, b2, b3, w)
     t, x = 0.0, -a0
@@ -64,10 +66,27 @@ def oscillator_turning_points(
             atol=1e-15 * a0,
             events=vel_zero,
             first_step=1e-6 * period,
+            dense_output=segments is not None,
         )
         if not sol.t_events[0].size:
             break
+        if segments is not None:
+            segments.append((sol.t[0], sol.t_events[0][0], sol.sol))
         t, x = sol.t_events[0][0], sol.y_events[0][0][0]
         out_t.append(t)
         out_x.append(x)
     return np.array(out_t), np.array(out_x)
+
+
+def motion(segments, a0, ts, rest):
+    """Positions at times `ts` from the half-swings' dense solutions (`segments`); before the
+    release `-a0`, after the last half-swing `rest` (the position where the mass stuck)."""
+    out = np.full(len(ts), -a0, dtype=float)
+    for i, t in enumerate(ts):
+        if segments and t > segments[-1][1]:
+            out[i] = rest
+        for t0, t1, sol in segments:
+            if t0 <= t <= t1:
+                out[i] = sol(t)[0]
+                break
+    return out

@@ -11,8 +11,11 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 
-def variable_mass_turning_points(m0, c, delta, eps, mu, a0, n, F=None, f=None, g=9.81, rtol=1e-12):
-    """Return (times, positions, crossed) of the first `n` turning points (fewer if it stops)."""
+def variable_mass_turning_points(
+    m0, c, delta, eps, mu, a0, n, F=None, f=None, g=9.81, rtol=1e-12, segments=None
+):
+    """Return (times, positions, crossed) of the first `n` turning points (fewer if it stops).
+    A list `segments` receives `(t_start, t_end, dense solution)` of each half-swing."""
     b = delta * eps + mu
 
     def friction(t):
@@ -50,9 +53,12 @@ def variable_mass_turning_points(m0, c, delta, eps, mu, a0, n, F=None, f=None, g
             atol=1e-14 * a0,
             events=vel_zero,
             first_step=1e-6 * period,
+            dense_output=segments is not None,
         )
         if not sol.t_events[0].size:
             break
+        if segments is not None:
+            segments.append((sol.t[0], sol.t_events[0][0], sol.sol))
         t, x_new = sol.t_events[0][0], sol.y_events[0][0][0]
         out_c.append(bool(x_new * s > 0))
         x = x_new

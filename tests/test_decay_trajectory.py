@@ -1,10 +1,10 @@
 """`vmj.decay_trajectory`: the exact motion between the turning points (dense output).
 
 References: the closed form of the linear oscillator with viscous and Coulomb damping within
-each half-swing (to 1e-11 of the amplitude); the smoothed ODE (`vmj.simulate`, smoothing 1e-4
-of the velocity scale: agreement to its smoothing error, 1e-5 of the amplitude) for the
-variable-mass model and a pendulum with quadratic drag; the turning points themselves (the
-motion passes through them with zero velocity); central finite differences for the gradients
+each half-swing (to 1e-11 of the amplitude); an event-driven SciPy integration's dense output
+(to 1e-9 of the amplitude) for the variable-mass model and a sine pendulum with Coulomb and
+quadratic drag; the turning points themselves (the motion passes through them with zero
+velocity); central finite differences for the gradients
 (1e-6 relative).
 """
 
@@ -12,6 +12,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy_oscillator import motion, oscillator_turning_points
+from scipy_reference import variable_mass_turning_points
 
 import vmj
 
@@ -64,18 +66,30 @@ def test_passes_through_its_turning_points_at_rest():
 
 
 @pytest.mark.parametrize("kind", ["variable-mass", "pendulum"])
-def test_agrees_with_the_smoothed_ode(kind):
+def test_agrees_with_an_event_driven_scipy_integration(kind):
+    """Against the half-swings' dense output of `solve_ivp` (DOP853, rtol 1e-12), integrated
+    half-swing by half-swing with a fixed friction sign (tests/scipy_*.py)."""
+    segments = []
     if kind == "variable-mass":
         model, a0 = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7)), 0.06
+        _, x, _ = variable_mass_turning_points(
+            5.0, 4900.0, 3.0, 0.0, 2.0, a0, 10, F=14.7, segments=segments
+        )
     else:
-        laws = (vmj.ViscousDamping(0.003), vmj.QuadraticDamping(0.05))
-        model, a0 = vmj.Oscillator(4.0, vmj.SineRestoring(0.05, 0.0), laws), 1.2
-    seq = vmj.turning_points(model, a0, 10)
-    t1 = 0.95 * float(seq.times[5])  # well before any stop: the smoothed model creeps there
-    smooth = vmj.simulate(model, -a0, 0.0, t1, n_save=201)
-    traj = vmj.decay_trajectory(model, a0, smooth.ts, 10)
+        a0 = 1.2
+        laws = (
+            vmj.ViscousDamping(0.003),
+            vmj.CoulombDamping(0.002, 0.002),
+            vmj.QuadraticDamping(0.05),
+        )
+        model = vmj.Oscillator(4.0, vmj.SineRestoring(0.05, 0.0), laws)
+        _, x = oscillator_turning_points(
+            4.0, a0, 10, "sine", zeta=0.003, xF=0.002, cq=0.05, b2=0.05, segments=segments
+        )
+    ts = np.linspace(-0.1, segments[-1][1], 301)
+    traj = vmj.decay_trajectory(model, a0, ts, 12)
     assert traj.message == vmj.RESULTS.successful.message
-    np.testing.assert_allclose(traj.xs, smooth.xs, rtol=0, atol=1e-5 * a0)
+    np.testing.assert_allclose(traj.xs, motion(segments, a0, ts, x[-1]), rtol=0, atol=1e-9 * a0)
 
 
 def test_gradients_match_finite_differences():

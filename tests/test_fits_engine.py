@@ -105,6 +105,7 @@ def test_json_contract(viscous_decay, capsys):
         "rms",
         "diagnostics",
         "model_comparison",
+        "residuals_of",
         "clock",
         "units",
     ]

@@ -6,10 +6,8 @@ task. The older per-model functions are thin wrappers kept for compatibility."""
 
 from __future__ import annotations
 
-from functools import partial
 from typing import TYPE_CHECKING
 
-import jax
 import jax.numpy as jnp
 
 from ._checks import (
@@ -24,6 +22,7 @@ from ._checks import (
     validated,
     warn_if_float32,
 )
+from ._exported import exported_jit
 from ._models._base import check_horizon, require_scalar_fields
 from ._models._rope import Rope
 from ._models._stick_slip import MAX_REVERSALS, StickSlip, smoothed_states
@@ -110,14 +109,16 @@ def _checked(solver, model, task: str):
     return type(solver).check(solver, validated(model), task)
 
 
-# The compiled entry points: plain `jax.jit` (its dispatch runs in C++; every leaf of a model
-# and a solver is an array, their settings are static fields) with the integer settings
-# static. They hold no host callbacks for concrete inputs, so JAX's persistent compilation
-# cache can store them.
+# The compiled entry points: `jax.jit` (its dispatch runs in C++; every leaf of a model and a
+# solver is an array, their settings are static fields) with the integer settings static. They
+# hold no host callbacks for concrete inputs, so JAX's persistent compilation cache can store
+# them, and `jax.export` can serialize them: while an entry point (the `vmj` command) has
+# switched the exported-program cache on, a new process loads them without tracing
+# (`vmj/_exported.py`).
 
 
 # -- turning points of a free decay ------------------------------------------------------------
-@partial(jax.jit, static_argnums=2)
+@exported_jit(static_argnums=2)
 def _turning_points(model, a0, n, solver):
     return solver.turning_points(model, a0, n)
 
@@ -205,7 +206,7 @@ def rope_energy_map(rope: Rope, a0: ArrayLike, n: int, *, throw: bool = False) -
     return turning_points(rope, a0, n, EnergyBalance(), throw=throw)
 
 
-@partial(jax.jit, static_argnums=(3, 5))
+@exported_jit(static_argnums=(3, 5))
 def _decay_trajectory(model, a0, ts, n, solver, substeps):
     seq = solver.turning_points(model, a0, n)
     return decay_motion(model, a0, seq, ts, substeps)
@@ -265,7 +266,7 @@ def decay_trajectory(
 
 
 # -- trajectories ------------------------------------------------------------------------------
-@partial(jax.jit, static_argnums=4)
+@exported_jit(static_argnums=4)
 def _simulate(model, x0, v0, t1, n_save, solver):
     return solver.simulate(model, x0, v0, t1, n_save)
 
@@ -336,7 +337,7 @@ def linear_simulate(
 
 
 # -- limit cycles ------------------------------------------------------------------------------
-@partial(jax.jit, static_argnums=1)
+@exported_jit(static_argnums=1)
 def _limit_cycle(model, max_reversals, solver):
     return solver.limit_cycle(model, max_reversals)
 

@@ -6,8 +6,13 @@ when its command is named, and JAX only when a command runs. `vmj fit` is define
 package (`fits._cli`), which uses the option helpers exported here.
 
 Bad input prints one line `vmj: error: ...` to stderr and exits with status 2.
+
+`enable_exported_cache(path)` keeps the exported programs of the compiled entry points in
+`path`, so that a new process skips tracing them (the `vmj` command switches it on beside its
+compilation cache; `exported_jit` is the decorator of those entry points, used by fits too).
 """
 
+from .._exported import enable_exported_cache, exported_jit
 from ._app import COMMANDS, main
 from ._options import (
     count,
@@ -23,6 +28,8 @@ from ._options import (
 __all__ = [
     "main",
     "COMMANDS",
+    "enable_exported_cache",
+    "exported_jit",
     "number",
     "count",
     "parse_set",

@@ -14,6 +14,7 @@ import re
 import sys
 from dataclasses import dataclass
 
+from .._exported import enable_exported_cache, exported_cache_directory
 from ._options import LARGEST, HelpFormatter
 
 __all__ = ["COMMANDS", "main", "build_parser", "cache_directory"]
@@ -63,9 +64,9 @@ CACHE_ENV = "VMJ_CACHE_DIR"
 _OFF = ("off", "none", "0", "false", "no")
 
 EPILOG = f"""\
-Compiled programs are kept in a persistent cache, so that a repeated command starts faster:
-  ${{XDG_CACHE_HOME:-~/.cache}}/vmj/jax by default; --cache-dir PATH or {CACHE_ENV}=PATH moves
-  it, --no-cache or {CACHE_ENV}=off switches it off.
+Compiled and traced programs are kept in a persistent cache, so that a repeated command
+  starts faster: ${{XDG_CACHE_HOME:-~/.cache}}/vmj/jax by default; --cache-dir PATH or
+  {CACHE_ENV}=PATH moves it, --no-cache or {CACHE_ENV}=off switches it off.
 Numbers must be finite, of magnitude at most {LARGEST:g}, in the units shown in brackets.
 Bad input prints one line 'vmj: error: ...' and exits with status 2.
 Run 'vmj COMMAND --help' for the options of a command (units in brackets)."""
@@ -194,6 +195,8 @@ def _set_up_jax(args) -> None:
             "jax_persistent_cache_min_compile_time_secs", 0.0
         )  # every program: a loaded one beats even a 0.1 s compile
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    # the traced programs too: a repeated command skips tracing (vmj/_exported.py)
+    enable_exported_cache(None if path is None else os.path.join(path, "exported"))
     from .._host import retain_host_memory
 
     retain_host_memory()  # XLA's per-chunk buffers reused, not page-faulted again (sweeps)
@@ -211,6 +214,7 @@ def main(argv=None) -> int:
     errors, `--help` and `--version` exit through `SystemExit` (status 2 or 0), as argparse
     does."""
     args = build_parser().parse_args(argv)
+    exported = exported_cache_directory()  # restored on return (`main` run in-process)
     try:
         _set_up_jax(args)
         return args.command_run(args)
@@ -226,3 +230,5 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("vmj: interrupted", file=sys.stderr)
         return 130
+    finally:
+        enable_exported_cache(exported)

@@ -1,0 +1,337 @@
+"""A persistent cache of exported programs, so that a repeated `vmj` command skips tracing.
+
+JAX's persistent compilation cache keeps XLA's compiled code, but every new process still traces
+the Python function and lowers it before it can look that code up: for `vmj fit` that tracing
+is most of the run (docs/performance.md). `exported_jit` is `jax.jit` for the compiled entry
+points (`vmj._integrate`, `fits._solve`); while the cache is switched on, each call with new
+static arguments, argument structure or shapes looks for the serialized `jax.export.Exported`
+of the function in the cache directory. On a hit it is deserialized and called under `jax.jit`
+(whose compile then comes from the persistent compilation cache); on a miss the function is
+traced once, exported, written and called the same way. An entry is keyed by a hash of the
+function's name, the source of vmj and of the function's package, the versions of vmj, JAX and
+the libraries traced through, the x64 flag and the backend, the static arguments and the
+structure and shapes of the others. An entry that cannot be read (missing, corrupted, written
+by another version) is written anew; one that cannot be written (read-only directory) costs
+nothing but the time. Entries are written to a temporary file and renamed into place, so
+concurrent writers never leave a partial one.
+
+The cache is off unless an entry point switches it on: the `vmj` command does, in the
+subdirectory `exported` of its compilation cache (`--cache-dir`, `--no-cache`,
+`VMJ_CACHE_DIR`). A script may do the same with `vmj.cli.enable_exported_cache(path)` after
+configuring `jax_compilation_cache_dir`; calls inside the user's own `jit`/`vmap`/`grad` (traced
+arguments) and calls with keyword arguments always take the plain `jax.jit` path.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import os
+import pickle
+import re
+import struct
+import sys
+import tempfile
+
+__all__ = ["exported_jit", "enable_exported_cache", "exported_cache_directory"]
+
+_MAGIC = b"vmj-exported 1\n"
+_HEAD = struct.Struct("<32s32sQ")  # key digest, payload digest, skeleton length
+#: distributions whose code a trace runs through (their versions are part of every key)
+_LIBRARIES = ("jax", "jaxlib", "equinox", "lineax", "optimistix", "optax", "diffrax", "numpy")
+
+_directory: list = [None]  #: the cache directory, `None` when off
+_PLAIN = "plain"  #: marks an argument combination that is not exported (always plain jit)
+
+
+def enable_exported_cache(path: str | os.PathLike | None) -> None:
+    """Keep the exported programs of vmj's compiled entry points in the directory `path`
+    (created when first written; `None` switches the cache off, the default).
+
+    Meant for a program's entry point, after `jax.config.update("jax_compilation_cache_dir",
+    ...)`: the exported program skips tracing, the compilation cache skips XLA's compile. The
+    `vmj` command calls it with the `exported` subdirectory of its compilation cache.
+    """
+    _directory[0] = None if path is None else os.fspath(path)
+
+
+def exported_cache_directory() -> str | None:
+    """The directory of the exported-program cache, `None` when it is off."""
+    return _directory[0]
+
+
+def exported_jit(fun=None, *, static_argnums=()):
+    """`jax.jit(fun, static_argnums=...)` that, while the exported-program cache is on, loads
+    and stores the function's exported programs there (see the module's docstring). The plain
+    jitted function's attributes (`lower`, ...) are those of the result."""
+    if fun is None:
+        return functools.partial(exported_jit, static_argnums=static_argnums)
+    return _ExportedJit(fun, static_argnums)
+
+
+class _ExportedJit:
+    def __init__(self, fun, static_argnums):
+        import jax
+
+        self.fun = fun
+        self.static_argnums = (
+            (static_argnums,) if isinstance(static_argnums, int) else tuple(sorted(static_argnums))
+        )
+        if any(i < 0 for i in self.static_argnums):
+            raise ValueError("static_argnums must be non-negative positions")
+        self.jitted = jax.jit(fun, static_argnums=self.static_argnums)
+        self.loaded: dict = {}  # (directory, x64, static, treedef, avals) -> (call, out tree)
+        functools.update_wrapper(self, fun)
+
+    def __reduce__(self):  # pickled by reference, as the module-level function it replaces
+        return self.__qualname__
+
+    def __getattr__(self, name):  # (only for names the instance does not have)
+        if name in ("jitted", "__setstate__"):
+            raise AttributeError(name)
+        return getattr(self.jitted, name)
+
+    def __call__(self, *args, **kwargs):
+        if _directory[0] is None or kwargs:
+            return self.jitted(*args, **kwargs)
+        return self._call_exported(args)
+
+    def _call_exported(self, args):
+        import jax
+
+        static = tuple(args[i] for i in self.static_argnums)
+        dynamic = tuple(a for i, a in enumerate(args) if i not in self.static_argnums)
+        leaves, treedef = jax.tree.flatten(dynamic)
+        if any(isinstance(x, jax.core.Tracer) for x in leaves):
+            return self.jitted(*args)
+        typeof = getattr(jax, "typeof", None)  # (JAX >= 0.4.36; before, the plain path)
+        if typeof is None:
+            return self.jitted(*args)
+        try:
+            avals = tuple(typeof(x) for x in leaves)
+            key = (_directory[0], jax.config.jax_enable_x64, static, treedef, avals)
+            entry = self.loaded.get(key)
+        except TypeError:  # a leaf that is no array, or an unhashable static argument
+            return self.jitted(*args)
+        if entry is None:
+            entry = self.loaded[key] = self._load_or_export(static, treedef, avals)
+        if entry is _PLAIN:
+            return self.jitted(*args)
+        call, out_tree = entry
+        return jax.tree.unflatten(out_tree, call(*leaves))
+
+    def _merge(self, static, dynamic):
+        """The positional arguments, from the static ones and the others."""
+        static, dynamic = list(static), list(dynamic)
+        n = len(static) + len(dynamic)
+        return [static.pop(0) if i in self.static_argnums else dynamic.pop(0) for i in range(n)]
+
+    def _load_or_export(self, static, treedef, avals):
+        import jax
+
+        text = "\n".join(
+            [
+                f"{self.fun.__module__}.{self.fun.__qualname__}",
+                _environment(self.fun.__module__),
+                f"x64={jax.config.jax_enable_x64}",
+                _stable(static),
+                str(treedef),
+                repr(avals),
+            ]
+        )
+        if " at 0x" in text:  # an argument without a stable description: never cached
+            return _PLAIN
+        digest = hashlib.sha256(text.encode()).digest()
+        path = os.path.join(_directory[0], f"{self.fun.__name__}-{digest.hex()[:40]}.exported")
+        loaded = _read(path, digest, avals)
+        if loaded is not None:
+            exported, out_tree = loaded
+            return self._jit_call(exported), out_tree
+        out_trees = []
+
+        def flat(*leaves):
+            args = self._merge(static, jax.tree.unflatten(treedef, leaves))
+            out_leaves, out_tree = jax.tree.flatten(self.fun(*args))
+            out_trees.append(out_tree)
+            return out_leaves
+
+        flat.__name__ = flat.__qualname__ = self.fun.__name__
+        specs = [jax.ShapeDtypeStruct(a.shape, a.dtype, weak_type=a.weak_type) for a in avals]
+        try:
+            exported = _export(jax.jit(flat), specs)
+            blob = bytes(exported.serialize())
+        except Exception:  # not exportable (or flatbuffers missing): the plain path
+            return _PLAIN
+        out_tree = out_trees[-1]
+        skeleton = pickle.dumps(jax.tree.unflatten(out_tree, list(range(out_tree.num_leaves))))
+        _write(path, digest, skeleton, blob)
+        return self._jit_call(exported), out_tree
+
+    def _jit_call(self, exported):
+        """`jax.jit` of the exported program under the function's name (the compilation
+        cache's entries keep it)."""
+        import jax
+
+        def call(*leaves):
+            return exported.call(*leaves)
+
+        call.__name__ = call.__qualname__ = self.fun.__name__
+        jitted = jax.jit(call)
+        if b"lapack" in exported.mlir_module_serialized:
+            return jitted
+
+        def first(*leaves):  # lowered once: without LAPACK's set-up, which imports SciPy
+            with _without_lapack_setup():
+                return jitted(*leaves)
+
+        return _FirstCall(first, jitted)
+
+
+def _export(jitted, specs):
+    """`jax.export.export(jitted)(*specs)`, with the custom calls that JAX does not promise to
+    keep stable across versions allowed (LAPACK's QR in the fits' linear solves): an entry is
+    only ever read by the same versions of JAX and jaxlib that wrote it (they are part of its
+    key)."""
+    import jax
+
+    allowed: set = set()
+    while True:
+        checks = [jax.export.DisabledSafetyCheck.custom_call(t) for t in sorted(allowed)]
+        try:
+            return jax.export.export(jitted, disabled_checks=checks)(*specs)
+        except ValueError as e:
+            found = set(re.findall(r"custom_call @([\w.$-]+)", str(e))) - allowed
+            if "custom calls" not in str(e) or not found:
+                raise
+            allowed |= found  # (the trace and the lowering are cached by `jitted`)
+
+
+class _FirstCall:
+    """`first` for the first call, `then` for the others."""
+
+    def __init__(self, first, then):
+        self.call, self.then = first, then
+
+    def __call__(self, *args):
+        call, self.call = self.call, self.then
+        return call(*args)
+
+
+@contextlib.contextmanager
+def _without_lapack_setup():
+    """Lowering a call of an exported program initializes LAPACK's custom calls for the CPU
+    (jaxlib imports SciPy for them: a fifth of a `vmj table 1`); a program that has none
+    skips it."""
+    try:
+        from jax._src.export import _export
+    except ImportError:  # pragma: no cover - another layout of JAX's internals
+        yield
+        return
+    setup = getattr(_export, "_ensure_backends_initialized", None)
+    if setup is None:  # pragma: no cover
+        yield
+        return
+    _export._ensure_backends_initialized = lambda platforms: None
+    try:
+        yield
+    finally:
+        _export._ensure_backends_initialized = setup
+
+
+def _read(path, digest, avals):
+    """The `(Exported, output tree)` stored at `path` for the key `digest`, or `None`."""
+    import jax
+
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+        if not data.startswith(_MAGIC):
+            return None
+        key, check, n_skeleton = _HEAD.unpack_from(data, len(_MAGIC))
+        payload = data[len(_MAGIC) + _HEAD.size :]
+        if key != digest or hashlib.sha256(payload).digest() != check:
+            return None  # another key's entry, truncated or corrupted
+        out_tree = jax.tree.structure(pickle.loads(payload[:n_skeleton]))
+        exported = jax.export.deserialize(bytearray(payload[n_skeleton:]))
+        if [(a.shape, a.dtype) for a in exported.in_avals] != [(a.shape, a.dtype) for a in avals]:
+            return None
+        if jax.default_backend() not in exported.platforms:
+            return None
+        return exported, out_tree
+    except Exception:  # unreadable, or written by an incompatible version: export anew
+        return None
+
+
+def _write(path, digest, skeleton, blob):
+    """Write an entry atomically (temporary file, then rename); failures are ignored."""
+    payload = skeleton + blob
+    head = _MAGIC + _HEAD.pack(digest, hashlib.sha256(payload).digest(), len(skeleton))
+    try:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(head + payload)
+            os.replace(tmp, path)
+        except BaseException:
+            os.unlink(tmp)
+            raise
+    except OSError:
+        pass
+
+
+def _stable(value) -> str:
+    """A description of a static argument that is the same in every process (functions by
+    name, dataclasses and mappings by their contents)."""
+    import dataclasses
+
+    if isinstance(value, (tuple, list)):
+        return f"{type(value).__name__}({', '.join(_stable(v) for v in value)})"
+    if isinstance(value, dict) or (hasattr(value, "keys") and hasattr(value, "items")):
+        items = sorted((repr(k), _stable(v)) for k, v in value.items())
+        return "{" + ", ".join(f"{k}: {v}" for k, v in items) + "}"
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = (f"{f.name}={_stable(getattr(value, f.name))}" for f in dataclasses.fields(value))
+        return f"{type(value).__module__}.{type(value).__qualname__}({', '.join(fields)})"
+    if callable(value) and hasattr(value, "__qualname__"):
+        return f"{getattr(value, '__module__', '?')}.{value.__qualname__}"
+    return repr(value)
+
+
+@functools.cache
+def _environment(module: str) -> str:
+    """Versions, flags and source hashes that a trace of a function of `module` depends on."""
+    import importlib.metadata
+
+    import jax
+
+    import vmj
+
+    versions = []
+    for name in _LIBRARIES:
+        try:
+            versions.append(f"{name}={importlib.metadata.version(name)}")
+        except importlib.metadata.PackageNotFoundError:
+            versions.append(f"{name}=-")
+    packages = sorted({"vmj", module.partition(".")[0]})
+    sources = [f"{p}:{_source_hash(p)}" for p in packages]
+    return " ".join(
+        [f"vmj={vmj.__version__}", *versions, *sources, f"backend={jax.default_backend()}"]
+    )
+
+
+@functools.cache
+def _source_hash(package: str) -> str:
+    """sha256 of the Python sources of an imported package (paths and contents)."""
+    root = os.path.dirname(os.path.abspath(sys.modules[package].__file__))
+    h = hashlib.sha256()
+    for folder, dirs, files in os.walk(root):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(files):
+            if name.endswith(".py"):
+                full = os.path.join(folder, name)
+                h.update(os.path.relpath(full, root).encode() + b"\0")
+                with open(full, "rb") as f:
+                    h.update(f.read())
+    return h.hexdigest()
