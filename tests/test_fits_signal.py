@@ -317,7 +317,7 @@ def test_fit_jacobian_matches_finite_differences(synthetic_signal):
     prob = _problem(space, [rec], [start], FREE, ())
     job = _make_job(0, prob, space, "both", FREE, {}, {}, True)
     N = _bucket(len(rec))
-    _init_weights(prob, N)
+    _init_weights(prob, N, space)
     arrays = _job_arrays(job, prob, _Shape(N, len(FREE), _bucket(int(rec.k[-1])), 1, {}))
     p = jnp.asarray(arrays.pop("p"))
     d = _Data(**{k: jnp.asarray(v) for k, v in arrays.items()})
