@@ -122,6 +122,7 @@ def test_wheel_command_line(venv, tmp_path):
     assert fit["params"]["xF"] == pytest.approx(0.0159, rel=0.05)
 
 
+@pytest.mark.long  # the same snippets run from the repository in tests/test_docs.py
 def test_wheel_runs_readme_snippets(venv, tmp_path):
     """The README's Python snippets, in a directory outside the repository."""
     (tmp_path / "readme.py").write_text(python_source(ROOT / "README.md"), encoding="utf-8")
