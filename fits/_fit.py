@@ -41,7 +41,7 @@ import numpy as np
 import vmj
 
 from ._decrement import decrement, starting_guess
-from ._io import Record
+from ._io import Record, sample_window
 from ._models import FORWARDS, SPACES, Space, series_space
 from ._params import (
     HELD,
@@ -700,14 +700,8 @@ def _samples(rec: Record) -> Record:
             f"{rec.source or 'record'}: residuals='series' needs a raw signal (vmj fit --series "
             "FILE; fits.read_record(path, series=True))"
         )
-    t = np.asarray(rec.signal.t, dtype=float) - rec.time_origin
-    keep = (t >= 0) & (t <= rec.times[-1])
-    return dataclasses.replace(
-        rec,
-        k=np.arange(int(np.sum(keep))),
-        positions=np.asarray(rec.signal.y, dtype=float)[keep],
-        times=t[keep],
-    )
+    t, y = sample_window(rec)
+    return dataclasses.replace(rec, k=np.arange(t.size), positions=y, times=t)
 
 
 def _series_stage(problems, jobs, bounds, settings):

@@ -907,6 +907,14 @@ def extract_turning_points(
     )
 
 
+def sample_window(record: Record) -> tuple[np.ndarray, np.ndarray]:
+    """`(t [s] from the release, samples)` of an extracted record's raw signal from its release
+    to its last turning point: the data of a fit on the whole time series."""
+    t = np.asarray(record.signal.t, dtype=float) - record.time_origin
+    keep = (t >= 0) & (t <= record.times[-1])
+    return t[keep], np.asarray(record.signal.y, dtype=float)[keep]
+
+
 def read_record(
     path: str | os.PathLike,
     *,

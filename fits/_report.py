@@ -9,7 +9,7 @@ import numpy as np
 
 import vmj
 
-from ._io import Signal, extract_turning_points, record_from_sequence
+from ._io import Signal, extract_turning_points, record_from_sequence, sample_window
 
 if TYPE_CHECKING:  # names used in annotations only
     from ._fit import FitResult
@@ -306,10 +306,7 @@ def plot_fit(
         data = rec.positions if rec.sides_known else rec.amplitudes + off
         if series:
             # the model's reading at the samples, and its turning points for the diagram
-            sig = rec.signal
-            t_sig = np.asarray(sig.t, dtype=float) - rec.time_origin
-            used = (t_sig >= 0) & (t_sig <= rec.times[-1])
-            y_fit = np.asarray(sig.y, dtype=float)[used] + rx
+            y_fit = sample_window(rec)[1] + rx
             ax_data.plot(x_res, y_fit, "-", lw=0.8, color="C3", label=f"fit ({result.forward})")
             curve = extract_turning_points(Signal(t=x_res, y=y_fit, clock="uniform"))
             n = min(len(curve), len(rec))
