@@ -64,8 +64,9 @@ class Space:
     the parameters without a default); `model(theta)` -> `(vmj model, a0, u)`: the vmj decay
     model of the parameters `theta` (`{name: value}`), its release deflection in the model's
     position unit and `u`, model position units per signal unit (1 but for angle records);
-    `solvers` (`{forward: vmj solver class}`); `defaults` (`{name: value or function of the Record}`: physical values of parameters
-    neither fitted nor given; a parameter with none must be given or fitted); `variants`
+    `solvers` (`{forward: vmj solver class}`); `defaults` (`{name: value or function of the
+    Record}`: physical values of parameters neither fitted nor given; a parameter with none
+    must be given or fitted); `variants`
     (sub-models compared with the fit); `select` (the headline result is the variant preferred
     by BIC); `bounds` (`{name: (lo, hi)}`, narrower physical ranges than the kind's);
     `label` (the label of the full model in the comparison); `start(record, values, dec)`
