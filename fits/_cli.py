@@ -162,6 +162,7 @@ def run(args) -> int:
 
     import fits
     from fits._models import SPACES
+    from fits._report import outliers_at
 
     space = SPACES[args.model]
     given = _settings(args.set)
@@ -207,8 +208,7 @@ def run(args) -> int:
         for w in result.warnings:
             print(f"vmj: warning: {w}", file=sys.stderr)
         if result.outliers:
-            where = "samples" if result.residuals_of == "series" else "k ="
-            print(f"vmj: warning: outliers at {where} {result.outliers}", file=sys.stderr)
+            print(f"vmj: warning: outliers {outliers_at(result)}", file=sys.stderr)
     else:
         print(result.report())
     return 0

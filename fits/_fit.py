@@ -695,12 +695,7 @@ _SERIES_MARGIN = 8  #: turning points the series model computes past the record'
 def _samples(rec: Record) -> Record:
     """The raw samples of an extracted record from its release to its last turning point: the
     data of a fit on the whole time series (`k` numbers the samples)."""
-    if rec.signal is None:
-        raise ValueError(
-            f"{rec.source or 'record'}: residuals='series' needs a raw signal (vmj fit --series "
-            "FILE; fits.read_record(path, series=True))"
-        )
-    t, y = sample_window(rec)
+    t, y = sample_window(rec)  # (a record without a signal is refused by `_settings`)
     return dataclasses.replace(rec, k=np.arange(t.size), positions=y, times=t)
 
 

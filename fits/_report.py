@@ -75,6 +75,13 @@ def _warnings(result) -> list:
     return seen
 
 
+def outliers_at(result: FitResult) -> str:
+    """Where the flagged outliers are: `"at k = [...]"` (turning points) or `"at samples
+    [...]"` (a fit on the whole time series)."""
+    where = "samples" if _field(result, "residuals_of") == "series" else "k ="
+    return f"at {where} {result.outliers}"
+
+
 def text_report(result: FitResult) -> str:
     """A readable summary of a [`fits.FitResult`][]: each fitted parameter with its unit, its
     standard error corrected for residual autocorrelation (`+-`), the Gauss-Newton standard
@@ -180,8 +187,7 @@ def text_report(result: FitResult) -> str:
             )
         )
     if result.outliers:
-        where = "samples" if _field(result, "residuals_of") == "series" else "k ="
-        lines.append(f"  outliers (|residual| > 5 robust sd) at {where} {result.outliers}")
+        lines.append(f"  outliers (|residual| > 5 robust sd) {outliers_at(result)}")
     lines += [f"  warning: {w}" for w in _warnings(result)]
     return "\n".join(lines)
 
