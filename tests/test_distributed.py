@@ -122,6 +122,32 @@ def test_worker_killed_mid_sweep(client, points, in_process, tmp_path):
     assert victim not in client.run(os.getpid).values()
 
 
+def test_job_lost_with_its_only_worker(client, points, in_process, monkeypatch):
+    # the sweep's definition is scattered to one worker only, which is killed mid-sweep: the
+    # chunks waiting on it are cancelled by Dask, the job is scattered again and they rerun
+    pids = client.run(os.getpid)
+    address, victim = sorted(pids.items(), key=lambda item: item[1])[0]
+    scatter, calls = client.scatter, []
+
+    def only_to_victim(data, **kw):
+        calls.append(kw)
+        if len(calls) == 1:
+            return scatter(data, workers=[address], hash=False)
+        return scatter(data, **kw)
+
+    monkeypatch.setattr(client, "scatter", only_to_victim)
+
+    def kill(done, total):
+        if done == 3:
+            os.kill(victim, signal.SIGKILL)
+
+    r = vmj.sweep(vmj.turning_points, points, client=client, progress=kill, **KW)
+    assert len(calls) == 2  # scattered again once
+    assert_bitwise_equal(r.values, in_process.values)
+    assert r.computed == 20
+    client.wait_for_workers(2, timeout=120)
+
+
 def test_interrupted_sweep_resumes_with_only_the_missing_chunks(
     client, points, in_process, tmp_path
 ):

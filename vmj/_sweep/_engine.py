@@ -10,7 +10,8 @@ On a cluster the job is scattered to every worker once (`Client.scatter(broadcas
 task carries only its chunk number, and each worker process keeps the first copy of a job it
 receives ([`_worker_job`][]), so that the function it holds is compiled once per process and
 reused for every chunk; it follows the client's float64 setting. A worker that dies has its tasks
-rescheduled by Dask.
+rescheduled by Dask; a chunk whose result or whose job died with it is submitted again (the job
+scattered again where its last copy was lost).
 """
 
 from __future__ import annotations
@@ -256,19 +257,46 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
         pool.shutdown(wait=True, cancel_futures=True)
 
 
+def _held(client, future) -> bool:
+    """Whether the scheduler knows a worker that holds `future`'s data."""
+    if future.status != "finished":
+        return False
+    try:
+        return bool(client.who_has([future]).get(future.key))
+    except Exception:
+        return False
+
+
 def _run_dask(job, todo, sink, fail, progress, client):
     import distributed
     import jax
 
     client.register_plugin(_float64_plugin(bool(jax.config.jax_enable_x64)))
-    shared = client.scatter(job, broadcast=True, hash=False)
+    shared = [client.scatter(job, broadcast=True, hash=False)]
     run = uuid.uuid4().hex[:8]  # task keys of this run only
     tries = dict.fromkeys(todo, 0)
+    needs = {}  # chunk future -> the scattered job it waits on
 
     def submit(c):
-        return client.submit(
-            _run_on_worker, shared, c, pure=False, key=f"vmj-{job.token[:12]}-{run}-{c}-{tries[c]}"
+        f = client.submit(
+            _run_on_worker, shared[0], c, pure=False, key=f"vmj-{job.token[:12]}-{run}-{c}-{tries[c]}"
         )
+        needs[f] = shared[0]
+        return f
+
+    def lost(f, needed):
+        """Whether the chunk of `f` died with a worker: its result (status "lost"), or the
+        scattered job it waited on (whose last copy was on that worker: Dask then cancels the
+        chunks that need it). A lost job is scattered again."""
+        if f.status == "lost":
+            return True
+        if f.status != "cancelled" or client.status != "running":
+            return False
+        if needed is shared[0] and not _held(client, needed):
+            with contextlib.suppress(Exception):
+                shared[0].release()
+            shared[0] = client.scatter(job, broadcast=True, hash=False)
+        return needed is not shared[0]
 
     futures = {submit(c): c for c in todo}
     try:
@@ -276,6 +304,7 @@ def _run_dask(job, todo, sink, fail, progress, client):
         done = distributed.as_completed(list(futures), with_results=True, raise_errors=False)
         for f, value in done:
             c = futures.pop(f)
+            needed = needs.pop(f)
             if f.status == "finished":
                 sink(c, value)
             elif f.status == "error":
@@ -283,8 +312,8 @@ def _run_dask(job, todo, sink, fail, progress, client):
                 if fail is None:
                     raise exc
                 fail(c, exc)
-            elif f.status == "lost" and tries[c] < LOST_RETRIES:
-                # the chunk finished on a worker that died before its result was fetched
+            elif tries[c] < LOST_RETRIES and lost(f, needed):
+                # the chunk, or the job it needed, died with a worker
                 tries[c] += 1
                 again = submit(c)
                 futures[again] = c
@@ -299,4 +328,4 @@ def _run_dask(job, todo, sink, fail, progress, client):
             with contextlib.suppress(Exception):
                 client.cancel(list(futures))
         with contextlib.suppress(Exception):
-            shared.release()
+            shared[0].release()
