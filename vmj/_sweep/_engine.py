@@ -279,7 +279,11 @@ def _run_dask(job, todo, sink, fail, progress, client):
 
     def submit(c):
         f = client.submit(
-            _run_on_worker, shared[0], c, pure=False, key=f"vmj-{job.token[:12]}-{run}-{c}-{tries[c]}"
+            _run_on_worker,
+            shared[0],
+            c,
+            pure=False,
+            key=f"vmj-{job.token[:12]}-{run}-{c}-{tries[c]}",
         )
         needs[f] = shared[0]
         return f
