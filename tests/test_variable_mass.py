@@ -160,7 +160,14 @@ def _positions(theta, law):
     return jnp.concatenate([seq.positions, seq.times])
 
 
-@pytest.mark.parametrize("law,theta", [("F", (14.7, 9.0, 0.7, -3.0)), ("f", (0.3, 5.0, 0.6, 3.0))])
+@pytest.mark.parametrize(
+    "law,theta",
+    [
+        ("F", (14.7, 9.0, 0.7, -3.0)),
+        # the same machinery with the mass-proportional law: 20 s of compiling, with the long runs
+        pytest.param("f", (0.3, 5.0, 0.6, 3.0), marks=pytest.mark.long),
+    ],
+)
 def test_gradients_match_central_differences(law, theta):
     """d x_k / d(F or f, mu, eps, delta) and d t_k / d(...) from the exact solver (reverse mode)
     against central finite differences (h = 1e-5 relative): agreement to 1e-7 of each column's
