@@ -18,6 +18,7 @@ linearises).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -32,7 +33,13 @@ from ._params import Interval, Positive, Real, Transform, transform_for
 __all__ = ["Space", "Variant", "SPACES", "FORWARDS", "series_space"]
 
 FORWARDS = ("exact", "smooth", "energy")
-_SOLVERS = {"exact": vmj.Exact, "smooth": vmj.Smoothed, "energy": vmj.EnergyBalance}
+#: the Jacobians of the exact forward model are forward-mode (fits._solve): the exact
+#: solver's early-exit loops serve them
+_SOLVERS = {
+    "exact": functools.partial(vmj.Exact, derivatives="forward"),
+    "smooth": vmj.Smoothed,
+    "energy": vmj.EnergyBalance,
+}
 
 _UNDERDAMPED = 1.0 - 1e-9  #: the damping kind's upper end (an underdamped oscillator)
 #: the range of each kind of parameter (a Space's `bounds` narrows it per parameter)

@@ -108,7 +108,11 @@ def _residual_and_jacobian_impl(space, forward, n, p, d):
     return r, J
 
 
-_residual_and_jacobian = jax.custom_jvp(_residual_and_jacobian_impl, nondiff_argnums=(0, 1, 2))
+# (an inner `jit`: the primal and the JVP rule's call are one trace, and one batching of it,
+# not two)
+_residual_and_jacobian = jax.custom_jvp(
+    jax.jit(_residual_and_jacobian_impl, static_argnums=(0, 1, 2)), nondiff_argnums=(0, 1, 2)
+)
 
 
 @_residual_and_jacobian.defjvp

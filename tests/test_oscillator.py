@@ -227,22 +227,25 @@ def test_smoothed_model_sticks_with_the_static_level():
 NAMES = ("omega", "zeta", "xF", "cq", "b2", "b3", "a0")
 
 
-def _sequence(p, restoring):
+def _sequence(p, restoring, solver=None):
     omega, zeta, xF, cq, b2, b3, a0 = p
     law = vmj.SineRestoring(b2, b3) if restoring == "sine" else vmj.PolynomialRestoring(b2, b3)
     osc = vmj.Oscillator(
         omega, law, (vmj.ViscousDamping(zeta), vmj.CoulombDamping(xF), vmj.QuadraticDamping(cq))
     )
-    seq = vmj.turning_points(osc, a0, 10)
+    seq = vmj.turning_points(osc, a0, 10, solver)
     return jnp.concatenate([seq.positions, seq.times])
 
 
-@pytest.mark.parametrize("restoring", ["sine", "polynomial"])
-def test_gradients_match_finite_differences(restoring):
+@pytest.mark.parametrize("restoring,derivatives", [("sine", "any"), ("polynomial", "forward")])
+def test_gradients_match_finite_differences(restoring, derivatives):
     """`jax.jacfwd` of the turning points (positions and times) with respect to every law's
-    parameters and `a0` against central differences (step 1e-6 relative)."""
+    parameters and `a0` against central differences (step 1e-6 relative), through the exact
+    solver's bounded loops (`derivatives="any"`) and its early-exit loops (`"forward"`, whose
+    reverse mode is refused)."""
     p = jnp.array([6.0, 0.01, 0.01, 0.05, 0.04, 0.2, 1.1])
-    f = lambda q: _sequence(q, restoring)  # noqa: E731
+    solver = vmj.Exact(derivatives=derivatives)
+    f = lambda q: _sequence(q, restoring, solver)  # noqa: E731
     jac = np.asarray(jax.jacfwd(f)(p))
     h = 1e-6 * np.maximum(np.abs(np.asarray(p)), 1e-2)
     steps = np.diag(h)
@@ -251,6 +254,9 @@ def test_gradients_match_finite_differences(restoring):
     for i, name in enumerate(NAMES):
         scale = np.max(np.abs(fd[:, i]))
         np.testing.assert_allclose(jac[:, i], fd[:, i], rtol=1e-5, atol=1e-6 * scale, err_msg=name)
+    if derivatives == "forward":
+        with pytest.raises(ValueError, match="Reverse-mode differentiation does not work"):
+            jax.grad(lambda q: f(q)[3])(p)
 
 
 @pytest.mark.slow
@@ -336,3 +342,15 @@ def test_sweep_reaches_the_laws_parameters():
     assert res.dims == ("zeta", "dissipation.1.xF")
     one = vmj.turning_points(vmj.Oscillator.pendulum(OMEGA, zeta=0.02, xF=0.0), 1.0, 4)
     np.testing.assert_allclose(res.values.positions[1, 0], one.positions, rtol=1e-13)
+
+
+@pytest.mark.parametrize(
+    "kw,message",
+    [
+        (dict(derivatives="reverse"), "derivatives must be 'any' or 'forward'"),
+        (dict(max_substeps=0), "max_substeps must be an integer >= 1"),
+    ],
+)
+def test_exact_solver_settings_are_checked(kw, message):
+    with pytest.raises(ValueError, match=message):
+        vmj.Exact(**kw)

@@ -52,14 +52,22 @@ class Exact(AbstractSolver):
       where a substep is about 0.64 of a half-period for the variable-mass model; 12 for
       [`vmj.Oscillator`][], whose nonlinear laws need shorter substeps). A half-swing that
       needs more reports `RESULTS.step_limit` (overdamped or creeping motion).
+    - `derivatives`: `"any"` (default): `jax.grad` (reverse mode) and `jax.jacfwd` both
+      differentiate the turning points, the derivatives running every step of bounded loops.
+      `"forward"`: forward mode only (`jax.jvp`, `jax.jacfwd`), through the same early-exit
+      loops as the values: faster to trace, compile and run (the fits' Jacobians use it);
+      reverse mode then fails with JAX's error for `lax.while_loop`.
 
     For [`vmj.limit_cycle`][], `Exact()` is the event-driven solution of the stick-slip rules.
     """
 
     max_substeps: int | None = eqx.field(static=True, default=None)
+    derivatives: str = eqx.field(static=True, default="any")
     name: ClassVar[str] = "exact"
 
     def __check_init__(self):
+        if self.derivatives not in ("any", "forward"):
+            raise ValueError(f"derivatives must be 'any' or 'forward' (got {self.derivatives!r})")
         if self.max_substeps is None:
             return
         if (
@@ -80,6 +88,8 @@ class Exact(AbstractSolver):
 
     def turning_points(self, model, a0, n: int):
         steps = model.exact_substeps if self.max_substeps is None else self.max_substeps
+        if self.derivatives == "forward":
+            return _solve_decay(model, a0, n, steps, "lax")
         return _decay(model, a0, n=n, max_substeps=steps)
 
     def limit_cycle(self, model, max_reversals: int):
