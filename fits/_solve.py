@@ -124,11 +124,18 @@ def _residual_and_jacobian_jvp(space, forward, n, primals, tangents):
     return (r, J), (J @ (dv * dp), jnp.zeros_like(J))
 
 
+_NO_MESH = jax.sharding.AbstractMesh((), ())
+
+
 @exported_jit(static_argnums=(0, 1, 2, 3))  # a repeated `vmj fit` loads it untraced
 def _solve_lm(space, forward, n, max_steps, d, p0):
     def one(d, p0):
         def fn(p, d):
-            r, J = _residual_and_jacobian(space, forward, n, p, d)
+            # one trace context for every call: optimistix first calls `fn` under
+            # `eval_shape` (no mesh set), then inside the solve's trace (an empty one); the
+            # inner jit's traces are then shared, not made twice
+            with jax.sharding.use_abstract_mesh(_NO_MESH):
+                r, J = _residual_and_jacobian(space, forward, n, p, d)
             return r, (r, J)
 
         sol = optx.least_squares(
