@@ -8,8 +8,6 @@ import jax.numpy as jnp
 from equinox.internal import unvmap_any
 from jax import lax
 
-from ._scan import lanewise
-
 #: a lane has converged once a Newton step moved it by less than this fraction of its bracket
 #: (quadratic convergence: the final `implicit_step` then leaves an error far below rounding)
 CONVERGED = 1e-8
@@ -43,10 +41,7 @@ def bracketed_newton(f, lo, hi, x0, iterations: int):
 
     dtype = jnp.result_type(x0, lo, hi)
     x0, lo, hi = (jnp.asarray(a, dtype) for a in jnp.broadcast_arrays(x0, lo, hi))
-    # (every carry lane-wise from the start: `vmap` batches the loop in one pass)
-    zero = lanewise(x0 + lo + hi, 0.0, dtype)
-    x0, lo, hi = x0 + zero, lo + zero, hi + zero
-    done = lanewise(zero, False)
+    done = jnp.zeros(x0.shape, bool)
     _, x, _, _, _ = lax.while_loop(cond, step, (jnp.array(0), x0, lo, hi, done))
     return x
 

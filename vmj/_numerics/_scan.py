@@ -10,18 +10,7 @@ from jax import lax
 
 from .._solution import RESULTS, DecaySequence
 
-__all__ = ["decay_scan", "early_exit_loop", "lanewise"]
-
-
-def lanewise(like, value, dtype=None):
-    """The constant `value` in the shape of `like`, and, under `vmap`, batched wherever `like`
-    is. A loop's carries that start as plain constants (`jnp.zeros_like` is one: not batched)
-    become batched after one pass of the body, and `vmap` of a `lax.while_loop` then batches
-    the body again until the carries stop changing; carries that start lane-wise batch in one
-    pass (a third of the time to trace a fit's Jacobian)."""
-    dtype = jnp.result_type(value) if dtype is None else dtype
-    like = jnp.asarray(like)
-    return jnp.where(like == like, jnp.asarray(value, dtype), jnp.asarray(value, dtype))
+__all__ = ["decay_scan", "early_exit_loop"]
 
 
 def early_exit_loop(cond, body, init, max_steps: int, buffers=None, kind: str = "bounded"):
@@ -72,13 +61,13 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
         return k + 1, t, x, code, count + advance.astype(jnp.int32), out
 
     x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
-    t0 = lanewise(x0, 0.0, x0.dtype)
+    t0 = jnp.zeros_like(x0)
     buffers = (
-        jnp.broadcast_to(t0, (n,) + x0.shape),
-        jnp.broadcast_to(t0, (n,) + x0.shape),
-        jnp.broadcast_to(lanewise(x0, False), (n,) + x0.shape),
+        jnp.zeros((n,) + x0.shape, x0.dtype),
+        jnp.zeros((n,) + x0.shape, x0.dtype),
+        jnp.zeros((n,) + x0.shape, bool),
     )
-    zero = lanewise(x0, 0, jnp.int32)
+    zero = jnp.zeros(x0.shape, jnp.int32)
     init = (jnp.array(0), t0, x0, zero + RESULTS.successful, zero, buffers)
     # (the count is carried: a sum over the swings afterwards costs more than the loop)
     k, t, x, code, count, (times, positions, crossed) = early_exit_loop(

@@ -28,7 +28,7 @@ from jax import lax
 
 from .._models._base import AbstractDecayModel, AbstractLimitCycle
 from .._numerics._roots import bracketed_newton, implicit_step
-from .._numerics._scan import decay_scan, early_exit_loop, lanewise
+from .._numerics._scan import decay_scan, early_exit_loop
 from .._numerics._series import derivative, horner, horner_and_derivative
 from .._solution import RESULTS
 from ._base import AbstractSolver, unsupported
@@ -128,7 +128,7 @@ def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: st
     substeps were limited by the model's lifetime. The substeps end as soon as every lane of a
     `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`)."""
     scale = model.swing_scale(t0, x0)
-    zero = lanewise(x0 + t0, 0.0, x0.dtype)
+    zero = jnp.zeros_like(x0)
 
     def cond(carry):
         k, found = carry[0], carry[4]
@@ -153,17 +153,8 @@ def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: st
         t, x, v = (jnp.where(found, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))
         return k + 1, t, x, v, found, limited, inaccurate, start
 
-    false = lanewise(zero, False)
-    init = (
-        jnp.array(0),
-        t0 + zero,
-        x0 + zero,
-        zero,
-        jnp.logical_not(moving) | false,
-        false,
-        false,
-        (t0 + zero, x0 + zero, zero, zero),
-    )
+    false = jnp.array(False)
+    init = (jnp.array(0), t0, x0, zero, jnp.logical_not(moving), false, false, (t0, x0, zero, zero))
     _, _, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
         cond, body, init, max_substeps, kind=kind
     )
