@@ -153,20 +153,23 @@ def _robust_scale(r, floor):
 
 # -- per-job statistics ------------------------------------------------------------------------
 def _used(job, prob, N):
-    """Indices of the residuals that count, and the blocks (slices of them) in record order."""
-    idx, blocks, at = [], [], 0
+    """Indices of the residuals that count, the blocks (slices of them) in record order, and
+    what each block holds ("the times of 80P.txt")."""
+    idx, blocks, names, at = [], [], [], 0
+    what = ("samples", "times") if prob.turning is not None else ("positions", "times")
     for r in range(len(prob.records)):
         for kind, w in ((0, prob.wx[r]), (1, prob.wt[r])):
             sel = np.nonzero(w > 0)[0] + r * 2 * N + kind * N
             if sel.size:
                 idx.append(sel)
                 blocks.append(slice(at, at + sel.size))
+                names.append(f"the {what[kind]} of {prob.records[r].source}")
                 at += sel.size
-    return np.concatenate(idx), blocks
+    return np.concatenate(idx), blocks, names
 
 
 def _information(job, prob, N):
-    idx, _ = _used(job, prob, N)
+    idx, _, _ = _used(job, prob, N)
     n = idx.size
     q = int(np.sum(job.code != HELD))  # moved by the solver: the residuals' degrees of freedom
     # the criteria count every free parameter of the model, also one that ended on a bound (a
@@ -193,7 +196,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     N = shape.N
     names = _slot_names(job)
     q = len(job.slots)
-    idx, blocks = _used(job, prob, N)
+    idx, blocks, block_names = _used(job, prob, N)
     J = job.out["J"][:, :q][idx]
     r = job.out["r"][idx]
     info = _information(job, prob, N)
@@ -256,7 +259,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     converged = bool(job.out["ok"] and full_rank and not at_unset_bound)
     # residual diagnostics
     std_blocks = [r[b] for b in blocks]
-    diag = diagnostics(std_blocks, int(np.sum(active)))
+    diag = diagnostics(std_blocks, int(np.sum(active)), block_names)
     n_dof = info["n"] - info["q"]
     if n_dof < 3:
         warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not reliable")

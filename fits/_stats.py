@@ -92,7 +92,7 @@ def _runs(blocks) -> float:
     return float("nan")
 
 
-def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
+def diagnostics(blocks: list[np.ndarray], n_params: int, names: list | None = None) -> dict:
     """Serial-structure diagnostics of standardised residuals.
 
     **Arguments:**
@@ -101,6 +101,7 @@ def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
       time residuals), each standardised (divided by its noise scale), so dimensionless.
       Padding and ignored points must be left out.
     - `n_params`: number of fitted parameters.
+    - `names`: what each block holds ("the times of 80P.txt"), for the warning.
 
     **Returns:** a dict with
 
@@ -125,8 +126,9 @@ def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
     n = sum(b.size for b in blocks)
     num = mag = den = 0.0
     n_eff = 0.0
-    worst = 0.0  # the largest |lag-1| of a block of at least 10 residuals
-    for b in blocks:
+    worst, worst_name = 0.0, None  # the largest |lag-1| of a block of >= 10 residuals
+    names = list(names) if names is not None else [None] * len(blocks)
+    for b, name in zip(blocks, names):
         if b.size == 0:
             continue
         bn, bd = _lag1(b)
@@ -136,15 +138,18 @@ def diagnostics(blocks: list[np.ndarray], n_params: int) -> dict:
         r = abs(_rho(b, debias=True))
         n_eff += b.size * (1 - r) / (1 + r)
         if b.size >= 10 and bd > 0 and abs(bn / bd) > abs(worst):
-            worst = bn / bd
+            worst, worst_name = bn / bd, name
     lag1 = math.copysign(mag / den, num) if den > 0 else float("nan")
     runs_p = _runs(blocks)
     n_eff = float(min(max(n_eff, n_params + 1), max(n, n_params + 1)))
     warnings = []
     structured = []
     if abs(worst) > LAG1_WARN or (np.isfinite(lag1) and abs(lag1) > LAG1_WARN):
-        shown = worst if abs(worst) > abs(lag1) else lag1
-        structured.append(f"residual lag-1 autocorrelation {shown:.2f}")
+        if abs(worst) > abs(lag1):
+            of = f" ({worst_name}; pooled {lag1:.2f})" if worst_name else f" (pooled {lag1:.2f})"
+            structured.append(f"residual lag-1 autocorrelation {worst:.2f}{of}")
+        else:
+            structured.append(f"residual lag-1 autocorrelation {lag1:.2f}")
     if np.isfinite(runs_p) and runs_p < RUNS_P_WARN:
         structured.append(f"runs test p = {runs_p:.2g}")
     if structured:

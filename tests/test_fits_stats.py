@@ -50,6 +50,11 @@ def test_ar1_effective_sample_size_and_warning():
     (w,) = d["warnings"]
     assert w.startswith("the model does not explain the data: residual lag-1 autocorrelation 0.8")
     assert "model_comparison" in w
+    # a block worse than the pooled figure is named in the warning, with the pooled figure
+    white = rng.standard_normal(400)
+    d = diagnostics([white, _ar1(rng, 60, 0.95)], 2, ["the positions of a", "the times of a"])
+    (w,) = d["warnings"]
+    assert f"(the times of a; pooled {d['lag1']:.2f})" in w, w
     # alternating structure (signed turning points of a smooth model error) is structure too
     alt = [b * (-1.0) ** np.arange(b.size) for b in blocks]
     d = diagnostics(alt, 2)
