@@ -108,8 +108,8 @@ def _residual_and_jacobian_impl(space, forward, n, p, d):
     return r, J
 
 
-# (an inner `jit`: the primal and the JVP rule's call are one trace, and one batching of it,
-# not two)
+# (an inner `jit`, called in one trace context (`_NO_MESH` in `_solve_lm`): every call of it
+# in a solve, the optimiser's shape evaluation included, shares one trace and one batching)
 _residual_and_jacobian = jax.custom_jvp(
     jax.jit(_residual_and_jacobian_impl, static_argnums=(0, 1, 2)), nondiff_argnums=(0, 1, 2)
 )
