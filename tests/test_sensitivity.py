@@ -29,6 +29,10 @@ def energy_amplitudes(m, a0, n):
 STEPS = {"F": 1e-5, "mu": 1e-6, "eps": 1e-7, "delta": 1e-6, "a0": 1e-8}
 
 
+# with the long runs, for CI's time (31 s of compiling): the exact solver's derivatives are
+# checked against central differences in tests/test_variable_mass.py and tests/test_oscillator.py,
+# `vmj.sensitivity` itself by the energy-balance test below
+@pytest.mark.long
 @pytest.mark.parametrize("delta", [3.0, -3.0])
 def test_exact_forward_mode_matches_central_differences(delta):
     m = model_at(delta=delta, eps=0.3, mu=2.0)

@@ -495,7 +495,7 @@ def test_row_limit(tmp_path):
     assert fits.MAX_ROWS == 2_000_000
 
 
-@pytest.mark.slow
+@pytest.mark.long  # 12 s of writing and reading, with the long runs for CI's time
 def test_a_million_rows(tmp_path):
     """A million rows of clock-stamped arrival data: read and put on the recovered clock in a
     few seconds (NumPy's parser; the line-by-line one only locates errors)."""
