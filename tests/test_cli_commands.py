@@ -142,7 +142,9 @@ def test_sensitivity_stick_slip_against_finite_differences(capsys):
         np.testing.assert_allclose(got, diff, rtol=1e-6)
 
 
-@pytest.mark.slow
+# with the long runs, for CI's time (17 s of compiling): the rope's derivatives are checked in
+# tests/test_rope.py, the command's plumbing by the variable-mass sensitivity commands
+@pytest.mark.long
 def test_sensitivity_rope(capsys):
     argv = [
         "sensitivity",
