@@ -519,6 +519,24 @@ def _adopt(job, sub, problems, shape):
 _HYPOTHESES = (0, 1, 2, 3)  #: amplitude-only records: fits assuming the last j swings did not cross
 
 
+def _best_nested(job, jobs):
+    """The solved sub-model of `job` among `jobs` with the least RSS, or `None`."""
+    nested = [a for a in jobs if a.out is not None and _nested_in(a, job)]
+    return min(nested, key=lambda a: a.rss) if nested else None
+
+
+def _never_worse(job, sub, problems, shape):
+    """`job` takes the solution of its nested sub-model `sub` where it ended worse."""
+    if sub is not None and not job.rss <= sub.rss * (1 + 1e-9):
+        _adopt(job, sub, problems, shape)
+
+
+def _take(job, other):
+    """`job` takes the solution of `other` (a twin solved beside it)."""
+    for name in ("code", "held", "p", "bound_hit", "out", "rss"):
+        setattr(job, name, getattr(other, name))
+
+
 def _twin(job, signs=None, records=None) -> _Job:
     """A copy of `job` (its own starting point) to solve beside it; with `signs` (per record),
     the copy fits signed positions `signs * amplitudes` (a hypothesis on the sides)."""
@@ -566,16 +584,11 @@ def _fit_all(jobs, problems, shape, first_pass):
         round_jobs = [j for j in jobs if len(j.slots) == q]
         subs, twins = {}, {}
         for job in round_jobs:
-            nested = [
-                a for a in jobs if len(a.slots) < q and a.out is not None and _nested_in(a, job)
-            ]
+            best = subs[id(job)] = _best_nested(job, jobs)
             mine = []
-            if nested:
-                best = min(nested, key=lambda a: a.rss)
-                subs[id(job)] = best
-                if first_pass:
-                    mine.append(_twin(job))
-                    _start_from(job, best)
+            if first_pass and best is not None:
+                mine.append(_twin(job))
+                _start_from(job, best)
             if first_pass:
                 for j in _HYPOTHESES:
                     signs = _hypothesis_signs(problems[job.problem].records, j)
@@ -588,16 +601,13 @@ def _fit_all(jobs, problems, shape, first_pass):
             mine = twins[id(job)]
             best = min([job] + mine, key=lambda a: a.rss)
             if best is not job:
-                for name in ("code", "held", "p", "bound_hit", "out", "rss"):
-                    setattr(job, name, getattr(best, name))
+                _take(job, best)
                 if best.signs is not None:
                     again.append(job)  # a signed-hypothesis optimum: refit the amplitudes
             job.iterations += sum(t.iterations for t in mine)
         _fit_jobs(again, problems, shape)
         for job in round_jobs:
-            best = subs.get(id(job))
-            if best is not None and not job.rss <= best.rss * (1 + 1e-9):
-                _adopt(job, best, problems, shape)
+            _never_worse(job, subs[id(job)], problems, shape)
     if first_pass:
         _restart_from_larger(jobs, problems, shape)
 
@@ -622,14 +632,9 @@ def _restart_from_larger(jobs, problems, shape):
         if twin is not None:
             job.iterations += twin.iterations
             if twin.rss < job.rss:
-                for name in ("code", "held", "p", "bound_hit", "out", "rss"):
-                    setattr(job, name, getattr(twin, name))
+                _take(job, twin)
     for job in sorted(jobs, key=lambda j: len(j.slots)):
-        nested = [a for a in jobs if a.out is not None and _nested_in(a, job)]
-        if nested:
-            best = min(nested, key=lambda a: a.rss)
-            if not job.rss <= best.rss * (1 + 1e-9):
-                _adopt(job, best, problems, shape)
+        _never_worse(job, _best_nested(job, jobs), problems, shape)
 
 
 # -- the driver --------------------------------------------------------------------------------

@@ -133,6 +133,15 @@ def _cubic_bound(law, a):
     return 1 + 2 * jnp.abs(law.b2) * a + 3 * jnp.abs(law.b3) * a * a
 
 
+def _cubic_modulus(law, a):
+    """The elliptic modulus `k` that the polynomial terms give a swing of amplitude `a`, for the
+    series radius: `|b3| a^2 / 2` is the Duffing solution's `k^2`; the quadratic term's poles
+    (a Weierstrass function) lie about `ln(1/(|b2| a)) + 2` away (measured from the series'
+    root test for `|b2| a` in [0.002, 0.5]), more than `ln(4/(|b2| a))`: the two terms' `k`
+    added."""
+    return (jnp.abs(law.b2) + jnp.sqrt(0.5 * jnp.abs(law.b3))) * jnp.abs(a)
+
+
 def _cubic_frequency(law, a):
     """Lindstedt's first-order frequency factor `1 + 3 b3 a^2/8 - 5 b2^2 a^2/12`, written as a
     square root that stays positive (and is close to exact for a stiff cubic)."""
@@ -181,13 +190,9 @@ class PolynomialRestoring(RestoringLaw):
         return xs[n] + extra, work
 
     def radius(self, a):
-        # the Duffing solution a cn(Omega t, k), k^2 ~ |b3| a^2 / 2, has its poles at distance
-        # K'(k)/Omega > max(pi/2, ln(4/k))/Omega from the real axis; the quadratic term's poles
-        # (a Weierstrass function) lie about ln(1/(|b2| a)) + 2 away (measured from the
-        # series' root test for |b2| a in [0.002, 0.5]), more than ln(4/(|b2| a)): the bound
-        # takes the two terms' k added, over the root of the tangent-stiffness bound
-        a = jnp.abs(a)
-        k = jnp.maximum((jnp.abs(self.b2) + jnp.sqrt(0.5 * jnp.abs(self.b3))) * a, 1e-300)
+        # the Duffing solution a cn(Omega t, k) has its poles at distance K'(k)/Omega >
+        # max(pi/2, ln(4/k))/Omega from the real axis, over the root of the stiffness bound
+        k = jnp.maximum(_cubic_modulus(self, a), 1e-300)
         return jnp.maximum(0.5 * jnp.pi, jnp.log(4 / k)) / jnp.sqrt(self.stiffness_bound(a))
 
     def frequency(self, a):
@@ -261,11 +266,9 @@ class SineRestoring(RestoringLaw):
         # x = 2 arcsin(k sn(omega t, k)), k = sin(a/2), is singular at distance K'(k)/omega from
         # the real axis, and K'(k) > max(pi/2, ln(4/k)); a share w of the sine is a softening
         # cubic -w x^3/6 to leading order (k ~ sqrt(w) sin(a/2)); the polynomial terms add their
-        # own k (see PolynomialRestoring.radius)
-        a = jnp.abs(a)
-        poly = (jnp.abs(self.b2) + jnp.sqrt(0.5 * jnp.abs(self.b3))) * a
-        k = jnp.sqrt(self.w) * jnp.sin(0.5 * jnp.clip(a, 1e-300, jnp.pi))
-        k = jnp.maximum(k + jnp.where(self.w == 1, 0.0, poly), 1e-300)
+        # own k (`_cubic_modulus`; the sine alone, w = 1, keeps its radius of before)
+        k = jnp.sqrt(self.w) * jnp.sin(0.5 * jnp.clip(jnp.abs(a), 1e-300, jnp.pi))
+        k = jnp.maximum(k + jnp.where(self.w == 1, 0.0, _cubic_modulus(self, a)), 1e-300)
         return jnp.maximum(0.5 * jnp.pi, jnp.log(4 / k)) / jnp.sqrt(self.stiffness_bound(a))
 
     def frequency(self, a):
