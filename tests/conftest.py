@@ -21,3 +21,21 @@ settings.register_profile(
 settings.load_profile("vmj")
 
 sys.path.insert(0, os.path.dirname(__file__))  # tests/scipy_reference.py
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """`--dist loadfile`, except that each page of tests/test_docs.py is its own unit of work:
+    a page's snippets run in their own process and share nothing with the file's other tests,
+    and the file as one unit (five minutes of a cold run) was the last to finish on its worker.
+    (xdist sends the units with the most tests first, so the pages fill in at the end.)"""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class PagesApart(LoadFileScheduling):
+        def _split_scope(self, nodeid):
+            if nodeid.startswith("tests/test_docs.py::") and "[" in nodeid:
+                return nodeid
+            return super()._split_scope(nodeid)
+
+    return PagesApart(config, log)
