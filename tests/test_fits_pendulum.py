@@ -316,8 +316,8 @@ def test_80p_residuals_lose_their_structure(record_80p):
     """The pendulum model at least halves the residual lag-1 autocorrelation of the plain
     oscillator fit (issue 11; measured 0.944 -> -0.16 on the positions), with a position RMS
     below a quarter of it (0.290 -> 0.0198 deg). The times keep a smooth wander of +-2 ms
-    (the logger's clock, not a law: it is not monotonic in the amplitude), so the pooled
-    lag-1 of the weighted positions and times falls less (0.955 -> 0.51). Slow: the eight law
+    (not a law: it is not monotonic in the amplitude; it mirrors the arrival stamps' envelope,
+    docs/pendulum-fits.md), so the pooled lag-1 of the weighted positions and times falls less (0.955 -> 0.51). Slow: the eight law
     sets of a 120-point record, 2.5 minutes of CPU."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
