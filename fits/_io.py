@@ -873,9 +873,12 @@ def extract_turning_points(
             tk, xk, starts_at_edge = tk[lead:], xk[lead:], False
     if starts_at_edge and xk.size >= 5:
         # an extremum at the first sample is a release from rest only if it is at least as far
-        # from the centre as the next one on its side (not a record that starts mid-swing)
+        # from the centre as the next one on its side (not a record that starts mid-swing).
+        # Judged by the first sample itself: the local fit of an extremum at the edge is
+        # one-sided, and for a record that starts mid-swing its vertex may lie far beyond the
+        # data, beyond even the next swing
         c = np.median(_local_centres(xk[1:]))
-        if abs(xk[0] - c) < 0.98 * abs(xk[2] - c):
+        if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk = tk[1:], xk[1:]
     meta = {"hysteresis": h}
     if xk.size >= 4 and abs((tk[1] - tk[0]) - (tk[2] - tk[1])) > 0.1 * (tk[2] - tk[1]):

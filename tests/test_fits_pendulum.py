@@ -180,6 +180,20 @@ def test_the_clock_of_a_synthetic_record_is_recovered(trajectories, tmp_path):
     assert abs(clock["rate_hz"] / FS - 1) < 1e-4
 
 
+def test_a_record_that_starts_mid_swing_starts_at_its_first_turning_point(trajectories, tmp_path):
+    """The records start 13 samples after the release, mid-swing. With seed 6 of the linear
+    viscous set the noise makes the first sample a (one-sided) extremum whose local fit puts
+    its vertex beyond the next swing; it was taken for a release from rest, and every law set
+    then fitted the wrong side (`b2` +0.2 against -0.2, residual sum of squares 100 times
+    the others'). The first turning point must be the simulation's first one."""
+    _, _, _, (_, angles) = trajectories[False, "viscous"]
+    recs, _ = records_for(trajectories, tmp_path, False, "viscous", [0, 6])
+    first = SENSOR["offset"] + angles[0] * (1 + SENSOR["asym"] * np.sign(angles[0]))
+    for rec in recs:
+        assert abs(rec.positions[0] - first) < 0.1, rec.positions[:3]
+        assert rec.orientation == recs[0].orientation
+
+
 def test_units_convert_between_degrees_and_radians():
     """The same pendulum in degrees (angle_unit pi/180) and in radians (angle_unit 1) gives the
     same turning points, and both are `vmj.Oscillator.pendulum`'s."""
