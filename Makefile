@@ -27,7 +27,8 @@ test: lint
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not long"
 
 # the long runs (50-seed law-set choices, exact coverage runs, the pendulum on 80P.txt, the
-# examples, the heaviest fits tests): about an hour on 2 cores
+# examples, the heaviest fits tests): about two hours on 2 cores, of which the 50-seed law-set
+# runs are about 100 minutes (1.2-4 minutes per 10 records; VMJ_PENDULUM_SEEDS=n runs fewer)
 test-long: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m long
 

@@ -690,8 +690,19 @@ def _passes(jobs, problems, shape, settings):
         _fit_all(jobs, problems, shape, first_pass=it == 0)
         if it + 1 < passes:
             for i, prob in enumerate(problems):
-                lead = next(j for j in jobs if j.problem == i and j.headline)
-                _reweight(prob, lead, settings["loss"], shape.N)
+                _reweight(prob, _lead(jobs, i, prob, shape.N), settings["loss"], shape.N)
+
+
+def _lead(jobs, i, prob, N):
+    """The job of problem `i` whose residuals estimate its noise scales: the headline, or
+    where the space selects among law sets that are not nested in it (the pendulum's sine and
+    linear laws), the variant preferred by BIC (a misfitting law's residuals would weigh the
+    positions against the times by its misfit)."""
+    mine = [j for j in jobs if j.problem == i]
+    head = next(j for j in mine if j.headline)
+    if head.space.select and len(mine) > 1:
+        return min(mine, key=lambda j: _information(j, prob, N)["bic"])
+    return head
 
 
 _SERIES_MARGIN = 8  #: turning points the series model computes past the record's last one
@@ -756,11 +767,7 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     N = shape.N
     results = []
     for i, prob in enumerate(problems):
-        mine = [j for j in jobs if j.problem == i]
-        head = next(j for j in mine if j.headline)
-        if space.select and len(mine) > 1:
-            head = min(mine, key=lambda j: _information(j, prob, N)["bic"])
-        results.append(_result(head, prob, jobs, shape, outlier_sigma))
+        results.append(_result(_lead(jobs, i, prob, N), prob, jobs, shape, outlier_sigma))
     for res in results:
         for w in res.warnings:
             warnings.warn(w, stacklevel=4)

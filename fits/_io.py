@@ -762,20 +762,29 @@ def _zigzag(y, h):
 _WINDOW = 0.4  #: half-width of the local fit around an extremum, in local half-periods
 
 
-def _refine(t, y, i, half, peak):
+def _refine(t, y, i, half, peak, kink=0.0):
     """Time and value of the extremum near sample `i`: a least-squares quartic through the
-    samples within `0.4 half` of it (a parabola where fewer than 7 samples fall inside), its
-    vertex nearest the centre, the window re-centred on that vertex once. `half` is the local
+    samples within `0.4 half` of it (a parabola where fewer than 7 samples fall inside) less
+    the dry-friction kink `kink sign(tau) (1 - cos(pi tau / half))` about its vertex, the
+    vertex nearest the centre, the window re-centred on that vertex twice. `half` is the local
     half-period [s]; `peak` says a maximum is sought (else a minimum). The sample itself is
     kept where the fit has no such vertex inside the window.
+
+    The kink: at a turning point with Coulomb friction the friction force reverses, and the
+    motion is an arc of a cosine about the centre shifted by the friction level `xF` on one
+    side and by `-xF` on the other: `kink = xF` at a maximum, `-xF` at a minimum [signal
+    units] (a record's level, from the decay of its extrema: `_dry_level`). A smooth quartic
+    through such a turning point times it late by about `0.07 half xF / a` (`a` the
+    amplitude).
 
     At 37 samples per half-period (the pendulum records) and noise of 0.2 % of the amplitude
     this times an extremum to about 0.2 ms (a twentieth of a sample period) and biases its value
     by less than 1e-3 of the amplitude for a sinusoid; the window is wide enough that quantised
     or flat-topped peaks still show their curvature."""
     width = _WINDOW * half
+    rate = math.pi / half  # the local angular frequency [rad/s]
     centre, value = t[i], y[i]
-    for _ in range(2):
+    for _ in range(3 if kink else 2):
         lo, hi = np.searchsorted(t, [centre - width, centre + width], side="left")
         lo, hi = max(lo, 0), min(hi + 1, len(t))
         tau = (t[lo:hi] - centre) / width
@@ -784,8 +793,9 @@ def _refine(t, y, i, half, peak):
         degree = 4 if tau.size >= 7 else 2
         if tau.size < degree + 1:
             return t[i], y[i]
-        c = np.linalg.lstsq(np.vander(tau, degree + 1), ys, rcond=None)[0]  # highest first
-        slope = np.polyder(c)
+        bump = np.sign(tau) * (1.0 - np.cos(rate * width * tau))
+        c = np.linalg.lstsq(np.vander(tau, degree + 1), ys - kink * bump, rcond=None)[0]
+        slope = np.polyder(c)  # (coefficients highest power first)
         roots = np.roots(slope)
         roots = roots[np.abs(roots.imag) < 1e-9].real
         curv = np.polyval(np.polyder(slope), roots)
@@ -793,8 +803,32 @@ def _refine(t, y, i, half, peak):
         if roots.size == 0:
             return t[i], y[i]
         u = roots[np.argmin(np.abs(roots))]
-        centre, value = centre + u * width, float(np.polyval(c, u))
+        value = float(np.polyval(c, u) + kink * np.sign(u) * (1.0 - math.cos(rate * width * u)))
+        centre = centre + u * width
     return float(centre), value
+
+
+def _dry_level(x, peak) -> list:
+    """The dry-friction level seen at the maxima and at the minima of a decay [signal units],
+    from the decay of each side's amplitudes `a` (about the median local centre) over a
+    period: `a[j] - a[j+1] = 4 xF + c1 a[j] + c2 a[j]^2` (Coulomb, viscous and quadratic
+    decrements; the `4 xF` exact for a linear restoring law), at least 0; 0 with fewer than 6
+    extrema on a side, and at most a quarter of the median decay over a period (all of the
+    decay dry friction's). The first extremum is left out (it may be a hold before the
+    release)."""
+    x, peak = np.asarray(x, dtype=float)[1:], np.asarray(peak)[1:]
+    c = np.median(_local_centres(x)) if x.size >= 3 else 0.0
+    out = []
+    for side in (peak, ~peak):
+        a = np.abs(x[side] - c)
+        if a.size < 6:
+            out.append(0.0)
+            continue
+        d = a[:-1] - a[1:]
+        A = np.column_stack([np.ones(a.size - 1), a[:-1], a[:-1] ** 2])
+        level = float(np.linalg.lstsq(A, d, rcond=None)[0][0]) / 4
+        out.append(min(max(level, 0.0), max(float(np.median(d)), 0.0) / 4))
+    return out
 
 
 def _local_centres(x):
@@ -817,16 +851,18 @@ def extract_turning_points(
        point counts only once the signal has moved back from it by more than `h`;
     3. pairs of extrema much closer in time than the median half-period (spurious wiggles) are
        dropped; each extremum is refined by a local quartic over +-0.4 local half-periods
-       (sub-sample time and value); leading extrema on the same side of the centre as the next
-       one (the mass held or nudged before its release) are dropped, so the record starts at
-       the release;
+       (sub-sample time and value), bent by the dry-friction level that the extrema's decay
+       shows (at a turning point the friction force reverses: the curvature steps); leading
+       extrema on the same side of the centre as the next one (the mass held or nudged before
+       its release) are dropped, so the record starts at the release;
     4. the record ends where the swings fall below `min_amplitude` (default `10 h`).
 
     The first turning point is the release (`k = 0`); times are measured from it. `centre` is
     the median local centre `(x[k-1] + 2 x[k] + x[k+1]) / 4`. A release from a hold (the first
     half-swing more than 10 % longer or shorter than the second: the first extremum is then a
     flat stretch, not a sharp turning point) is timed one half-swing before the end of the
-    first swing, at the hold's level; `meta` says so (`"release"`) and holds the `hysteresis`.
+    first swing, at the hold's level; `meta` says so (`"release"`) and holds the `hysteresis`
+    and the dry-friction `kink` levels of the maxima and the minima [signal units].
     The signal's clock report is `record.clock`.
     """
     t, y = np.asarray(signal.t, dtype=float), np.asarray(signal.y, dtype=float)
@@ -858,7 +894,15 @@ def extract_turning_points(
     peak = np.empty(idx.size, dtype=bool)
     peak[:-1] = y_clean[idx[:-1]] > y_clean[idx[1:]]
     peak[-1] = not peak[-2]
-    refined = [_refine(t, y_clean, i, hp, pk) for i, hp, pk in zip(idx, half, peak)]
+    refined = np.array([_refine(t, y_clean, i, hp, pk) for i, hp, pk in zip(idx, half, peak)])
+    # a dry-friction level bends every turning point (`_refine`): measured from the decay of
+    # the extrema so refined, then each extremum refined again with it
+    kinks = _dry_level(refined[:, 1], peak)
+    if max(kinks) > 0:
+        refined = [
+            _refine(t, y_clean, i, hp, pk, kinks[0] if pk else -kinks[1])
+            for i, hp, pk in zip(idx, half, peak)
+        ]
     tk = np.array([r[0] for r in refined])
     xk = np.array([r[1] for r in refined])
     if xk.size >= 5:
@@ -880,7 +924,7 @@ def extract_turning_points(
         c = np.median(_local_centres(xk[1:]))
         if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk = tk[1:], xk[1:]
-    meta = {"hysteresis": h}
+    meta = {"hysteresis": h, "kink": kinks}
     if xk.size >= 4 and abs((tk[1] - tk[0]) - (tk[2] - tk[1])) > 0.1 * (tk[2] - tk[1]):
         # released from a hold: the first extremum is no sharp turning point, its time is
         # anywhere in the hold. The release is one half-swing before the first swing's end;

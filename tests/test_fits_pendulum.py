@@ -254,19 +254,56 @@ def test_bic_counts_a_law_that_ended_on_its_bound():
     )
     on = np.r_[np.ones(m), np.zeros(N - m)]
     prob = _Problem([rec], [{}], (), (), [None], wx=[on], wt=[on])
+    r = np.r_[np.full(m, 1.5), np.zeros(N - m), np.full(m, 0.5), np.zeros(N - m)]
 
     class Job:
         slots = [("zeta", None), ("xF", None), ("cq", None)]
         code = np.array([LOWER, LOWER, HELD])  # cq ran into 0
-        rss = 30.0
+        out = {"r": r}
+        rss = float(r @ r)
 
-    sub = type("Sub", (), {"slots": Job.slots[:2], "code": Job.code[:2], "rss": 30.0})
+    sub = type("Sub", (), {"slots": Job.slots[:2], "code": Job.code[:2], "out": Job.out})
+    sub.rss = Job.rss
     big, small = _information(Job, prob, N), _information(sub, prob, N)
     assert big["q"] == small["q"] == 2  # the residuals' degrees of freedom
     assert big["bic"] - small["bic"] == pytest.approx(math.log(2 * m))
     # the times of smaller extrema weigh less: precision proportional to the amplitude
     tw = _time_precision(PENDULUM, rec, N)
     np.testing.assert_allclose(tw[:m], rec.amplitudes / np.max(rec.amplitudes))
+
+
+def test_bic_comparison_does_not_depend_on_how_positions_and_times_are_weighed():
+    """Each block (a record's positions, its times) has its own variance in the likelihood, so
+    the weight that puts the times on the positions' scale (estimated from one fit's
+    residuals) cannot decide between two law sets: scaling one block of both fits' residuals
+    leaves their BIC difference unchanged. (With one pooled variance it moved the choice:
+    linear records weighed by a misfitting sine law chose a spurious drag in 2 of 10 seeds.)"""
+    from fits._fit import _Problem
+    from fits._params import LOWER
+    from fits._result import _information
+
+    N, m = 16, 12
+    rec = fits.record_from_sequence(
+        positions=[(-1) ** (k + 1) * (10.0 - 0.5 * k) for k in range(m)],
+        times=[0.1 * k for k in range(m)],
+    )
+    on = np.r_[np.ones(m), np.zeros(N - m)]
+    prob = _Problem([rec], [{}], (), (), [None], wx=[on], wt=[on])
+    rng = np.random.default_rng(0)
+    rx, rt = rng.normal(size=(2, m)), rng.normal(size=(2, m))
+    rx[1] *= 0.9  # the larger law set explains the positions a little better
+
+    def bic_gap(time_scale):
+        out = []
+        for j, q in ((0, 2), (1, 3)):
+            r = np.r_[rx[j], np.zeros(N - m), time_scale * rt[j], np.zeros(N - m)]
+            job = type("Job", (), {"slots": [("p", None)] * q, "code": np.full(q, LOWER)})
+            job.out, job.rss = {"r": r}, float(r @ r)
+            out.append(_information(job, prob, N)["bic"])
+        return out[1] - out[0]
+
+    gaps = [bic_gap(s) for s in (1e-3, 1.0, 1e3)]
+    np.testing.assert_allclose(gaps, gaps[1], rtol=1e-10)
 
 
 def within(err: dict) -> bool:
@@ -328,11 +365,11 @@ def lag1(r) -> float:
 @pytest.mark.long
 def test_80p_residuals_lose_their_structure(record_80p):
     """The pendulum model at least halves the residual lag-1 autocorrelation of the plain
-    oscillator fit (issue 11; measured 0.944 -> -0.16 on the positions), with a position RMS
-    below a quarter of it (0.290 -> 0.0198 deg). The times keep a smooth wander of +-2 ms
-    (not a law: it is not monotonic in the amplitude; it mirrors the arrival stamps' envelope,
-    docs/pendulum-fits.md), so the pooled lag-1 of the weighted positions and times falls less (0.955 -> 0.51). Slow: the eight law
-    sets of a 120-point record, 2.5 minutes of CPU."""
+    oscillator fit (issue 11; measured 0.944 -> -0.17 on the positions, 0.955 -> 0.44 pooled
+    over the weighted positions and times), with a position RMS below a quarter of it (0.290
+    -> 0.0197 deg). The times keep a smooth wander of +-2 ms (not a law: it is not monotonic
+    in the amplitude; it mirrors the arrival stamps' envelope, docs/pendulum-fits.md). The
+    eight law sets of a 120-point record and the plain fit: about a minute of CPU."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         plain = fits.fit(
@@ -342,7 +379,7 @@ def test_80p_residuals_lose_their_structure(record_80p):
     before, after = lag1(plain.residuals["position"]), lag1(pend.residuals["position"])
     assert before > 0.9
     assert abs(after) <= 0.5 * before
-    assert pend.diagnostics["lag1"] < plain.diagnostics["lag1"] - 0.2
+    assert pend.diagnostics["lag1"] <= 0.5 * plain.diagnostics["lag1"]
     assert pend.rms < 0.25 * plain.rms
     assert pend.converged
     assert pend.label.startswith("linear:viscous+coulomb"), pend.model_comparison
