@@ -894,17 +894,22 @@ def extract_turning_points(
     peak = np.empty(idx.size, dtype=bool)
     peak[:-1] = y_clean[idx[:-1]] > y_clean[idx[1:]]
     peak[-1] = not peak[-2]
-    refined = np.array([_refine(t, y_clean, i, hp, pk) for i, hp, pk in zip(idx, half, peak)])
+
+    def refine(kinks):  # every extremum, (time, value) rows
+        return np.array(
+            [
+                _refine(t, y_clean, i, hp, pk, kinks[0] if pk else -kinks[1])
+                for i, hp, pk in zip(idx, half, peak)
+            ]
+        )
+
     # a dry-friction level bends every turning point (`_refine`): measured from the decay of
-    # the extrema so refined, then each extremum refined again with it
+    # the extrema refined without it, then each extremum refined again with it
+    refined = refine((0.0, 0.0))
     kinks = _dry_level(refined[:, 1], peak)
     if max(kinks) > 0:
-        refined = [
-            _refine(t, y_clean, i, hp, pk, kinks[0] if pk else -kinks[1])
-            for i, hp, pk in zip(idx, half, peak)
-        ]
-    tk = np.array([r[0] for r in refined])
-    xk = np.array([r[1] for r in refined])
+        refined = refine(kinks)
+    tk, xk = refined[:, 0], refined[:, 1]
     if xk.size >= 5:
         # before the release the mass may be held, or nudged, on the release side: extrema on
         # the same side of the centre as their successor are no swings; the release is the

@@ -240,20 +240,28 @@ def test_law_sets_share_one_compiled_model():
     assert PENDULUM.time_noise == "amplitude"
 
 
-def test_bic_counts_a_law_that_ended_on_its_bound():
-    """A law set whose extra law went to 0 (its slot held at the bound by the solver) counts
-    that parameter: with the sub-model's residuals it is `log n` behind it in BIC, not tied."""
-    from fits._fit import _Problem, _time_precision
-    from fits._params import HELD, LOWER
-    from fits._result import _information
+def one_record_problem(N: int, m: int):
+    """A decaying record of `m` turning points with times, and its fit problem padded to `N`
+    with every position and time weighed 1 (for the information criteria)."""
+    from fits._fit import _Problem
 
-    N, m = 16, 12
     rec = fits.record_from_sequence(
         positions=[(-1) ** (k + 1) * (10.0 - 0.5 * k) for k in range(m)],
         times=[0.1 * k for k in range(m)],
     )
     on = np.r_[np.ones(m), np.zeros(N - m)]
-    prob = _Problem([rec], [{}], (), (), [None], wx=[on], wt=[on])
+    return rec, _Problem([rec], [{}], (), (), [None], wx=[on], wt=[on])
+
+
+def test_bic_counts_a_law_that_ended_on_its_bound():
+    """A law set whose extra law went to 0 (its slot held at the bound by the solver) counts
+    that parameter: with the sub-model's residuals it is `log n` behind it in BIC, not tied."""
+    from fits._fit import _time_precision
+    from fits._params import HELD, LOWER
+    from fits._result import _information
+
+    N, m = 16, 12
+    rec, prob = one_record_problem(N, m)
     r = np.r_[np.full(m, 1.5), np.zeros(N - m), np.full(m, 0.5), np.zeros(N - m)]
 
     class Job:
@@ -278,17 +286,11 @@ def test_bic_comparison_does_not_depend_on_how_positions_and_times_are_weighed()
     residuals) cannot decide between two law sets: scaling one block of both fits' residuals
     leaves their BIC difference unchanged. (With one pooled variance it moved the choice:
     linear records weighed by a misfitting sine law chose a spurious drag in 2 of 10 seeds.)"""
-    from fits._fit import _Problem
     from fits._params import LOWER
     from fits._result import _information
 
     N, m = 16, 12
-    rec = fits.record_from_sequence(
-        positions=[(-1) ** (k + 1) * (10.0 - 0.5 * k) for k in range(m)],
-        times=[0.1 * k for k in range(m)],
-    )
-    on = np.r_[np.ones(m), np.zeros(N - m)]
-    prob = _Problem([rec], [{}], (), (), [None], wx=[on], wt=[on])
+    _, prob = one_record_problem(N, m)
     rng = np.random.default_rng(0)
     rx, rt = rng.normal(size=(2, m)), rng.normal(size=(2, m))
     rx[1] *= 0.9  # the larger law set explains the positions a little better
