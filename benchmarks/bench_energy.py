@@ -20,6 +20,7 @@ import sys
 import jax
 
 jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_cpu_enable_async_dispatch", False)  # as the vmj command runs
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402

@@ -14,6 +14,7 @@ import sys
 import jax
 
 jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_cpu_enable_async_dispatch", False)  # as the vmj command runs
 
 import numpy as np  # noqa: E402
 

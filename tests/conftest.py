@@ -6,6 +6,7 @@ import sys
 import jax
 
 jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_cpu_enable_async_dispatch", False)  # as the vmj command runs
 # share compiled programs between the pytest workers and test files of one run; the `vmj`
 # command run in-process or as a subprocess uses the same directory (not the user's cache)
 CACHE = os.path.join(os.path.dirname(__file__), "..", ".pytest_cache", "jax")

@@ -1,7 +1,8 @@
 """The exported-program cache of the compiled entry points (vmj/_exported.py), as the `vmj`
-command uses it: a repeat loads the exported program instead of tracing and answers bit for bit
-the same; a corrupted entry or a changed source is exported again; `--no-cache` writes nothing;
-a plain `import vmj` leaves it off."""
+command uses it: a repeat loads the executable instead of tracing, lowering and compiling, and
+answers bit for bit the same; a corrupted entry or a changed source is exported (or compiled)
+again, an executable that fails is compiled anew; `--no-cache` writes nothing; a plain
+`import vmj` leaves it off."""
 
 from __future__ import annotations
 
@@ -39,23 +40,35 @@ DECAY = [
 
 @pytest.fixture
 def exports(monkeypatch):
-    """The number of programs exported (traced) so far; the process starts with nothing loaded,
-    as a new process would."""
-    count = [0]
-    export = exported._export
+    """The numbers of programs exported (traced) and compiled so far, `[exported, compiled]`;
+    the process starts with nothing loaded, as a new process would."""
+    count = [0, 0]
+    export, compile_ = exported._export, exported._compile
 
     def counting(jitted, specs):
         count[0] += 1
         return export(jitted, specs)
 
+    def compiling(*args):
+        count[1] += 1
+        return compile_(*args)
+
     monkeypatch.setattr(exported, "_export", counting)
+    monkeypatch.setattr(exported, "_compile", compiling)
     monkeypatch.setattr(entry._turning_points, "loaded", {})
+    jax.clear_caches()  # (as in a new process: no executable of another test's to reuse)
     names = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs")
     config = {name: getattr(jax.config, name) for name in names}  # `main` sets them
     yield count
     exported._environment.cache_clear()  # (a test may change the source hash)
     for name, value in config.items():
         jax.config.update(name, value)
+
+
+def _new_process() -> None:
+    """Forget what was loaded and compiled, as a new process starts."""
+    entry._turning_points.loaded.clear()
+    jax.clear_caches()
 
 
 def _run(capsys, *argv) -> str:
@@ -67,41 +80,71 @@ def _entries(cache) -> list:
     return sorted(os.listdir(cache / "exported"))
 
 
-def test_a_repeat_loads_the_exported_program_and_answers_the_same(tmp_path, capsys, exports):
+def test_a_repeat_loads_the_executable_and_answers_the_same(tmp_path, capsys, exports):
     cache = tmp_path / "cache"
     first = _run(capsys, "--cache-dir", str(cache), *DECAY)
-    assert exports[0] == 1
-    (name,) = _entries(cache)
-    assert name.startswith("_turning_points-") and name.endswith(".exported")
+    assert exports == [1, 1]
+    program, executable = _entries(cache)
+    assert program.startswith("_turning_points-") and program.endswith(".exported")
+    assert executable == program.replace(".exported", ".xla")
     assert exported.exported_cache_directory() is None  # switched on only while `main` runs
 
-    entry._turning_points.loaded.clear()  # a new process
+    _new_process()
     again = _run(capsys, "--cache-dir", str(cache), *DECAY)
-    assert exports[0] == 1  # loaded, not traced
+    assert exports == [1, 1]  # loaded: neither traced nor compiled
     assert again == first
     assert _run(capsys, "--no-cache", *DECAY) == first  # the plain `jax.jit`, bit for bit
 
 
-def test_a_corrupted_entry_is_exported_again(tmp_path, capsys, exports):
-    cache = tmp_path / "cache"
-    first = _run(capsys, "--cache-dir", str(cache), *DECAY)
-    (name,) = _entries(cache)
-    path = cache / "exported" / name
+def _damage(path) -> bytes:
     data = bytearray(path.read_bytes())
     data[len(data) // 2] ^= 0xFF  # one flipped byte
     path.write_bytes(bytes(data))
-    entry._turning_points.loaded.clear()
+    return bytes(data)
+
+
+def test_a_corrupted_entry_is_written_again(tmp_path, capsys, exports):
+    cache = tmp_path / "cache"
+    first = _run(capsys, "--cache-dir", str(cache), *DECAY)
+    names = _entries(cache)
+    program, executable = (cache / "exported" / name for name in names)
+    damaged = _damage(executable)  # compiled again from the exported program
+    _new_process()
     assert _run(capsys, "--cache-dir", str(cache), *DECAY) == first
-    assert exports[0] == 2  # the damaged entry was not used ...
-    assert path.read_bytes() != bytes(data)  # ... and was written anew
-    path.write_bytes(b"not an entry")
-    entry._turning_points.loaded.clear()
+    assert exports == [1, 2]
+    assert executable.read_bytes() != damaged
+    damaged = _damage(program)
+    executable.unlink()  # exported again
+    _new_process()
     assert _run(capsys, "--cache-dir", str(cache), *DECAY) == first
-    assert exports[0] == 3
-    entry._turning_points.loaded.clear()
+    assert exports == [2, 3]
+    assert program.read_bytes() != damaged
+    program.write_bytes(b"not an entry")
+    executable.write_bytes(b"not an entry")
+    _new_process()
     assert _run(capsys, "--cache-dir", str(cache), *DECAY) == first
-    assert exports[0] == 3  # the rewritten entry is used
-    assert _entries(cache) == [name]  # (no temporary file left behind)
+    assert exports == [3, 4]
+    _new_process()
+    assert _run(capsys, "--cache-dir", str(cache), *DECAY) == first
+    assert exports == [3, 4]  # the rewritten entries are used
+    assert _entries(cache) == names  # (no temporary file left behind)
+
+
+def test_an_executable_that_fails_to_run_is_compiled_anew(tmp_path, capsys, exports, monkeypatch):
+    """(jaxlib 0.10 serialized an executable loaded from the compilation cache without the code
+    of some kernels: it loaded, and failed when run.)"""
+    cache = tmp_path / "cache"
+    first = _run(capsys, "--cache-dir", str(cache), *DECAY)
+
+    def broken(*args):
+        raise jax.errors.JaxRuntimeError("NOT_FOUND: Function wrapped_rsqrt not found")
+
+    from jax.experimental import serialize_executable
+
+    monkeypatch.setattr(serialize_executable, "deserialize_and_load", lambda *a, **k: broken)
+    _new_process()
+    assert _run(capsys, "--cache-dir", str(cache), *DECAY) == first
+    assert exports == [1, 2]  # compiled anew from the exported program
 
 
 def test_a_changed_source_misses(tmp_path, capsys, exports, monkeypatch):
@@ -109,10 +152,10 @@ def test_a_changed_source_misses(tmp_path, capsys, exports, monkeypatch):
     first = _run(capsys, "--cache-dir", str(cache), *DECAY)
     monkeypatch.setattr(exported, "_source_hash", lambda package: f"{package} edited")
     exported._environment.cache_clear()
-    entry._turning_points.loaded.clear()
+    _new_process()
     assert _run(capsys, "--cache-dir", str(cache), *DECAY) == first
-    assert exports[0] == 2
-    assert len(_entries(cache)) == 2
+    assert exports == [2, 2]
+    assert len(_entries(cache)) == 4
 
 
 def test_no_cache_writes_nothing(tmp_path, capsys, exports, monkeypatch):
@@ -121,7 +164,7 @@ def test_no_cache_writes_nothing(tmp_path, capsys, exports, monkeypatch):
     _run(capsys, "--no-cache", *DECAY)
     monkeypatch.setenv("VMJ_CACHE_DIR", "off")
     _run(capsys, *DECAY)
-    assert exports[0] == 0
+    assert exports == [0, 0]
     assert not cache.exists()
 
 

@@ -38,8 +38,13 @@ def _is_traced(x) -> bool:
 
 
 def _float(x) -> jax.Array:
-    """A float array of JAX's default float type (float64 with x64 enabled)."""
-    return jnp.asarray(x, dtype=jnp.result_type(float))
+    """A float array of JAX's default float type (float64 with x64 enabled). A Python number or
+    NumPy array is cast by NumPy and put on the device as it is: `jnp.asarray` would run (and,
+    in a new process, load or compile) a conversion program for it."""
+    dtype = jnp.result_type(float)
+    if isinstance(x, jax.Array) or _is_traced(x):
+        return jnp.asarray(x, dtype=dtype)
+    return jax.device_put(np.asarray(x, dtype=dtype))
 
 
 def check(name: str, value, ok: Callable, allowed: str):

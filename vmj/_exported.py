@@ -1,19 +1,27 @@
-"""A persistent cache of exported programs, so that a repeated `vmj` command skips tracing.
+"""A persistent cache of exported programs and their executables, so that a repeated `vmj`
+command skips tracing, lowering and compiling.
 
 JAX's persistent compilation cache keeps XLA's compiled code, but every new process still traces
 the Python function and lowers it before it can look that code up: for `vmj fit` that tracing
 is most of the run (docs/performance.md). `exported_jit` is `jax.jit` for the compiled entry
 points (`vmj._integrate`, `fits._solve`); while the cache is switched on, each call with new
-static arguments, argument structure or shapes looks for the serialized `jax.export.Exported`
-of the function in the cache directory. On a hit it is deserialized and called under `jax.jit`
-(whose compile then comes from the persistent compilation cache); on a miss the function is
-traced once, exported, written and called the same way. An entry is keyed by a hash of the
-function's name, the source of vmj and of the function's package, the versions of vmj, JAX and
-the libraries traced through, the x64 flag and the backend, the static arguments and the
-structure and shapes of the others. An entry that cannot be read (missing, corrupted, written
-by another version) is written anew; one that cannot be written (read-only directory) costs
-nothing but the time. Entries are written to a temporary file and renamed into place, so
-concurrent writers never leave a partial one.
+static arguments, argument structure or shapes looks in the cache directory for two entries:
+
+- `NAME-KEY.xla`: XLA's executable (`jax.experimental.serialize_executable`), deserialized and
+  called as it is: no tracing, no lowering, no lookup in the compilation cache. Its key also
+  holds this machine's processor (the code is compiled for it). Should a loaded executable fail
+  on its first call, it is compiled anew from the exported program.
+- `NAME-KEY.exported`: the serialized `jax.export.Exported`, from which the executable is
+  compiled where it is missing (another processor, a damaged entry).
+
+On a miss the function is traced once, exported, compiled (by XLA itself: an executable loaded
+from the compilation cache serializes without some of its code) and both entries written. A
+key is a hash of the function's name, the source of vmj and of the function's package, the
+versions of vmj, JAX and the libraries traced through, the x64 flag and the backend, the static
+arguments and the structure and shapes of the others. An entry that cannot be read (missing,
+corrupted, written by another version) is written anew; one that cannot be written (read-only
+directory) costs nothing but the time. Entries are written to a temporary file and renamed into
+place, so concurrent writers never leave a partial one.
 
 The cache is off unless an entry point switches it on: the `vmj` command does, in the
 subdirectory `exported` of its compilation cache (`--cache-dir`, `--no-cache`,
@@ -46,12 +54,12 @@ _PLAIN = "plain"  #: marks an argument combination that is not exported (always 
 
 
 def enable_exported_cache(path: str | os.PathLike | None) -> None:
-    """Keep the exported programs of vmj's compiled entry points in the directory `path`
-    (created when first written; `None` switches the cache off, the default).
+    """Keep the exported programs of vmj's compiled entry points and their executables in the
+    directory `path` (created when first written; `None` switches the cache off, the default).
 
     Meant for a program's entry point, after `jax.config.update("jax_compilation_cache_dir",
-    ...)`: the exported program skips tracing, the compilation cache skips XLA's compile. The
-    `vmj` command calls it with the `exported` subdirectory of its compilation cache.
+    ...)`: a loaded executable skips tracing, lowering and XLA's compile. The `vmj` command
+    calls it with the `exported` subdirectory of its compilation cache.
     """
     _directory[0] = None if path is None else os.fspath(path)
 
@@ -144,10 +152,22 @@ class _ExportedJit:
             return _PLAIN
         digest = hashlib.sha256(text.encode()).digest()
         path = os.path.join(_directory[0], f"{self.fun.__name__}-{digest.hex()[:40]}.exported")
+        executable = _read_executable(path, digest)
+        if executable is not None:
+            compiled, out_tree = executable
+            anew = functools.partial(self._export_and_compile, static, treedef, avals, path, digest)
+            return _Loaded(compiled, lambda: anew()[0]), out_tree
+        return self._export_and_compile(static, treedef, avals, path, digest)
+
+    def _export_and_compile(self, static, treedef, avals, path, digest):
+        """`(compiled, output tree)` from the exported program's entry, or traced, exported
+        and written there; the executable compiled and written beside it."""
+        import jax
+
         loaded = _read(path, digest, avals)
         if loaded is not None:
             exported, out_tree = loaded
-            return self._jit_call(exported), out_tree
+            return _compile(self.fun.__name__, exported, out_tree, path, digest, avals), out_tree
         out_trees = []
 
         def flat(*leaves):
@@ -166,26 +186,81 @@ class _ExportedJit:
         out_tree = out_trees[-1]
         skeleton = pickle.dumps(jax.tree.unflatten(out_tree, list(range(out_tree.num_leaves))))
         _write(path, digest, skeleton, blob)
-        return self._jit_call(exported), out_tree
+        return _compile(self.fun.__name__, exported, out_tree, path, digest, avals), out_tree
 
-    def _jit_call(self, exported):
-        """`jax.jit` of the exported program under the function's name (the compilation
-        cache's entries keep it)."""
+
+class _Loaded:
+    """A deserialized executable; should its first call fail (an entry that XLA cannot run),
+    the program is compiled anew (`anew()`) and that one used."""
+
+    def __init__(self, compiled, anew):
+        self.compiled, self.anew, self.ran = compiled, anew, False
+
+    def __call__(self, *leaves):
+        if self.ran:
+            return self.compiled(*leaves)
         import jax
 
-        def call(*leaves):
-            return exported.call(*leaves)
+        try:
+            out = self.compiled(*leaves)
+        except jax.errors.JaxRuntimeError:
+            self.compiled = self.anew()
+            out = self.compiled(*leaves)
+        self.ran = True
+        return out
 
-        call.__name__ = call.__qualname__ = self.fun.__name__
-        jitted = jax.jit(call)
-        if b"lapack" in exported.mlir_module_serialized:
-            return jitted
 
-        def first(*leaves):  # lowered once: without LAPACK's set-up, which imports SciPy
-            with _without_lapack_setup():
-                return jitted(*leaves)
+def _executable_entry(path, digest):
+    """The path and key of the executable's entry beside the exported program's: its key holds
+    this machine's processor too (XLA's code is compiled for it)."""
+    return path[: -len(".exported")] + ".xla", hashlib.sha256(digest + _processor().encode())
 
-        return _FirstCall(first, jitted)
+
+def _read_executable(path, digest):
+    """`(compiled, output tree)` from the executable's entry, or `None`: loading it skips
+    deserializing the exported program, lowering it and the compilation cache."""
+    import jax
+    from jax.experimental import serialize_executable as se
+
+    exe_path, key = _executable_entry(path, digest)
+    entry = _read_payload(exe_path, key.digest())
+    if entry is None:
+        return None
+    try:
+        in_tree, exe_out_tree, skeleton, lapack = pickle.loads(entry[1])
+        if lapack and not _lapack_ready():
+            return None
+        compiled = se.deserialize_and_load(entry[0], in_tree, exe_out_tree)
+        return compiled, jax.tree.structure(skeleton)
+    except Exception:  # written by an incompatible version: compiled and written anew
+        return None
+
+
+def _compile(name, exported, out_tree, path, digest, avals):
+    """XLA's executable of the exported program (lowered under the function's name), stored in
+    its entry; where executables cannot be serialized, used as it is."""
+    import jax
+    from jax.experimental import serialize_executable as se
+
+    def call(*leaves):
+        return exported.call(*leaves)
+
+    call.__name__ = call.__qualname__ = name
+    specs = [jax.ShapeDtypeStruct(a.shape, a.dtype, weak_type=a.weak_type) for a in avals]
+    lapack = b"lapack" in exported.mlir_module_serialized
+    # lowered without LAPACK's set-up where the program has no LAPACK call (it imports SciPy)
+    with contextlib.nullcontext() if lapack else _without_lapack_setup():
+        lowered = jax.jit(call).lower(*specs)
+    compiled = _compile_fresh(lowered)
+    try:
+        blob, in_tree, exe_out_tree = se.serialize(compiled)
+        skeleton = jax.tree.unflatten(out_tree, list(range(out_tree.num_leaves)))
+        trees = pickle.dumps((in_tree, exe_out_tree, skeleton, lapack))
+    except Exception:  # pragma: no cover - a backend that cannot serialize executables
+        return compiled
+    exe_path, key = _executable_entry(path, digest)
+    _write(exe_path, key.digest(), trees, blob)
+    return compiled
 
 
 def _export(jitted, specs):
@@ -207,15 +282,35 @@ def _export(jitted, specs):
             allowed |= found  # (the trace and the lowering are cached by `jitted`)
 
 
-class _FirstCall:
-    """`first` for the first call, `then` for the others."""
+def _lapack_ready() -> bool:
+    """Register LAPACK's custom calls for the CPU, as lowering a program that calls them does
+    (an executable that calls them unregistered crashes the process); `False` where this JAX
+    has no such step (the executable is then not loaded)."""
+    import jax
 
-    def __init__(self, first, then):
-        self.call, self.then = first, then
+    if jax.default_backend() != "cpu":
+        return True
+    try:
+        from jax._src.lax import linalg
 
-    def __call__(self, *args):
-        call, self.call = self.call, self.then
-        return call(*args)
+        linalg.initialize_lapack()
+    except (ImportError, AttributeError):  # pragma: no cover - another layout of JAX's internals
+        return False
+    return True
+
+
+def _compile_fresh(lowered):
+    """`lowered.compile()` by XLA itself, never loaded from JAX's persistent compilation cache:
+    an executable loaded from there serializes without the code of some of its kernels (jaxlib
+    0.10: the copy loads, and fails with "Function wrapped_rsqrt not found" when it runs). A
+    compile option at its default value gives the program a cache key of its own, and the
+    compile is not written to the cache (its executable is stored by the caller)."""
+    import math
+
+    from jax._src import config
+
+    with config.persistent_cache_min_compile_time_secs(math.inf):
+        return lowered.compile(compiler_options={"xla_embed_ir_in_executable": False})
 
 
 @contextlib.contextmanager
@@ -239,21 +334,34 @@ def _without_lapack_setup():
         _export._ensure_backends_initialized = setup
 
 
+def _read_payload(path, digest):
+    """`(blob, skeleton)` of the entry at `path` for the key `digest`, or `None` (missing,
+    another key's, truncated or corrupted)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError:
+        return None
+    if not data.startswith(_MAGIC) or len(data) < len(_MAGIC) + _HEAD.size:
+        return None
+    key, check, n_skeleton = _HEAD.unpack_from(data, len(_MAGIC))
+    payload = data[len(_MAGIC) + _HEAD.size :]
+    if key != digest or hashlib.sha256(payload).digest() != check:
+        return None
+    return payload[n_skeleton:], payload[:n_skeleton]
+
+
 def _read(path, digest, avals):
     """The `(Exported, output tree)` stored at `path` for the key `digest`, or `None`."""
     import jax
 
     try:
-        with open(path, "rb") as f:
-            data = f.read()
-        if not data.startswith(_MAGIC):
+        entry = _read_payload(path, digest)
+        if entry is None:
             return None
-        key, check, n_skeleton = _HEAD.unpack_from(data, len(_MAGIC))
-        payload = data[len(_MAGIC) + _HEAD.size :]
-        if key != digest or hashlib.sha256(payload).digest() != check:
-            return None  # another key's entry, truncated or corrupted
-        out_tree = jax.tree.structure(pickle.loads(payload[:n_skeleton]))
-        exported = jax.export.deserialize(bytearray(payload[n_skeleton:]))
+        blob, skeleton = entry
+        out_tree = jax.tree.structure(pickle.loads(skeleton))
+        exported = jax.export.deserialize(bytearray(blob))
         if [(a.shape, a.dtype) for a in exported.in_avals] != [(a.shape, a.dtype) for a in avals]:
             return None
         if jax.default_backend() not in exported.platforms:
@@ -297,6 +405,21 @@ def _stable(value) -> str:
     if callable(value) and hasattr(value, "__qualname__"):
         return f"{getattr(value, '__module__', '?')}.{value.__qualname__}"
     return repr(value)
+
+
+@functools.cache
+def _processor() -> str:
+    """This machine's processor as XLA compiles for it: its model and instruction-set
+    extensions (Linux's `/proc/cpuinfo`; elsewhere what `platform` tells)."""
+    import platform
+
+    try:
+        with open("/proc/cpuinfo") as f:
+            lines = f.read().split("\n\n")[0].splitlines()
+        wanted = ("vendor_id", "model name", "flags", "Features", "CPU implementer", "CPU part")
+        return "\n".join(ln for ln in lines if ln.split(":")[0].strip() in wanted)
+    except OSError:
+        return f"{platform.machine()} {platform.processor()}"
 
 
 @functools.cache

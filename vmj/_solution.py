@@ -43,17 +43,23 @@ class RESULTS(enum.IntEnum):
     @classmethod
     def okay(cls, code: ArrayLike) -> Array | bool:
         """`successful` or `stopped` (elementwise for arrays)."""
-        return code <= cls.stopped
+        return _host(code) <= cls.stopped
 
     @classmethod
     def failed(cls, code: ArrayLike) -> Array | bool:
         """Not okay (elementwise for arrays)."""
-        return code > cls.stopped
+        return _host(code) > cls.stopped
 
     @classmethod
     def describe(cls, code: ArrayLike) -> str:
         """The message of a (concrete, scalar) status code."""
         return cls(int(np.asarray(code))).message
+
+
+def _host(code):
+    """A concrete status code as a NumPy array (comparing a JAX array runs, and in a new process
+    loads, a program of its own); traced codes as they are."""
+    return code if _is_traced(code) else np.asarray(code)
 
 
 _MESSAGES = {

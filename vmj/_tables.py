@@ -82,9 +82,9 @@ def paper_table(table: int, n: int = 12) -> list[dict]:
             {
                 **{key: cell[key] for key in ("k", "mu", "eps", "delta")},
                 **{key: cell[key] for key in cell if key.startswith("paper_") or key == "note"},
-                "energy_cm": float(np.asarray(energy.amplitudes)[k] * 100),
+                "energy_cm": float(abs(np.asarray(energy.positions)[k]) * 100),
                 "energy_crossed": bool(np.asarray(energy.crossed)[k]),
-                "exact_cm": float(np.asarray(exact.amplitudes)[k] * 100),
+                "exact_cm": float(abs(np.asarray(exact.positions)[k]) * 100),
                 "exact_crossed": bool(np.asarray(exact.crossed)[k]),
             }
         )

@@ -18,6 +18,8 @@ the integrands are analytic and Gauss-Legendre quadrature converges to machine p
 
 from __future__ import annotations
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -31,9 +33,13 @@ from .._solution import RESULTS
 
 __all__ = ["kbm", "action_law", "energy_map_sequence", "half_swings_until", "swing_nodes"]
 
-_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(40)
-_THETA = 0.5 * np.pi * _NODES  # Gauss-Legendre nodes on [-pi/2, pi/2]
-_W = 0.5 * np.pi * _WEIGHTS
+
+@functools.cache
+def _quadrature():
+    """40 Gauss-Legendre nodes on `[-pi/2, pi/2]` and their weights (computed where first
+    needed: `numpy.polynomial` takes a tenth of a `vmj table`'s imports)."""
+    nodes, weights = np.polynomial.legendre.leggauss(40)
+    return 0.5 * np.pi * nodes, 0.5 * np.pi * weights
 
 
 # -- first-order averaging (the paper, corrected) ---------------------------------------------
@@ -100,7 +106,8 @@ def swing_nodes(r1, r2):
     `(x - r1)(r2 - x) q(x)` with `q` smooth, the time, action and loss integrands are analytic
     in `theta` and converge to machine precision."""
     centre, half = (r1 + r2) / 2, (r2 - r1) / 2
-    return centre + half * jnp.sin(_THETA), _W, np.cos(_THETA)
+    theta, w = _quadrature()
+    return centre + half * jnp.sin(theta), w, np.cos(theta)
 
 
 def _swing_nodes(q, r1, r2):
@@ -112,19 +119,20 @@ def _swing_nodes(q, r1, r2):
 def _half_swing_time(rope, c, p1, r1, r2):
     """Time between turning points `r1`, `r2` of `E - V(x) - p1 x` [s]."""
     mq = _swing_nodes(_quotient(c, p1, r1, r2), r1, r2)
-    return jnp.sum(_W / jnp.sqrt(2 * mq / rope.m))
+    return jnp.sum(_quadrature()[1] / jnp.sqrt(2 * mq / rope.m))
 
 
 def _action(rope, c, r1, r2):
     """Action `(1/pi) int_{r1}^{r2} sqrt(2 m (E - V)) dx` of a frictionless swing [J s]."""
     mq = _swing_nodes(_quotient(c, 0.0, r1, r2), r1, r2)
+    theta, w = _quadrature()
     half = (r2 - r1) / 2
     return (
         jnp.sqrt(2 * rope.m)
         * half
         * half
         / jnp.pi
-        * jnp.sum(_W * jnp.cos(_THETA) ** 2 * jnp.sqrt(mq))
+        * jnp.sum(w * jnp.cos(theta) ** 2 * jnp.sqrt(mq))
     )
 
 

@@ -170,10 +170,15 @@ def cache_directory(args) -> tuple[str | None, str]:
 
 
 def _set_up_jax(args) -> None:
-    """float64, the persistent compilation cache, host memory reuse (entry point only)."""
+    """float64, synchronous dispatch, the persistent compilation cache, host memory reuse
+    (entry point only)."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    # run each compiled call in the calling thread: handing it to JAX's dispatch thread costs
+    # a single solve more than its arithmetic (docs/performance.md); sweeps run their chunks
+    # in threads of their own, so nothing waits on it
+    jax.config.update("jax_cpu_enable_async_dispatch", False)
     path, source = cache_directory(args)
     if path is not None:
         try:
