@@ -204,3 +204,21 @@ def test_a_repeated_command_loads_its_compiled_program(tmp_path, argv, program):
     again = _vmj(cache, *argv)
     assert again.stdout == first.stdout
     assert f"jit({program})" not in again.stderr
+
+
+def test_the_command_settles_the_garbage_collector_only_for_its_own_process(capsys):
+    """The process's own `vmj` freezes what start-up imported (the collector stays on); `main`
+    called in-process leaves the caller's collector as it was."""
+    code = (
+        "import gc, sys; from vmj.cli import main; "
+        "sys.argv = ['vmj', '--no-cache', 'linear', '--m', '1', '--c', '1', '--k', '14.5']; "
+        "status = main(); print(status, gc.isenabled(), gc.get_freeze_count() > 1000)"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.split()[-3:] == ["0", "True", "True"]
+    import gc
+
+    frozen = gc.get_freeze_count()
+    assert main(["--no-cache", "linear", "--m", "1", "--c", "1", "--k", "14.5"]) == 0
+    assert gc.isenabled() and gc.get_freeze_count() == frozen
+    capsys.readouterr()
