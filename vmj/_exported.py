@@ -155,8 +155,8 @@ class _ExportedJit:
         executable = _read_executable(path, digest)
         if executable is not None:
             compiled, out_tree = executable
-            anew = functools.partial(self._export_and_compile, static, treedef, avals, path, digest)
-            return _Loaded(compiled, lambda: anew()[0]), out_tree
+            args = (static, treedef, avals, path, digest)
+            return _Loaded(compiled, lambda: self._export_and_compile(*args)[0]), out_tree
         return self._export_and_compile(static, treedef, avals, path, digest)
 
     def _export_and_compile(self, static, treedef, avals, path, digest):

@@ -214,7 +214,7 @@ def check_horizon(model: AbstractModel, t1, name: str = "t1") -> None:
 def require_scalar_fields(model) -> None:
     """Refuse a model with array parameters at an entry point that solves one model."""
     for leaf in jax.tree.leaves(model):
-        if getattr(leaf, "shape", ()) != () and not _is_traced(leaf):  # (np.ndim: 3x slower)
+        if getattr(leaf, "shape", ()) != () and not _is_traced(leaf):  # (jnp.ndim: 3x slower)
             raise ValueError(
                 "this entry point takes a model with scalar parameters; for arrays of parameters "
                 "use vmj.sweep or jax.vmap"

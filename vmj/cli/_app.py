@@ -214,7 +214,7 @@ def _settled(process: bool):
     """For the process's own command (`argv` not given): JAX, equinox and vmj's models imported
     with Python's cyclic garbage collector paused, and everything then alive moved to its
     permanent generation (`gc.freeze`), so that the command's collections no longer traverse
-    JAX's objects (a repeated `vmj table 1`: 0.78 -> 0.60 s, docs/performance.md). A `main`
+    JAX's objects (a repeated `vmj table 1`: 0.78 -> 0.58 s, docs/performance.md). A `main`
     called in-process leaves the caller's collector alone."""
     if not process:
         yield
