@@ -13,15 +13,21 @@ from jax import lax
 CONVERGED = 1e-8
 
 
+def converged_fraction(dtype) -> float:
+    """`CONVERGED`, or four units of rounding of `dtype` where they are coarser (float32:
+    4.8e-7): a step cannot move a float32 root by less than its rounding, so a test at 1e-8
+    would never pass and every lane would run to the iteration limit."""
+    return max(CONVERGED, 4 * float(jnp.finfo(dtype).eps))
+
+
 def bracketed_newton(f, lo, hi, x0, iterations: int):
     """Root of a function in `[lo, hi]`, positive at `lo` and `<= 0` at `hi`; `f(x)` returns its
-    value and slope `(y, dy/dx)`. Newton steps from `x0`, falling back
-    to bisection whenever a step leaves the bracket. A lane stops (and keeps its value) once a
-    step moved it by at most `CONVERGED` of its initial bracket or hit `f = 0`; the loop ends
-    when every lane of a `vmap`ped batch has stopped, or after `iterations` steps. Not
+    value and slope `(y, dy/dx)`. Newton steps from `x0`, falling back to bisection whenever a
+    step leaves the bracket. A lane stops (and keeps its value) once a step moved it by at most
+    `converged_fraction` of its initial bracket or hit `f = 0`; the loop ends when every lane
+    of a `vmap`ped batch has stopped, or after `iterations` steps. Not
     differentiated: pass functions of `lax.stop_gradient`-ed data and finish with
     `implicit_step`."""
-    tol = CONVERGED * jnp.abs(hi - lo)
 
     def cond(state):
         i, _, _, _, done = state
@@ -41,6 +47,7 @@ def bracketed_newton(f, lo, hi, x0, iterations: int):
 
     dtype = jnp.result_type(x0, lo, hi)
     x0, lo, hi = (jnp.asarray(a, dtype) for a in jnp.broadcast_arrays(x0, lo, hi))
+    tol = converged_fraction(dtype) * jnp.abs(hi - lo)
     done = jnp.zeros(x0.shape, bool)
     _, x, _, _, _ = lax.while_loop(cond, step, (jnp.array(0), x0, lo, hi, done))
     return x

@@ -43,8 +43,11 @@ from ._tree import _field_paths, _get, _short_name
 
 __all__ = ["sweep", "SweepError"]
 
-#: the largest chunk unless a chunk_size is given [points]
+#: the largest chunk unless a chunk_size is given [points]: on a CPU, about what its caches hold
+#: and one core evaluates in a fraction of a second; on an accelerator (one device), enough
+#: lanes to fill it, so that a sweep is a few compiled calls rather than hundreds
 DEFAULT_CHUNK = 16384
+ACCELERATOR_CHUNK = 1 << 20
 #: the share of the available memory that the chunks evaluated side by side may take
 MEMORY_FRACTION = 0.25
 #: traces of the chunk function in this process (each worker of a cluster should trace once)
@@ -271,12 +274,20 @@ def chunk_bytes(job, chunk: int) -> int | None:
     return known["bytes"]
 
 
-def _sized(job, n, chunk_size, lanes, multiple, memory, concurrent) -> int:
-    """The chunk size: `chunk_size` points at most (default `DEFAULT_CHUNK`), `lanes` chunks at
+def default_chunk(devices) -> int:
+    """The largest chunk at the defaults on `devices` (those of the in-process sweep; None: a
+    cluster's workers, planned as CPUs)."""
+    if devices and all(d.platform != "cpu" for d in devices):
+        return ACCELERATOR_CHUNK * len(devices)
+    return DEFAULT_CHUNK
+
+
+def _sized(job, n, chunk_size, lanes, multiple, memory, concurrent, limit=DEFAULT_CHUNK) -> int:
+    """The chunk size: `chunk_size` points at most (default `limit`), `lanes` chunks at
     least, and small enough that `concurrent` chunks side by side need at most
     `MEMORY_FRACTION` of `memory` bytes. An explicit `chunk_size` is kept unless its chunks do
     not fit in `memory` at all (refused, with the size that fits); the default shrinks."""
-    chunk = chunk_plan(n, chunk_size or DEFAULT_CHUNK, lanes, multiple)
+    chunk = chunk_plan(n, chunk_size or limit, lanes, multiple)
     need = chunk_bytes(job, chunk) if memory else None
     if need is None:
         return chunk
@@ -349,7 +360,8 @@ def sweep(
     - `model`: a model whose array fields broadcast together as in NumPy (three fields of shape
       `(N,)` are `N` paired points; shapes `(N, 1)` and `(M,)` are an `N x M` product), or a
       [`vmj.Grid`][] from [`vmj.grid`][] (named axes).
-    - `chunk_size`: the most points evaluated per compiled call (static). Default: 16384, and
+    - `chunk_size`: the most points evaluated per compiled call (static). Default: 16384 on
+      CPUs, 2^20 per device on accelerators (GPUs), and
       fewer when the compiled chunk would need more than a quarter of the available memory
       (host memory, or the device's) for the chunks evaluated side by side: XLA's memory
       analysis of the compiled chunk decides. A sweep is split into at least one chunk per
@@ -453,7 +465,8 @@ def sweep(
         if st is not None:
             job.chunk = int(st.meta["chunk"])
         else:
-            job.chunk = _sized(job, n, chunk_size, lanes, nd, memory, concurrent)
+            limit = default_chunk(devs if cl is None else None)
+            job.chunk = _sized(job, n, chunk_size, lanes, nd, memory, concurrent, limit)
         chunk = job.chunk
         n_chunks = -(-n // chunk)
 

@@ -226,8 +226,8 @@ def add_arguments(p) -> None:
             "--chunk-size",
             type=count,
             default=None,
-            help="points per compiled call (default: 16384, fewer for the smoothed "
-            "solver, sized from the memory one point needs)",
+            help="points per compiled call (default: 16384 on CPUs, 2^20 on a GPU; "
+            "fewer where the chunks would not fit in memory)",
         )
         q.add_argument(
             "--scheduler",
