@@ -222,18 +222,38 @@ def _raise_concrete(problems) -> None:
             raise ValueError(f"{message} (got {arr.item() if arr.ndim == 0 else arr})")
 
 
+def mark_checked(model):
+    """Mark every module of `model` as checked, so that [`validated`][] passes it without
+    guards: for a model rebuilt from values that were validated elsewhere. A sweep validates
+    its parameter arrays on the host once; each point's model, rebuilt inside the compiled
+    chunk, is marked, so the chunk has no host callback (arguments the chunk's function
+    computes are still guarded). Returns `model`."""
+    if isinstance(model, AbstractParams):
+        object.__setattr__(model, _CHECKED, True)
+        for v in vars(model).values():
+            mark_checked(v)
+    elif isinstance(model, (tuple, list)):
+        for v in model:
+            mark_checked(v)
+    return model
+
+
 def validated(model):
     """Check every limited field (and relation) of `model` and of the modules inside it; return
     the model guarded by one `equinox.error_if` over all its traced checks (concrete ones raise
-    `ValueError` now). Modules checked at their construction (and not rebuilt since) are not
-    checked again."""
+    `ValueError` now). Modules checked at their construction, or by an earlier call with
+    concrete values (and not rebuilt since), are not checked again."""
     problems = []
+    concrete = []  # modules whose own checks are all concrete: marked once they pass
 
     def collect(m):
         if isinstance(m, AbstractParams):
             fields = vars(m)
             if not fields.get(_CHECKED, False):
-                problems.extend(_problems(m))
+                own = _problems(m)
+                problems.extend(own)
+                if not any(traced for *_, traced in own):
+                    concrete.append(m)
             for v in fields.values():
                 collect(v)
         elif isinstance(m, (tuple, list)):  # a tuple of laws
@@ -242,6 +262,8 @@ def validated(model):
 
     collect(model)
     _raise_concrete(problems)
+    for m in concrete:
+        object.__setattr__(m, _CHECKED, True)
     traced = [(message, ok) for message, _, ok, is_traced in problems if is_traced]
     if not traced or _ASSUMED.get():
         return model
