@@ -262,7 +262,9 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
             else:
                 finished.put((c, out, None))
 
-    workers = [threading.Thread(target=work, daemon=True) for _ in range(max(1, min(threads, len(todo))))]
+    workers = [
+        threading.Thread(target=work, daemon=True) for _ in range(max(1, min(threads, len(todo))))
+    ]
     for w in workers:
         w.start()
     try:
