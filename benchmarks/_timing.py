@@ -14,6 +14,24 @@ import numpy as np
 REPEAT = 5  #: repetitions on each side of a comparison (at least)
 
 
+def set_up_jax() -> bool:
+    """JAX as the `vmj` command runs it, before anything is computed: float64 and synchronous CPU
+    dispatch. `--float32` on the command line turns float64 off (and silences vmj's warning that
+    its accuracy figures assume float64: it was asked for); `--async-dispatch` keeps JAX's
+    default dispatch. Returns whether JAX runs in float32."""
+    import warnings
+
+    import jax
+
+    float32 = "--float32" in sys.argv
+    jax.config.update("jax_enable_x64", not float32)
+    if float32:
+        warnings.filterwarnings("ignore", "vmj: JAX is running in float32")
+    if "--async-dispatch" not in sys.argv:
+        jax.config.update("jax_cpu_enable_async_dispatch", False)
+    return float32
+
+
 class Timing:
     """Repeated wall times of one measurement [s]."""
 

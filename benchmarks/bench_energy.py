@@ -19,23 +19,17 @@ Run: .venv/bin/python benchmarks/bench_energy.py [--points 1000000] [--quick] [-
 import argparse
 import os
 import sys
-import warnings
 
-import jax
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _timing import REPEAT, machine, ratio, repeat, set_up_jax  # noqa: E402
 
-FLOAT32 = "--float32" in sys.argv
-jax.config.update("jax_enable_x64", not FLOAT32)
-if FLOAT32:  # asked for: vmj's warning that its accuracy figures assume float64 is not news
-    warnings.filterwarnings("ignore", "vmj: JAX is running in float32")
-jax.config.update("jax_cpu_enable_async_dispatch", False)  # as the vmj command runs
+FLOAT32 = set_up_jax()  # as the vmj command runs (float32 with --float32)
 
+import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import vmj  # noqa: E402
-
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _timing import REPEAT, machine, ratio, repeat  # noqa: E402
 
 M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
 

@@ -31,31 +31,24 @@ import os
 import subprocess
 import sys
 import threading
-import warnings
 
-import jax
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+from _timing import REPEAT, Timing, machine, ratio, repeat, set_up_jax  # noqa: E402
 
-FLOAT32 = "--float32" in sys.argv
-jax.config.update("jax_enable_x64", not FLOAT32)
-if FLOAT32:  # asked for: vmj's warning that its accuracy figures assume float64 is not news
-    warnings.filterwarnings("ignore", "vmj: JAX is running in float32")
-if "--async-dispatch" not in sys.argv:
-    jax.config.update("jax_cpu_enable_async_dispatch", False)  # as the vmj command runs
+FLOAT32 = set_up_jax()  # as the vmj command runs (float32 with --float32)
 
+import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from jax import lax  # noqa: E402
+from scipy_reference import variable_mass_turning_points  # noqa: E402
 
 import vmj  # noqa: E402
 from vmj._numerics._roots import converged_fraction  # noqa: E402
 from vmj._numerics._series import derivative, horner, horner_and_derivative  # noqa: E402
 from vmj._solvers import _exact  # noqa: E402
-
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from _timing import REPEAT, Timing, machine, ratio, repeat  # noqa: E402
-from scipy_reference import variable_mass_turning_points  # noqa: E402
 
 M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
 MAX_SUBSTEPS = 8  #: vmj.Exact()'s default for the variable-mass model

@@ -11,17 +11,14 @@ import argparse
 import os
 import sys
 
-import jax
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _timing import REPEAT, machine, ratio, repeat, set_up_jax  # noqa: E402
 
-jax.config.update("jax_enable_x64", True)
-jax.config.update("jax_cpu_enable_async_dispatch", False)  # as the vmj command runs
+set_up_jax()  # as the vmj command runs
 
 import numpy as np  # noqa: E402
 
 import vmj  # noqa: E402
-
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _timing import REPEAT, machine, ratio, repeat  # noqa: E402
 
 A0, N = 0.06, 12
 

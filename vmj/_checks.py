@@ -23,6 +23,7 @@ import numpy as np
 __all__ = [
     "AbstractParams",
     "validated",
+    "mark_checked",
     "assume_valid",
     "guard",
     "check",

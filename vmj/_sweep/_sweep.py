@@ -263,9 +263,9 @@ class _SweepJob:
         """The result leaves of the points `c * chunk ... (c + 1) * chunk - 1` of chunk `c`."""
         start = self.first(c)
         run = self._run
-        if run is None:  # looked up once per job (its key is a digest of the whole model)
+        if run is None:  # looked up once per job (its key takes the whole model apart)
             run = self._run = self.function()
-        out = jax.tree.leaves(run(*self.on_device(), np.int64(start)))
+        out = jax.tree.leaves(run(*self.args(start)))
         lo, hi = c * self.chunk, min((c + 1) * self.chunk, self.n)
         return [np.asarray(g)[lo - start : hi - start] for g in out]
 
