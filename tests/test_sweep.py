@@ -424,3 +424,59 @@ def test_float32_sweeps_agree_with_float64_to_float32_accuracy():
         # float32 rounding (1.2e-7) grown over 12 swings: measured 1.9e-5 at most
         assert rel.max() < 1e-4, rel.max()
     assert vmj.RESULTS.okay(np.asarray(got["result"])).all()
+
+
+def test_threads_let_go_of_each_chunk_once_it_is_sunk():
+    # a chunk's output kept until the end of the sweep makes every chunk fresh memory, page-
+    # faulted into existence; sunk in its thread, it is let go at once
+    import gc
+    import weakref
+
+    from vmj._sweep._engine import Progress, run_chunks
+
+    class Output:
+        pass
+
+    refs, alive = {}, []
+
+    class Job:
+        def compute(self, c):
+            out = Output()
+            refs[c] = weakref.ref(out)
+            return [out]
+
+    def sink(c, got):
+        if c == 19:
+            gc.collect()
+            alive.append(sum(r() is not None for k, r in refs.items() if k != c))
+
+    run_chunks(
+        Job(),
+        range(20),
+        sink=sink,
+        fail=None,
+        progress=Progress(20, 20, False),
+        threads=1,
+        sink_in_thread=True,
+    )
+    assert alive == [0]
+
+
+def test_a_sweep_checks_its_points_once_on_the_host():
+    import equinox as eqx
+
+    from vmj._sweep._sweep import _SweepJob
+
+    # a value that bypassed construction is refused before anything is computed, by name
+    good = paper_model(eps=np.array([0.5, 0.7]))
+    bad = eqx.tree_at(lambda m: m.eps, good, np.array([0.5, 1.5]))
+    with pytest.raises(ValueError, match="eps must be"):
+        vmj.sweep(vmj.energy_balance, bad, a0=A0, n=4)
+    # each point's model is then traced as checked: no host callback in the compiled chunk
+    # (and a swept function's own arguments are still guarded)
+    swept = tuple(np.ndim(x) > 0 for x in jax.tree.leaves(good))
+    job = _SweepJob(vmj.energy_balance, {"a0": A0, "n": 4}, good, swept, (2,), 2, "")
+    assert "callback" not in job.function().lower(*job.args(0)).as_text()
+    own_a0 = lambda m, n: vmj.energy_balance(m, m.eps, n)  # noqa: E731
+    job = _SweepJob(own_a0, {"n": 4}, good, swept, (2,), 2, "")
+    assert "callback" in job.function().lower(*job.args(0)).as_text()
