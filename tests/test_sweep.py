@@ -480,3 +480,43 @@ def test_a_sweep_checks_its_points_once_on_the_host():
     own_a0 = lambda m, n: vmj.energy_balance(m, m.eps, n)  # noqa: E731
     job = _SweepJob(own_a0, {"n": 4}, good, swept, (2,), 2, "")
     assert "callback" in job.function().lower(*job.args(0)).as_text()
+
+
+def test_threads_that_sink_their_chunks_report_failures_and_progress():
+    from vmj._sweep._engine import Progress, run_chunks
+
+    class Job:
+        def compute(self, c):
+            if c in (3, 7):
+                raise RuntimeError(f"chunk {c}")
+            return [c]
+
+    sunk, counts = [], []
+    progress = Progress(10, 10, lambda done, total: counts.append((done, total)))
+    # without `fail`, the first failure is raised (after the running chunks end)
+    with pytest.raises(RuntimeError, match="chunk [37]"):
+        run_chunks(
+            Job(),
+            range(10),
+            sink=lambda c, got: None,
+            fail=None,
+            progress=progress,
+            threads=2,
+            sink_in_thread=True,
+        )
+    # with `fail`, every chunk is tried: the others sunk, the failures handed over, all counted
+    failures = {}
+    progress = Progress(10, 10, lambda done, total: counts.append((done, total)))
+    counts.clear()
+    run_chunks(
+        Job(),
+        range(10),
+        sink=lambda c, got: sunk.append((c, got)),
+        fail=lambda c, e: failures.setdefault(c, str(e)),
+        progress=progress,
+        threads=2,
+        sink_in_thread=True,
+    )
+    assert sorted(sunk) == [(c, [c]) for c in range(10) if c not in (3, 7)]
+    assert failures == {3: "chunk 3", 7: "chunk 7"}
+    assert sorted(counts) == [(k, 10) for k in range(1, 11)]
