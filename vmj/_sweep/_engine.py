@@ -3,8 +3,8 @@
 A *job* is a picklable object with a `token` (a digest of what it computes), a `chunk` size
 and a method `compute(c)` that returns the result of chunk `c`. [`run_chunks`][] evaluates the
 chunks still to do and hands each finished one, in this process, to a `sink`; chunk failures
-are recorded and the run goes on, or (in-process without a store) raised at once as before. Dask is imported only
-when a client is asked for.
+are recorded and the run goes on, or (in-process without a store) the first is raised once the
+chunks already running have ended. Dask is imported only when a client is asked for.
 
 On a cluster the job is scattered to every worker once (`Client.scatter(broadcast=True)`), each
 task carries only its chunk number, and each worker process keeps the first copy of a job it
@@ -207,8 +207,9 @@ def run_chunks(
 ) -> None:
     """Evaluate `job.compute(c)` for every chunk `c` in `todo` and pass each result to
     `sink(c, result)` as it arrives (in this process; with `sink_in_thread` and no client, in
-    the thread that computed it). A chunk that raises is passed to `fail(c, exception)` and the
-    others go on; with `fail=None` the first failure is raised at once. Interrupted (Ctrl-C, the
+    the thread that computed it, which also counts it on `progress`). A chunk that raises is
+    passed to `fail(c, exception)` and the others go on; with `fail=None` the first failure is
+    raised, no further chunk is started, and the running ones end first. Interrupted (Ctrl-C, the
     client closed), the chunks not started are cancelled and the exception is raised; chunks
     already handed to `sink` are complete, and what a `store` holds is said on stderr."""
     todo = list(todo)
