@@ -246,7 +246,7 @@ def validated(model):
     the model guarded by one `equinox.error_if` over all its traced checks (concrete ones raise
     `ValueError` now). Modules checked at their construction, or by an earlier call with
     concrete values (and not rebuilt since), are not checked again; a whole tree found valid
-    is not walked again either (its modules are immutable: 4.8 -> 0.3 us per warm solve)."""
+    is not walked again either (its modules are immutable: 4.8 -> 0.9 us per warm solve)."""
     if isinstance(model, AbstractParams) and vars(model).get(_TREE_CHECKED, False):
         return model
     problems = []
