@@ -1,13 +1,16 @@
 """vmj.sweep / vmj.grid: point-by-point equality, the SciPy reference, broadcasting, chunking,
 bounded memory, sharding over 4 devices, CSV / NetCDF export and the `vmj sweep` command."""
 
+import gc
 import json
 import os
 import platform
 import subprocess
 import sys
 import textwrap
+import weakref
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -15,8 +18,14 @@ import pytest
 from scipy_reference import variable_mass_turning_points
 
 import vmj
-from vmj._sweep._engine import CORES
-from vmj._sweep._sweep import ACCELERATOR_CHUNK, DEFAULT_CHUNK, chunk_plan, default_chunk
+from vmj._sweep._engine import CORES, Progress, run_chunks
+from vmj._sweep._sweep import (
+    ACCELERATOR_CHUNK,
+    DEFAULT_CHUNK,
+    _SweepJob,
+    chunk_plan,
+    default_chunk,
+)
 
 
 def n_chunks(n, chunk_size, lanes=CORES):
@@ -429,11 +438,6 @@ def test_float32_sweeps_agree_with_float64_to_float32_accuracy():
 def test_threads_let_go_of_each_chunk_once_it_is_sunk():
     # a chunk's output kept until the end of the sweep makes every chunk fresh memory, page-
     # faulted into existence; sunk in its thread, it is let go at once
-    import gc
-    import weakref
-
-    from vmj._sweep._engine import Progress, run_chunks
-
     class Output:
         pass
 
@@ -463,10 +467,6 @@ def test_threads_let_go_of_each_chunk_once_it_is_sunk():
 
 
 def test_a_sweep_checks_its_points_once_on_the_host():
-    import equinox as eqx
-
-    from vmj._sweep._sweep import _SweepJob
-
     # a value that bypassed construction is refused before anything is computed, by name
     good = paper_model(eps=np.array([0.5, 0.7]))
     bad = eqx.tree_at(lambda m: m.eps, good, np.array([0.5, 1.5]))
@@ -483,8 +483,6 @@ def test_a_sweep_checks_its_points_once_on_the_host():
 
 
 def test_threads_that_sink_their_chunks_report_failures_and_progress():
-    from vmj._sweep._engine import Progress, run_chunks
-
     class Job:
         def compute(self, c):
             if c in (3, 7):

@@ -225,19 +225,26 @@ def _raise_concrete(problems) -> None:
             raise ValueError(f"{message} (got {arr.item() if arr.ndim == 0 else arr})")
 
 
+def _modules(tree):
+    """Every module of a model tree (the models and the laws, tuples of laws included),
+    parents before their children."""
+    if isinstance(tree, AbstractParams):
+        yield tree
+        for v in vars(tree).values():
+            yield from _modules(v)
+    elif isinstance(tree, (tuple, list)):  # a tuple of laws
+        for v in tree:
+            yield from _modules(v)
+
+
 def mark_checked(model):
     """Mark every module of `model` as checked, so that [`validated`][] passes it without
     guards: for a model rebuilt from values that were validated elsewhere. A sweep validates
     its parameter arrays on the host once; each point's model, rebuilt inside the compiled
     chunk, is marked, so the chunk has no host callback (arguments the chunk's function
     computes are still guarded). Returns `model`."""
-    if isinstance(model, AbstractParams):
-        object.__setattr__(model, _CHECKED, True)
-        for v in vars(model).values():
-            mark_checked(v)
-    elif isinstance(model, (tuple, list)):
-        for v in model:
-            mark_checked(v)
+    for m in _modules(model):
+        object.__setattr__(m, _CHECKED, True)
     return model
 
 
@@ -251,22 +258,12 @@ def validated(model):
         return model
     problems = []
     concrete = []  # modules whose own checks are all concrete: marked once they pass
-
-    def collect(m):
-        if isinstance(m, AbstractParams):
-            fields = vars(m)
-            if not fields.get(_CHECKED, False):
-                own = _problems(m)
-                problems.extend(own)
-                if not any(traced for *_, traced in own):
-                    concrete.append(m)
-            for v in fields.values():
-                collect(v)
-        elif isinstance(m, (tuple, list)):  # a tuple of laws
-            for v in m:
-                collect(v)
-
-    collect(model)
+    for m in _modules(model):
+        if not vars(m).get(_CHECKED, False):
+            own = _problems(m)
+            problems.extend(own)
+            if not any(traced for *_, traced in own):
+                concrete.append(m)
     _raise_concrete(problems)
     for m in concrete:
         object.__setattr__(m, _CHECKED, True)

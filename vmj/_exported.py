@@ -184,8 +184,7 @@ class _ExportedJit:
         except Exception:  # not exportable (or flatbuffers missing): the plain path
             return _PLAIN
         out_tree = out_trees[-1]
-        skeleton = pickle.dumps(jax.tree.unflatten(out_tree, list(range(out_tree.num_leaves))))
-        _write(path, digest, skeleton, blob)
+        _write(path, digest, pickle.dumps(_skeleton(out_tree)), blob)
         return _compile(self.fun.__name__, exported, out_tree, path, digest, avals), out_tree
 
 
@@ -254,8 +253,7 @@ def _compile(name, exported, out_tree, path, digest, avals):
     compiled = _compile_fresh(lowered)
     try:
         blob, in_tree, exe_out_tree = se.serialize(compiled)
-        skeleton = jax.tree.unflatten(out_tree, list(range(out_tree.num_leaves)))
-        trees = pickle.dumps((in_tree, exe_out_tree, skeleton, lapack))
+        trees = pickle.dumps((in_tree, exe_out_tree, _skeleton(out_tree), lapack))
     except Exception:  # pragma: no cover - a backend that cannot serialize executables
         return compiled
     exe_path, key = _executable_entry(path, digest)
@@ -332,6 +330,14 @@ def _without_lapack_setup():
         yield
     finally:
         _export._ensure_backends_initialized = setup
+
+
+def _skeleton(out_tree):
+    """The output structure as a picklable tree (its leaves numbered; `jax.tree.structure`
+    of it gives the structure back)."""
+    import jax
+
+    return jax.tree.unflatten(out_tree, list(range(out_tree.num_leaves)))
 
 
 def _read_payload(path, digest):

@@ -137,12 +137,19 @@ class _SweepJob:
         self._lock = threading.Lock()
         self._on_device = None
         self._known = {}  # chunk size -> what `known` says, where the definition has no key
-        self._run = None  # the compiled chunk function of `chunk` points
+        self._split = None  # what `_parts` returns, worked out once
+        self._functions = {}  # chunk size -> compiled chunk function
 
     def __getstate__(self):
         # a worker evaluates on its own default device
         state = dict(
-            self.__dict__, devices=None, sharding=None, _on_device=None, _known={}, _run=None
+            self.__dict__,
+            devices=None,
+            sharding=None,
+            _on_device=None,
+            _known={},
+            _split=None,
+            _functions={},
         )
         del state["_lock"]
         return state
@@ -153,11 +160,20 @@ class _SweepJob:
 
     def _parts(self):
         """(arrays, static part, treedef of the arrays) of the model and of the arguments."""
-        model_arrays, static_model = eqx.partition(self.model, eqx.is_array)
-        kwargs_arrays, static_kwargs = eqx.partition(self.kwargs, eqx.is_array)
-        model_leaves, model_def = jax.tree.flatten(model_arrays)
-        kwargs_leaves, kwargs_def = jax.tree.flatten(kwargs_arrays)
-        return model_leaves, static_model, model_def, kwargs_leaves, static_kwargs, kwargs_def
+        if self._split is None:
+            model_arrays, static_model = eqx.partition(self.model, eqx.is_array)
+            kwargs_arrays, static_kwargs = eqx.partition(self.kwargs, eqx.is_array)
+            model_leaves, model_def = jax.tree.flatten(model_arrays)
+            kwargs_leaves, kwargs_def = jax.tree.flatten(kwargs_arrays)
+            self._split = (
+                model_leaves,
+                static_model,
+                model_def,
+                kwargs_leaves,
+                static_kwargs,
+                kwargs_def,
+            )
+        return self._split
 
     def on_device(self):
         """The model's and the arguments' arrays on the device(s), put there once."""
@@ -227,8 +243,11 @@ class _SweepJob:
 
     def function(self, chunk: int | None = None):
         """The compiled function of chunks of `chunk` points (made once per process for the
-        same sweep definition, so that later sweeps reuse its executable)."""
+        same sweep definition, so that later sweeps reuse its executable; kept by the job too,
+        so that a chunk does not look it up under the process's lock)."""
         chunk = chunk or self.chunk
+        if chunk in self._functions:
+            return self._functions[chunk]
         known = self.known(chunk)
         with _KNOWN_LOCK:
             if "function" not in known:
@@ -244,6 +263,7 @@ class _SweepJob:
                     chunk,
                     self.sharding,
                 )
+            self._functions[chunk] = known["function"]
             return known["function"]
 
     def compile(self, chunk: int | None = None):
@@ -262,10 +282,7 @@ class _SweepJob:
     def compute(self, c: int) -> list:
         """The result leaves of the points `c * chunk ... (c + 1) * chunk - 1` of chunk `c`."""
         start = self.first(c)
-        run = self._run
-        if run is None:  # looked up once per job (its key takes the whole model apart)
-            run = self._run = self.function()
-        out = jax.tree.leaves(run(*self.args(start)))
+        out = jax.tree.leaves(self.function()(*self.args(start)))
         lo, hi = c * self.chunk, min((c + 1) * self.chunk, self.n)
         return [np.asarray(g)[lo - start : hi - start] for g in out]
 
