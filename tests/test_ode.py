@@ -5,17 +5,17 @@ import jax.numpy as jnp
 import numpy as np
 
 import vmj
-from vmj._numerics._ode import ode_solve, tsit5
+from vmj._numerics._ode import ode_solve, recording, tsit5
 
 
-def _solve(solver):
+def _solve(solver, saveat=None):
     model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
     w = 1e-3 * float(model.velocity_scale(0.06))
     return ode_solve(
         lambda t, y, args: model.vector_field(t, y, w),
         jnp.array([-0.06, 0.0]),
         0.5,
-        dfx.SaveAt(ts=jnp.linspace(0.0, 0.5, 41)),  # dense output between the steps
+        saveat or dfx.SaveAt(ts=jnp.linspace(0.0, 0.5, 41)),  # dense output between the steps
         rtol=1e-10,
         atol=1e-12,
         max_steps=100_000,
@@ -33,3 +33,50 @@ def test_tsit5_takes_the_steps_of_diffrax_tsit5():
     assert int(ours.stats["num_rejected_steps"]) == int(theirs.stats["num_rejected_steps"])
     scale = np.abs(np.asarray(theirs.ys)).max(axis=0)
     assert np.all(np.abs(np.asarray(ours.ys - theirs.ys)) < 1e-12 * scale)
+
+
+def test_recording_keeps_the_accepted_steps_and_stays_put_when_done():
+    """A memo carried through the solve sees every accepted step and no rejected one; from the
+    step where `record` says done, the state stays where that step ended."""
+
+    def record(t0, t1, y1, interpolation, memo):
+        steps, t_done, y_done = memo
+        done = t1 >= 0.2
+        first = done & (t_done < 0)
+        # the step's dense output ends at the step's end (to rounding)
+        y_end = interpolation.at_fraction(jnp.ones_like(t1))
+        memo = (steps + 1, jnp.where(first, t1, t_done), jnp.where(first, y_end, y_done))
+        return memo, done
+
+    plain = _solve(tsit5(), dfx.SaveAt(t1=True))
+    memo = (jnp.array(0), jnp.array(-1.0), jnp.zeros(2))
+    sol = _solve(recording(tsit5(), record, memo), dfx.SaveAt(t1=True, solver_state=True))
+    steps, t_done, y_done = sol.solver_state[1]
+    assert sol.result == dfx.RESULTS.successful and 0.2 <= float(t_done) < 0.5
+    # the accepted steps up to t_done, and a few free of error to t1 afterwards
+    ts = _solve(tsit5(), dfx.SaveAt(steps=True)).ts
+    assert int(steps) == int(np.sum(np.asarray(ts) <= float(t_done)))
+    assert int(sol.stats["num_accepted_steps"]) <= int(steps) + 8
+    assert int(plain.stats["num_accepted_steps"]) > int(steps) + 20
+    np.testing.assert_allclose(np.asarray(sol.ys[-1]), np.asarray(y_done), rtol=1e-14)
+
+
+def test_dense_output_and_its_derivative_are_diffrax_tsit5s():
+    """vmj's Tsit5 dense output (its weights multiplied out into a quartic) and its time
+    derivative against diffrax's `Tsit5` interpolation on the same step: to 1e-13."""
+    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
+    w = 1e-3 * float(model.velocity_scale(0.06))
+    term = dfx.ODETerm(lambda t, y, args: model.vector_field(t, y, w))
+    y0, t0, t1 = jnp.array([-0.06, 0.0]), 0.0, 0.01
+    ours, theirs = tsit5(), dfx.Tsit5()
+    *_, dense, _, _ = ours.step(term, t0, t1, y0, None, ours.init(term, t0, t1, y0, None), False)
+    *_, dense_d, _, _ = theirs.step(
+        term, t0, t1, y0, None, theirs.init(term, t0, t1, y0, None), False
+    )
+    a = ours.interpolation_cls(t0=t0, t1=t1, **dense)
+    b = theirs.interpolation_cls(t0=t0, t1=t1, **dense_d)
+    for t in np.linspace(t0, t1, 7):
+        scale = np.abs(np.asarray(b.evaluate(t1))) + 1e-3
+        np.testing.assert_allclose(a.evaluate(t), b.evaluate(t), rtol=0, atol=1e-13 * scale.max())
+        d, e = np.asarray(a.derivative(t)), np.asarray(b.derivative(t))
+        np.testing.assert_allclose(d, e, rtol=0, atol=1e-11 * np.abs(e).max())

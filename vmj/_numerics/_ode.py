@@ -6,8 +6,9 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-__all__ = ["ode_solve", "tsit5"]
+__all__ = ["ode_solve", "recording", "tsit5"]
 
 
 def tsit5():
@@ -15,15 +16,83 @@ def tsit5():
     in a `while_loop`, a dozen small XLA kernels per stage, which on CPUs cost more than a
     vmapped stage's arithmetic: the smoothed sweep of the 1617-point grid 930 -> 338 ms, the
     turning points the same to 1e-14 m). Same tableau, error estimate and dense output; no
-    first-same-as-last reuse (one vector-field evaluation more per step, no solver state)."""
+    first-same-as-last reuse (one vector-field evaluation more per step, no solver state); its
+    dense output's sum over the stages written out as well."""
     return _tsit5_class()()
+
+
+def _expand(scale, *factors):
+    """The power-series coefficients (ascending, from the first power) of `scale` times the
+    product of polynomials given by their ascending coefficients."""
+    product = functools.reduce(np.polynomial.polynomial.polymul, factors, np.array([scale]))
+    return np.pad(product, (0, 5 - len(product)))[1:]
+
+
+#: Tsit5's dense-output weights (Tsitouras 2011, as diffrax writes them, factored) multiplied
+#: out: `_TSIT5_DENSE[p - 1][i]` is the coefficient of `u**p` in the weight of stage `i`
+_TSIT5_DENSE = np.stack(
+    [
+        _expand(
+            -1.0530884977290216,
+            [0, 1],
+            [-1.3299890189751412, 1],
+            [0.7139816917074209, -1.4364028541716351, 1],
+        ),
+        _expand(0.1017, [0, 0, 1], [1.2949852507374631, -2.1966568338249754, 1]),
+        _expand(2.490627285651252793, [0, 0, 1], [1.57803468208092486, -2.38535645472061657, 1]),
+        _expand(
+            -16.54810288924490272, [-1.21712927295533244, 1], [-0.61620406037800089, 1], [0, 0, 1]
+        ),
+        _expand(
+            47.37952196281928122, [-1.203071208372362603, 1], [-0.658047292653547382, 1], [0, 0, 1]
+        ),
+        _expand(-34.87065786149660974, [-1.2, 1], [-0.666666666666666667, 1], [0, 0, 1]),
+        _expand(2.5, [-1, 1], [-0.6, 1], [0, 0, 1]),
+    ],
+    axis=1,
+)
 
 
 @functools.cache
 def _tsit5_class():
     import diffrax as dfx  # here, not at the top: `import vmj` and the vmj command stay light
 
+    class Interpolation(dfx.Tsit5.interpolation_cls):
+        """Tsit5's dense output, a quartic in the step's fraction whose coefficients are sums
+        over the stages written out (`_TSIT5_DENSE`). diffrax's `tensordot` over the stages
+        becomes, under `vmap`, a batched matrix product of its own, which on CPUs cost the
+        smoothed turning points more than their steps. `k`: the seven stages, a tuple."""
+
+        def evaluate(self, t0, t1=None, left=True):
+            if t1 is not None:
+                return self.evaluate(t1) - self.evaluate(t0)
+            span = self.t1 - self.t0
+            return self.at_fraction((t0 - self.t0) / jnp.where(span == 0, 1.0, span))
+
+        def derivative(self, t, left=True):
+            span = self.t1 - self.t0
+            span = jnp.where(span == 0, 1.0, span)
+            u = (t - self.t0) / span
+            slope = jax.jvp(self.at_fraction, (u,), (jnp.ones_like(u),))[1]
+            return jax.tree.map(lambda d: d / span, slope)
+
+        def at_fraction(self, u):
+            """The state at `t0 + u (t1 - t0)`."""
+
+            def one(y0, *k):
+                powers = [
+                    sum(float(w) * s for w, s in zip(row, k) if w != 0) for row in _TSIT5_DENSE
+                ]
+                value = powers[-1]
+                for c in powers[-2::-1]:
+                    value = value * u + c
+                return y0 + value * u
+
+            return jax.tree.map(one, self.y0, *self.k)
+
     class Tsit5(dfx.Tsit5):
+        interpolation_cls = Interpolation
+
         def init(self, terms, t0, t1, y0, args):
             return None
 
@@ -40,10 +109,78 @@ def _tsit5_class():
                 y = jax.tree.map(jnp.add, y0, combine(row, ks))
                 ks.append(terms.vf_prod(t0 + float(c) * dt, y, args, control))
             y1 = jax.tree.map(jnp.add, y0, combine(tab.b_sol, ks))
-            dense = dict(y0=y0, y1=y1, k=jax.tree.map(lambda *k: jnp.stack(k), *ks))
+            dense = dict(y0=y0, y1=y1, k=tuple(ks))
             return y1, combine(tab.b_error, ks), dense, None, dfx.RESULTS.successful
 
     return Tsit5
+
+
+def recording(solver, record, memo):
+    """`solver` that carries `memo` in its state through a whole solve: after every step from
+    `t0` to `t1`, `record(t0, t1, y1, interpolation, memo) -> (memo, done)` updates it (the
+    step's dense output as `interpolation`); from the first step with `done` True the state
+    stays where that step ended (the steps to `t1` are then free of error, so the controller
+    reaches it in a few). A rejected step's memo is dropped with the step. The final memo is
+    `sol.solver_state[1]` with `SaveAt(solver_state=True)`.
+
+    This is how a solve finds many events (the smoothed turning points) in one run, each lane
+    of a `vmap`ped batch moving on by itself, where `diffrax.Event` stops at the first.
+    (Ending the solve itself would need a result code that is not an error: diffrax replaces
+    `event_occurred` from a solver by the step-size controller's.)"""
+    return _recording_class()(solver, record, memo)
+
+
+@functools.cache
+def _recording_class():
+    import diffrax as dfx
+
+    class Recording(dfx.AbstractAdaptiveSolver, dfx.AbstractWrappedSolver):
+        solver: dfx.AbstractSolver
+        record: object
+        memo: object
+
+        @property
+        def term_structure(self):
+            return self.solver.term_structure
+
+        @property
+        def interpolation_cls(self):
+            return self.solver.interpolation_cls
+
+        def order(self, terms):
+            return self.solver.order(terms)
+
+        def error_order(self, terms):
+            return self.solver.error_order(terms)
+
+        def init(self, terms, t0, t1, y0, args):
+            return self.solver.init(terms, t0, t1, y0, args), self.memo, jnp.array(False)
+
+        def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+            inner, memo, done = solver_state
+            y1, error, dense, inner, result = self.solver.step(
+                terms, t0, t1, y0, args, inner, made_jump
+            )
+            interpolation = self.solver.interpolation_cls(t0=t0, t1=t1, **dense)
+            new_memo, finished = self.record(t0, t1, y1, interpolation, memo)
+
+            def stay(moved, held):  # (done: the state stays put, without error)
+                return jax.tree.map(lambda a, b: jnp.where(done, b, a), moved, held)
+
+            held = {
+                k: y0 if k in ("y0", "y1") else jax.tree.map(jnp.zeros_like, v)
+                for k, v in dense.items()
+            }  # (a constant, for the usual dense outputs)
+            y1 = stay(y1, y0)
+            error = stay(error, jax.tree.map(jnp.zeros_like, error))
+            dense = stay(dense, held)
+            memo = stay(new_memo, memo)
+            return y1, error, dense, (inner, memo, done | finished), result
+
+        def func(self, terms, t0, y0, args):
+            return self.solver.func(terms, t0, y0, args)
+
+    return Recording
 
 
 def ode_solve(
