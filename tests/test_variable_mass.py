@@ -141,6 +141,21 @@ def test_smoothed_model_arrest_is_reported_as_stop(n):
     np.testing.assert_allclose(smooth.amplitudes[9], exact.amplitudes[9], rtol=1e-2)
 
 
+def test_smoothed_creep_after_a_turning_point_is_an_arrest():
+    """At the 7th exact turning point of delta = -3 kg/s, mu = 10 kg/s the spring force only
+    just exceeds the friction (`c |x| = 14.91 N` against 14.7 N): the exact mass makes a last
+    tiny swing, the smoothed one creeps off below `20 w` and, once the stick rule holds where it
+    creeps, has stopped there (before: it crept on, stiffly, to the horizon, 2439 steps against
+    809). Within 100 steps per half-swing (1200 in all) it is reported stopped, with the six
+    turning points before it."""
+    m = model(delta=-3.0, mu=10.0)
+    exact = vmj.turning_points(m, A0, 12)
+    smooth = vmj.turning_points(m, A0, 12, vmj.Smoothed(max_steps=100))
+    assert int(exact.count) == 7 and int(smooth.count) == 6
+    assert int(smooth.result) == vmj.RESULTS.stopped
+    np.testing.assert_allclose(smooth.positions[:6], exact.positions[:6], rtol=0, atol=1e-6 * A0)
+
+
 def test_smoothed_lanes_do_not_depend_on_their_batch():
     """The smoothed turning points are found in one solve, each lane of a `vmap`ped batch moving
     on to its next swing by itself (a lane that has stopped stays put while the others step):

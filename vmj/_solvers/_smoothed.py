@@ -181,8 +181,10 @@ class Smoothed(AbstractSolver):
 
         At each turning point the model's stick rule (`model.rest`) decides whether the mass
         stops for good (`stopped`): a smoothed mass only creeps from there (`|v| < CREEP w`),
-        which is stiff and is not integrated. A decay that runs into the horizon still
-        creeping is `stopped` too."""
+        which is stiff and is not integrated. So does a mass that the spring only just moved
+        on, which creeps off without ever exceeding `CREEP w`, once the stick rule holds
+        where it creeps; and a decay that runs into the horizon still creeping is `stopped`
+        too."""
         import diffrax as dfx
 
         rtol, steps, ode = self._settings(model)
@@ -201,7 +203,7 @@ class Smoothed(AbstractSolver):
             return s * v / scale, jnp.where(s * x < 0, (s * v - slow) / scale, 1.0)
 
         def record(t0, t1, y1, interpolation, memo):
-            s, count, times, positions, (rev0, arr0), stuck = memo
+            s, count, times, positions, (rev0, arr0), stuck, crept = memo
             rev1, arr1 = events(s, y1)
             reverses = (rev0 > 0) & (rev1 <= 0)  # (falls through zero, as diffrax's events)
             arrests = (arr0 > 0) & (arr1 <= 0) & jnp.logical_not(reverses)
@@ -224,8 +226,14 @@ class Smoothed(AbstractSolver):
             count = count + turned.astype(count.dtype)
             s = jnp.where(turned, s_next, s)
             stuck = stuck | (turned & stop)
-            memo = (s, count, times, positions, events(s, y1), stuck)
-            return memo, turned & (stop | (count >= n))
+            # a mass that has crept (`|v| <= CREEP w`) since its last turning point, and is
+            # where the stick rule holds, has stopped: the smoothed arrest of a mass that the
+            # spring only just moved on, which would creep on, stiffly, to the horizon
+            x1, v1 = model.observe(y1)
+            crept = turned | (crept & (jnp.abs(v1) <= slow))
+            arrested = crept & (jnp.abs(v1) <= slow) & model.rest(t1, x1)[2]
+            memo = (s, count, times, positions, events(s, y1), stuck, crept)
+            return memo, (turned & (stop | (count >= n))) | arrested
 
         y_start = model.initial_state(x0, v0)
         one = jnp.ones_like(x0)
@@ -236,6 +244,7 @@ class Smoothed(AbstractSolver):
             jnp.zeros((n,) + x0.shape, x0.dtype),
             events(one, y_start),
             jnp.zeros_like(x0, dtype=bool),
+            jnp.ones_like(x0, dtype=bool),
         )
         sol = ode_solve(
             lambda t, y, args: model.vector_field(t, y, w),
@@ -247,7 +256,7 @@ class Smoothed(AbstractSolver):
             max_steps=n * steps,
             solver=recording(ode, record, memo),
         )
-        _, count, times, positions, _, stuck = sol.solver_state[1]
+        _, count, times, positions, _, stuck, _ = sol.solver_state[1]
         y_end = sol.ys[-1]
         failed = sol.result != dfx.RESULTS.successful
         k = jnp.arange(n)
