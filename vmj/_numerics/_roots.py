@@ -20,14 +20,18 @@ def converged_fraction(dtype) -> float:
     return max(CONVERGED, 4 * float(jnp.finfo(dtype).eps))
 
 
-def bracketed_newton(f, lo, hi, x0, iterations: int):
+def bracketed_newton(f, lo, hi, x0, iterations: int, unrolled: bool = False):
     """Root of a function in `[lo, hi]`, positive at `lo` and `<= 0` at `hi`; `f(x)` returns its
     value and slope `(y, dy/dx)`. Newton steps from `x0`, falling back to bisection whenever a
     step leaves the bracket. A lane stops (and keeps its value) once a step moved it by at most
     `converged_fraction` of its initial bracket or hit `f = 0`; the loop ends when every lane
     of a `vmap`ped batch has stopped, or after `iterations` steps. Not
     differentiated: pass functions of `lax.stop_gradient`-ed data and finish with
-    `implicit_step`."""
+    `implicit_step`.
+
+    `unrolled`: exactly `iterations` steps written out instead of a `while_loop`, for a start
+    so close that a few steps always suffice (one fused kernel instead of a loop of small
+    ones: the smoothed turning points within a step of the dense output)."""
 
     def cond(state):
         i, _, _, _, done = state
@@ -48,9 +52,13 @@ def bracketed_newton(f, lo, hi, x0, iterations: int):
     dtype = jnp.result_type(x0, lo, hi)
     x0, lo, hi = (jnp.asarray(a, dtype) for a in jnp.broadcast_arrays(x0, lo, hi))
     tol = converged_fraction(dtype) * jnp.abs(hi - lo)
-    done = jnp.zeros(x0.shape, bool)
-    _, x, _, _, _ = lax.while_loop(cond, step, (jnp.array(0), x0, lo, hi, done))
-    return x
+    state = (jnp.array(0), x0, lo, hi, jnp.zeros(x0.shape, bool))
+    if unrolled:
+        for _ in range(iterations):
+            state = step(state)
+    else:
+        state = lax.while_loop(cond, step, state)
+    return state[1]
 
 
 def implicit_step(f, x):

@@ -14,6 +14,7 @@ from jaxtyping import Array
 from .._checks import _float, _is_traced, check, positive
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
 from .._numerics._ode import ode_solve, recording, tsit5
+from .._numerics._roots import bracketed_newton, implicit_step
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
 
@@ -294,32 +295,35 @@ class Smoothed(AbstractSolver):
         )
 
 
-def _turning_point(interpolation, t0, t1, g, g0, g1, position, found, iterations: int = 3):
+def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
     """Time and position where `g(y(t))` falls through zero within a step from `t0` to `t1`
-    (`g0 > 0 >= g1` at its ends, where `found`), `y(t)` the step's dense output.
+    (`g0 > 0 >= g1` at its ends, where `found`), `y(t)` the step's dense output: vmj's root
+    finder on the step's fraction, two bracketed Newton steps from the secant's root written
+    out, then one with gradients (the implicit function's derivative). A step accepted at the
+    solve's tolerance makes the secant's root close (three or six steps give the same turning
+    points to the last bit over the 1617-point benchmark grid; the error of Newton's method
+    squares at each step).
 
-    Newton's method on the step's fraction, from the secant's root, kept in the step: three
-    iterations (six give the same turning points to the last bit over the 1617-point
-    benchmark grid), and a fourth, differentiated (the implicit function's derivative), the
-    others not. Computed only in a step where some lane of a `vmap`ped batch has found its
-    turning point, in a `lax.cond`: XLA's CPU backend has no multi-output fusion, and
-    recomputed the iterations in each of the half-dozen kernels that read the result
-    otherwise (808 lanes: about 60 us per step, as much as the step itself)."""
+    Computed only in a step where some lane of a `vmap`ped batch has found its turning point,
+    in a `lax.cond`: XLA's CPU backend has no multi-output fusion, and recomputed the
+    iterations in each of the half-dozen kernels that read the result otherwise (808 lanes:
+    about 60 us per step, as much as the step itself)."""
     at = getattr(interpolation, "at_fraction", None)  # (vmj's Tsit5: a quartic in it)
     if at is None:
 
         def at(u):
             return interpolation.evaluate(t0 + (t1 - t0) * u)
 
-    def newton(u):
+    def f(u):  # (0 where no turning point was found: those lanes stop at once)
         value, slope = jax.jvp(lambda u: g(at(u)), (u,), (jnp.ones_like(u),))
-        return u - value / jnp.where(slope != 0, slope, 1.0)
+        return jnp.where(found, value, 0.0), slope
 
     def locate():
-        u = jnp.clip(g0 / jnp.where(g0 > g1, g0 - g1, 1.0), 0.0, 1.0)
-        for _ in range(iterations):
-            u = jnp.clip(lax.stop_gradient(newton(u)), 0.0, 1.0)
-        u = newton(u)
+        fs = lambda u: lax.stop_gradient(f(u))  # noqa: E731
+        secant = jnp.clip(g0 / jnp.where(g0 > g1, g0 - g1, 1.0), 0.0, 1.0)
+        zero = jnp.zeros_like(secant)
+        u = bracketed_newton(fs, zero, zero + 1.0, lax.stop_gradient(secant), 2, unrolled=True)
+        u = implicit_step(f, u)
         return t0 + (t1 - t0) * u, position(at(u))
 
     return lax.cond(eqxi.unvmap_any(found), locate, lambda: (t1, jnp.zeros_like(g0)))
