@@ -257,7 +257,7 @@ def main():
 
     first = repeat(sweep, times=1)
     res = sweep()
-    t_sweep = repeat(sweep, times=max(REPEAT, 7)).per(P)
+    t_sweep = repeat(sweep, times=max(REPEAT, 21)).per(P)  # (ms each: more runs steady the median)
     idx = np.linspace(0, P - 1, args.scipy_points).astype(int)
     refs = {}
 

@@ -84,6 +84,14 @@ class AbstractModel(AbstractParams):
         relative one times it)."""
         return jnp.abs(x0) + jnp.abs(v0) / self.velocity_scale(1.0)
 
+    def state_scale(self, x0, v0) -> Array:
+        """The scale of each component of the ODE state (`initial_state`) of a motion from
+        `(x0, v0)`, in its own unit: the length scale for the position, that times
+        `velocity_scale(1.0)` for the velocity. The smoothed solver's absolute tolerance is
+        its relative tolerance times this."""
+        length = self.length_scale(x0, v0)
+        return jnp.stack([length, length * self.velocity_scale(1.0)])
+
     # -- the smoothed ODE: sign(v) replaced by tanh(v/w) -------------------------------------
     def initial_state(self, x0, v0) -> Array:
         """The ODE state at `t = 0` from position and velocity."""

@@ -131,6 +131,12 @@ class StickSlip(AbstractLimitCycle):
     def length_scale(self, x0, v0):
         return jnp.abs(x0) + jnp.zeros_like(v0)
 
+    def state_scale(self, x0, v0):
+        """`|x0|` for each of `(xi, xi', z)` (dimensionless; the velocity unit is the slip
+        phases' unit frequency)."""
+        length = self.length_scale(x0, v0)
+        return jnp.stack([length, length, length])
+
     def initial_state(self, x0, v0):
         """`(xi, xi', z)` with the rest memory `z = 0`."""
         return jnp.stack([x0, v0, jnp.zeros_like(x0)])

@@ -25,7 +25,6 @@ __all__ = ["Smoothed"]
 
 DEFAULT_SMOOTHING = 1e-4  #: default w as a fraction of the model's velocity scale
 CREEP = 20.0  #: |v| below CREEP * w after the last reversal counts as the smoothed model's arrest
-EVENT_RTOL = 1e-12  #: Newton's tolerance on the time of a turning point (relative to the horizon)
 
 
 class Smoothed(AbstractSolver):
@@ -42,9 +41,12 @@ class Smoothed(AbstractSolver):
       agree with the exact solver to about 1e-7 relative. Smaller `w` is closer to the
       non-smooth model and stiffer to integrate.
     - `rtol`: relative tolerance of the step-size controller (default: the model's, 1e-10 for
-      the decay models); the absolute tolerance is `rtol` times the motion's length scale.
+      the decay models); the absolute tolerance is `rtol` times the motion's scale in each
+      state component's unit (`model.state_scale`: its length scale for the position, its
+      velocity scale for the velocity).
     - `max_steps`: diffrax step limit (default: the model's), per half-swing for the turning
-      points and per saved interval for a trajectory.
+      points (`n` of them: one solve of at most `n * max_steps` steps) and per saved interval
+      for a trajectory.
     - `ode_solver`: a diffrax solver (default: Tsit5, as `diffrax.Tsit5()` with its stages
       written out, which is faster on CPUs; `Kvaerno5()` for stiff models such as stick-slip).
     """
@@ -121,7 +123,7 @@ class Smoothed(AbstractSolver):
             t1,
             saveat,
             rtol=rtol,
-            atol=rtol * model.length_scale(x0, v0),
+            atol=rtol * model.state_scale(x0, v0),
             max_steps=steps,
             solver=ode,
         )
@@ -139,7 +141,7 @@ class Smoothed(AbstractSolver):
         w = self.smoothing
         ts = jnp.linspace(0.0, t1, n_save)
         y0 = model.initial_state(x0, v0)
-        atol = rtol * model.length_scale(x0, v0)
+        atol = rtol * model.state_scale(x0, v0)
         go_on = dfx.SaveAt(t1=True, solver_state=True, controller_state=True, made_jump=True)
 
         def piece(t_a, t_b, y, resume):
@@ -194,7 +196,7 @@ class Smoothed(AbstractSolver):
         x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
         v0 = jnp.zeros_like(x0)
         t_end = model.horizon(a0, n)
-        atol = rtol * model.length_scale(x0, v0)
+        atol = rtol * model.state_scale(x0, v0)
         scale = model.velocity_scale(a0)  # (event functions in units of it)
         slots = jnp.arange(n).reshape((n,) + (1,) * x0.ndim)
 
