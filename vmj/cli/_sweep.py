@@ -57,7 +57,9 @@ class Sweep:
 
 
 # -- cost of one point, measured roughly on the 2-core development machine -----------------------
-_PER_SWING = {"exact": 1e-6, "energy": 1e-8, "smooth": 7e-3}  #: seconds per turning point
+#: seconds per turning point, about 5 times the warm sweeps' (the 1617-point grid, 12 turning
+#: points: exact 4.4 ms, smoothed 70 ms since its turning points are found in one solve)
+_PER_SWING = {"exact": 1e-6, "energy": 1e-8, "smooth": 2e-5}
 _SWING_BYTES = 17  #: time, position (float64) and crossed flag of one turning point
 
 
