@@ -29,6 +29,7 @@ __all__ = [
     "check",
     "check_all",
     "check_int",
+    "default_float",
     "scalar",
     "warn_if_float32",
 ]
@@ -38,11 +39,17 @@ def _is_traced(x) -> bool:
     return isinstance(x, jax.core.Tracer)
 
 
+def default_float() -> np.dtype:
+    """JAX's default float type (float64 with x64 enabled), read off its flag:
+    `jnp.result_type(float)` costs a warm single solve 2 us a call."""
+    return np.dtype(np.float64 if jax.config.jax_enable_x64 else np.float32)
+
+
 def _float(x) -> jax.Array:
     """A float array of JAX's default float type (float64 with x64 enabled). A Python number or
     NumPy array is cast by NumPy and put on the device as it is: `jnp.asarray` would run (and,
     in a new process, load or compile) a conversion program for it."""
-    dtype = jnp.result_type(float)
+    dtype = default_float()
     if isinstance(x, jax.Array) or _is_traced(x):
         return jnp.asarray(x, dtype=dtype)
     return jax.device_put(np.asarray(x, dtype=dtype))
@@ -69,9 +76,8 @@ def scalar(value):
     concrete values (a compiled entry point takes it without a device round trip or a
     recompilation for Python floats), traced values unchanged but cast."""
     if _is_traced(value):
-        return jnp.asarray(value, dtype=jnp.result_type(float))
-    # (JAX's default float type read off its flag: `jnp.result_type` costs 2 us a call)
-    return np.asarray(value, dtype=np.float64 if jax.config.jax_enable_x64 else np.float32)
+        return jnp.asarray(value, dtype=default_float())
+    return np.asarray(value, dtype=default_float())
 
 
 def check_all(items) -> list:

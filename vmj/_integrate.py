@@ -16,6 +16,7 @@ from ._checks import (
     anything,
     check,
     check_int,
+    default_float,
     guard,
     positive,
     scalar,
@@ -257,7 +258,7 @@ def decay_trajectory(
     require_scalar_fields(model)
     model = _checked(solver, model, "turning_points")
     a0 = scalar(check("a0", a0, *type(model).release_range(model)))
-    ts = check("ts", jnp.asarray(ts, dtype=jnp.result_type(float)), anything, "times [s]")
+    ts = check("ts", jnp.asarray(ts, dtype=default_float()), anything, "times [s]")
     if ts.ndim != 1:
         raise ValueError(f"ts must be a 1-D array of times [s] (got shape {ts.shape})")
     substeps = getattr(solver, "max_substeps", None) or type(model).exact_substeps

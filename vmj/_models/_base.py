@@ -226,11 +226,9 @@ def require_scalar_fields(model) -> None:
     """Refuse a model with array parameters at an entry point that solves one model. (A
     concrete model that passed is marked and not walked again: modules are immutable, and the
     walk cost a warm single solve 3.6 us.)"""
-    try:
-        if vars(model).get(_SCALAR_FIELDS, False):
-            return
-    except TypeError:  # (no attributes of its own: not a module, checked below)
-        pass
+    module = isinstance(model, AbstractParams)
+    if module and vars(model).get(_SCALAR_FIELDS, False):
+        return
     leaves = jax.tree.leaves(model)
     for leaf in leaves:
         if getattr(leaf, "shape", ()) != () and not _is_traced(leaf):  # (jnp.ndim: 3x slower)
@@ -238,5 +236,5 @@ def require_scalar_fields(model) -> None:
                 "this entry point takes a model with scalar parameters; for arrays of parameters "
                 "use vmj.sweep or jax.vmap"
             )
-    if hasattr(model, "__dict__") and not any(_is_traced(leaf) for leaf in leaves):
+    if module and not any(_is_traced(leaf) for leaf in leaves):
         object.__setattr__(model, _SCALAR_FIELDS, True)

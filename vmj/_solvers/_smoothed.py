@@ -200,14 +200,14 @@ class Smoothed(AbstractSolver):
         scale = model.velocity_scale(a0)  # (event functions in units of it)
         slots = jnp.arange(n).reshape((n,) + (1,) * x0.ndim)
 
-        def events(s, y):
+        def events(s, x, v):
             """The reversal's and the arrest's event functions of a swing in direction `s`."""
-            x, v = model.observe(y)
             return s * v / scale, jnp.where(s * x < 0, (s * v - slow) / scale, 1.0)
 
         def record(t0, t1, y1, interpolation, memo):
             s, count, times, positions, (rev0, arr0), stuck, crept = memo
-            rev1, arr1 = events(s, y1)
+            x1, v1 = model.observe(y1)
+            rev1, arr1 = events(s, x1, v1)
             reverses = (rev0 > 0) & (rev1 <= 0)  # (falls through zero, as diffrax's events)
             arrests = (arr0 > 0) & (arr1 <= 0) & jnp.logical_not(reverses)
             turned = reverses | arrests
@@ -232,10 +232,9 @@ class Smoothed(AbstractSolver):
             # a mass that has crept (`|v| <= CREEP w`) since its last turning point, and is
             # where the stick rule holds, has stopped: the smoothed arrest of a mass that the
             # spring only just moved on, which would creep on, stiffly, to the horizon
-            x1, v1 = model.observe(y1)
             crept = turned | (crept & (jnp.abs(v1) <= slow))
             arrested = crept & (jnp.abs(v1) <= slow) & model.rest(t1, x1)[2]
-            memo = (s, count, times, positions, events(s, y1), stuck, crept)
+            memo = (s, count, times, positions, events(s, x1, v1), stuck, crept)
             return memo, (turned & (stop | (count >= n))) | arrested
 
         y_start = model.initial_state(x0, v0)
@@ -245,7 +244,7 @@ class Smoothed(AbstractSolver):
             jnp.zeros(x0.shape, jnp.int32),
             jnp.zeros((n,) + x0.shape, x0.dtype),
             jnp.zeros((n,) + x0.shape, x0.dtype),
-            events(one, y_start),
+            events(one, x0, v0),
             jnp.zeros_like(x0, dtype=bool),
             jnp.ones_like(x0, dtype=bool),
         )
