@@ -64,22 +64,35 @@ def enable_exported_cache(path: str | os.PathLike | None) -> None:
     _directory[0] = None if path is None else os.fspath(path)
 
 
+def _top_level() -> bool:
+    """Whether no JAX transformation is tracing (where `jax.jit` takes compiler options); False
+    where JAX's internals do not say."""
+    from jax._src import core
+
+    ctx = getattr(core, "trace_ctx", None)
+    return ctx is not None and ctx.is_top_level()
+
+
 def exported_cache_directory() -> str | None:
     """The directory of the exported-program cache, `None` when it is off."""
     return _directory[0]
 
 
-def exported_jit(fun=None, *, static_argnums=()):
-    """`jax.jit(fun, static_argnums=...)` that, while the exported-program cache is on, loads
-    and stores the function's exported programs there (see the module's docstring). The plain
-    jitted function's attributes (`lower`, ...) are those of the result."""
+def exported_jit(fun=None, *, static_argnums=(), compiler_options=None):
+    """`jax.jit(fun, static_argnums=..., compiler_options=...)` that, while the exported-program
+    cache is on, loads and stores the function's exported programs there (see the module's
+    docstring). The plain jitted function's attributes (`lower`, ...) are those of the result.
+    `compiler_options` (XLA's, as for `jax.jit`) apply where the function is compiled as a
+    program of its own, not where it is traced inside another."""
     if fun is None:
-        return functools.partial(exported_jit, static_argnums=static_argnums)
-    return _ExportedJit(fun, static_argnums)
+        return functools.partial(
+            exported_jit, static_argnums=static_argnums, compiler_options=compiler_options
+        )
+    return _ExportedJit(fun, static_argnums, compiler_options)
 
 
 class _ExportedJit:
-    def __init__(self, fun, static_argnums):
+    def __init__(self, fun, static_argnums, compiler_options=None):
         import jax
 
         self.fun = fun
@@ -88,7 +101,14 @@ class _ExportedJit:
         )
         if any(i < 0 for i in self.static_argnums):
             raise ValueError("static_argnums must be non-negative positions")
+        self.compiler_options = dict(compiler_options or {})
         self.jitted = jax.jit(fun, static_argnums=self.static_argnums)
+        # (JAX takes compiler options for a program of its own only, not inside a trace)
+        self.top = (
+            jax.jit(fun, static_argnums=self.static_argnums, compiler_options=compiler_options)
+            if compiler_options
+            else self.jitted
+        )
         self.loaded: dict = {}  # (directory, x64, static, treedef, avals) -> (call, out tree)
         functools.update_wrapper(self, fun)
 
@@ -96,14 +116,20 @@ class _ExportedJit:
         return self.__qualname__
 
     def __getattr__(self, name):  # (only for names the instance does not have)
-        if name in ("jitted", "__setstate__"):
+        if name in ("jitted", "top", "__setstate__"):
             raise AttributeError(name)
         return getattr(self.jitted, name)
 
     def __call__(self, *args, **kwargs):
         if _directory[0] is None or kwargs:
-            return self.jitted(*args, **kwargs)
+            return self._plain(*args, **kwargs)
         return self._call_exported(args)
+
+    def _plain(self, *args, **kwargs):
+        """The jitted function, with its compiler options where no transformation traces."""
+        return (self.top if self.top is not self.jitted and _top_level() else self.jitted)(
+            *args, **kwargs
+        )
 
     def _call_exported(self, args):
         import jax
@@ -115,17 +141,17 @@ class _ExportedJit:
             return self.jitted(*args)
         typeof = getattr(jax, "typeof", None)  # (JAX >= 0.4.36; before, the plain path)
         if typeof is None:
-            return self.jitted(*args)
+            return self._plain(*args)
         try:
             avals = tuple(typeof(x) for x in leaves)
             key = (_directory[0], jax.config.jax_enable_x64, static, treedef, avals)
             entry = self.loaded.get(key)
         except TypeError:  # a leaf that is no array, or an unhashable static argument
-            return self.jitted(*args)
+            return self._plain(*args)
         if entry is None:
             entry = self.loaded[key] = self._load_or_export(static, treedef, avals)
         if entry is _PLAIN:
-            return self.jitted(*args)
+            return self._plain(*args)
         call, out_tree = entry
         return jax.tree.unflatten(out_tree, call(*leaves))
 
@@ -143,6 +169,7 @@ class _ExportedJit:
                 f"{self.fun.__module__}.{self.fun.__qualname__}",
                 _environment(self.fun.__module__),
                 f"x64={jax.config.jax_enable_x64}",
+                repr(sorted(self.compiler_options.items())),
                 _stable(static),
                 str(treedef),
                 repr(avals),
@@ -159,6 +186,11 @@ class _ExportedJit:
             return _Loaded(compiled, lambda: self._export_and_compile(*args)[0]), out_tree
         return self._export_and_compile(static, treedef, avals, path, digest)
 
+    def _compile(self, exported, out_tree, path, digest, avals):
+        return _compile(
+            self.fun.__name__, exported, out_tree, path, digest, avals, self.compiler_options
+        )
+
     def _export_and_compile(self, static, treedef, avals, path, digest):
         """`(compiled, output tree)` from the exported program's entry, or traced, exported
         and written there; the executable compiled and written beside it."""
@@ -167,7 +199,7 @@ class _ExportedJit:
         loaded = _read(path, digest, avals)
         if loaded is not None:
             exported, out_tree = loaded
-            return _compile(self.fun.__name__, exported, out_tree, path, digest, avals), out_tree
+            return self._compile(exported, out_tree, path, digest, avals), out_tree
         out_trees = []
 
         def flat(*leaves):
@@ -185,7 +217,7 @@ class _ExportedJit:
             return _PLAIN
         out_tree = out_trees[-1]
         _write(path, digest, pickle.dumps(_skeleton(out_tree)), blob)
-        return _compile(self.fun.__name__, exported, out_tree, path, digest, avals), out_tree
+        return self._compile(exported, out_tree, path, digest, avals), out_tree
 
 
 class _Loaded:
@@ -235,7 +267,7 @@ def _read_executable(path, digest):
         return None
 
 
-def _compile(name, exported, out_tree, path, digest, avals):
+def _compile(name, exported, out_tree, path, digest, avals, compiler_options):
     """XLA's executable of the exported program (lowered under the function's name), stored in
     its entry; where executables cannot be serialized, used as it is."""
     import jax
@@ -250,7 +282,7 @@ def _compile(name, exported, out_tree, path, digest, avals):
     # lowered without LAPACK's set-up where the program has no LAPACK call (it imports SciPy)
     with contextlib.nullcontext() if lapack else _without_lapack_setup():
         lowered = jax.jit(call).lower(*specs)
-    compiled = _compile_fresh(lowered)
+    compiled = _compile_fresh(lowered, compiler_options)
     try:
         blob, in_tree, exe_out_tree = se.serialize(compiled)
         trees = pickle.dumps((in_tree, exe_out_tree, _skeleton(out_tree), lapack))
@@ -297,18 +329,21 @@ def _lapack_ready() -> bool:
     return True
 
 
-def _compile_fresh(lowered):
-    """`lowered.compile()` by XLA itself, never loaded from JAX's persistent compilation cache:
-    an executable loaded from there serializes without the code of some of its kernels (jaxlib
-    0.10: the copy loads, and fails with "Function wrapped_rsqrt not found" when it runs). A
-    compile option at its default value gives the program a cache key of its own, and the
-    compile is not written to the cache (its executable is stored by the caller)."""
+def _compile_fresh(lowered, compiler_options):
+    """`lowered.compile(compiler_options=...)` by XLA itself, never loaded from JAX's persistent
+    compilation cache: an executable loaded from there serializes without the code of some of
+    its kernels (jaxlib 0.10: the copy loads, and fails with "Function wrapped_rsqrt not found"
+    when it runs). A compile option at its default value gives the program a cache key of its
+    own, and the compile is not written to the cache (its executable is stored by the
+    caller)."""
     import math
 
     from jax._src import config
 
     with config.persistent_cache_min_compile_time_secs(math.inf):
-        return lowered.compile(compiler_options={"xla_embed_ir_in_executable": False})
+        return lowered.compile(
+            compiler_options={"xla_embed_ir_in_executable": False, **compiler_options}
+        )
 
 
 @contextlib.contextmanager

@@ -119,9 +119,30 @@ def _checked(solver, model, task: str):
 
 
 # -- turning points of a free decay ------------------------------------------------------------
-@exported_jit(static_argnums=2)
+#: XLA's options for one concrete solve: its loop-invariant code motion would hoist what a
+#: loop recomputes (`Exact.one_lane`) back out of it, each hoisted scalar a kernel of its own
+#: (both together, alternating processes: a warm exact call 114-122 -> 83-88 us; smoothed and
+#: energy-balance calls unchanged by the option)
+_ONE_SOLVE = {"xla_disable_hlo_passes": "while-loop-invariant-code-motion"}
+
+
+@exported_jit(static_argnums=2, compiler_options=_ONE_SOLVE)
 def _turning_points(model, a0, n, solver):
     return solver.turning_points(model, a0, n)
+
+
+def _one_lane(solver):
+    """The exact solver compiled for a single solve (`Exact.one_lane`), made once per
+    setting."""
+    if type(solver) is not Exact or solver.one_lane:
+        return solver
+    key = (solver.max_substeps, solver.derivatives)
+    if key not in _ONE_LANE:
+        _ONE_LANE[key] = Exact(max_substeps=key[0], derivatives=key[1], one_lane=True)
+    return _ONE_LANE[key]
+
+
+_ONE_LANE: dict = {}
 
 
 def turning_points(
@@ -158,11 +179,13 @@ def turning_points(
     warn_if_float32()
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
     n = check_int("n", n, 1)
-    require_scalar_fields(model)
+    concrete = require_scalar_fields(model)
     model = _checked(solver, model, "turning_points")
     a0 = scalar(check("a0", a0, *type(model).release_range(model)))
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, a0, 0.0)
+    elif concrete and not _is_traced(a0):
+        solver = _one_lane(solver)
     seq = _turning_points(model, a0, n, solver)
     return throw_if_failed(seq, seq.result, throw)
 

@@ -222,13 +222,13 @@ def check_horizon(model: AbstractModel, t1, name: str = "t1") -> None:
 _SCALAR_FIELDS = "_vmj_scalar_fields"  #: set on a concrete model found to have scalar fields
 
 
-def require_scalar_fields(model) -> None:
-    """Refuse a model with array parameters at an entry point that solves one model. (A
-    concrete model that passed is marked and not walked again: modules are immutable, and the
-    walk cost a warm single solve 3.6 us.)"""
+def require_scalar_fields(model) -> bool:
+    """Refuse a model with array parameters at an entry point that solves one model; returns
+    whether the model is concrete (no traced leaf). (A concrete model that passed is marked and
+    not walked again: modules are immutable, and the walk cost a warm single solve 3.6 us.)"""
     module = isinstance(model, AbstractParams)
     if module and vars(model).get(_SCALAR_FIELDS, False):
-        return
+        return True
     leaves = jax.tree.leaves(model)
     for leaf in leaves:
         if getattr(leaf, "shape", ()) != () and not _is_traced(leaf):  # (jnp.ndim: 3x slower)
@@ -236,5 +236,7 @@ def require_scalar_fields(model) -> None:
                 "this entry point takes a model with scalar parameters; for arrays of parameters "
                 "use vmj.sweep or jax.vmap"
             )
-    if module and not any(_is_traced(leaf) for leaf in leaves):
+    concrete = not any(_is_traced(leaf) for leaf in leaves)
+    if module and concrete:
         object.__setattr__(model, _SCALAR_FIELDS, True)
+    return concrete

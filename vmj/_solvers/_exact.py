@@ -57,17 +57,27 @@ class Exact(AbstractSolver):
       `"forward"`: forward mode only (`jax.jvp`, `jax.jacfwd`), through the same early-exit
       loops as the values: faster to trace, compile and run (the fits' Jacobians use it);
       reverse mode then fails with JAX's error for `lax.while_loop`.
+    - `one_lane`: compile for a single solve (`vmj.turning_points` sets it for a call with
+      concrete arrays): the Newton iterations for a velocity zero recompute the substep's
+      Taylor coefficients instead of carrying them into their loop. XLA's CPU backend makes
+      each carried coefficient a kernel of its own (no multi-output fusion), and one lane
+      pays for the number of kernels, not their size (a warm call 114-122 -> 83-88 us on
+      the 2-core development machine). A batch (`vmap`, sweeps) is faster with the
+      coefficients carried (the default; 4096 points: 8.9-9.9 against 12.4-13.5 ms).
 
     For [`vmj.limit_cycle`][], `Exact()` is the event-driven solution of the stick-slip rules.
     """
 
     max_substeps: int | None = eqx.field(static=True, default=None)
     derivatives: str = eqx.field(static=True, default="any")
+    one_lane: bool = eqx.field(static=True, default=False)
     name: ClassVar[str] = "exact"
 
     def __check_init__(self):
         if self.derivatives not in ("any", "forward"):
             raise ValueError(f"derivatives must be 'any' or 'forward' (got {self.derivatives!r})")
+        if not isinstance(self.one_lane, bool):
+            raise ValueError(f"one_lane must be True or False (got {self.one_lane!r})")
         if self.max_substeps is None:
             return
         if (
@@ -89,17 +99,17 @@ class Exact(AbstractSolver):
     def turning_points(self, model, a0, n: int):
         steps = model.exact_substeps if self.max_substeps is None else self.max_substeps
         if self.derivatives == "forward":
-            return _solve_decay(model, a0, n, steps, "lax")
-        return _decay(model, a0, n=n, max_substeps=steps)
+            return _solve_decay(model, a0, n, steps, "lax", self.one_lane)
+        return _decay(model, a0, n=n, max_substeps=steps, one_lane=self.one_lane)
 
     def limit_cycle(self, model, max_reversals: int):
         return model.exact_cycle(max_reversals)
 
 
-def _solve_decay(model, a0, n: int, max_substeps: int, kind: str):
+def _solve_decay(model, a0, n: int, max_substeps: int, kind: str, one_lane: bool = False):
     def swing(t0, x0, s, moving):
         found, limited, t1, x1 = march_to_velocity_zero(
-            model, t0, x0, s, moving, max_substeps, kind
+            model, t0, x0, s, moving, max_substeps, kind, one_lane
         )
         return found, jnp.where(limited, model.exhausted, RESULTS.step_limit), t1, x1
 
@@ -107,26 +117,29 @@ def _solve_decay(model, a0, n: int, max_substeps: int, kind: str):
 
 
 @eqx.filter_custom_jvp
-def _decay(model, a0, *, n: int, max_substeps: int):
+def _decay(model, a0, *, n: int, max_substeps: int, one_lane: bool):
     """The decay with plain `lax.while_loop`s (the fastest loops, not reverse-differentiable);
     derivatives, forward or reverse, come from the same code with bounded loops (below)."""
-    return _solve_decay(model, a0, n, max_substeps, "lax")
+    return _solve_decay(model, a0, n, max_substeps, "lax", one_lane)
 
 
 @_decay.def_jvp
-def _decay_jvp(primals, tangents, *, n: int, max_substeps: int):
+def _decay_jvp(primals, tangents, *, n: int, max_substeps: int, one_lane: bool):
     return eqx.filter_jvp(
-        lambda m, a: _solve_decay(m, a, n, max_substeps, "bounded"), primals, tangents
+        lambda m, a: _solve_decay(m, a, n, max_substeps, "bounded", one_lane), primals, tangents
     )
 
 
-def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: str):
+def march_to_velocity_zero(
+    model, t0, x0, s, moving, max_substeps: int, kind: str, one_lane: bool = False
+):
     """From rest at `(t0, x0)` with friction sign `s`, advance by Taylor substeps to the next
     velocity zero (lanes with `moving` False take no substep). Returns `(found, limited, t1,
     x1)`: `found` is False when no velocity zero occurred within `max_substeps` substeps, or
     when a series lost accuracy (its last terms not negligible); `limited` tells whether the
     substeps were limited by the model's lifetime. The substeps end as soon as every lane of a
-    `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`)."""
+    `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`; `one_lane`: as in
+    `Exact`)."""
     scale = model.swing_scale(t0, x0)
     zero = jnp.zeros_like(x0)
 
@@ -159,19 +172,29 @@ def march_to_velocity_zero(model, t0, x0, s, moving, max_substeps: int, kind: st
         cond, body, init, max_substeps, kind=kind
     )
     t_guess = t0 + model.half_period(t0, scale)
-    t1, x1 = _velocity_zero(model.taylor(t, x, v, s, ORDER), t, h, s, t_guess)
+    t1, x1 = _velocity_zero(model, t, x, v, s, h, t_guess, one_lane)
     return found & jnp.logical_not(inaccurate), limited, t1, x1
 
 
-def _velocity_zero(cs, t, h, s, t_guess):
-    """Velocity zero of the substep polynomial `cs` (Taylor coefficients about `t`, valid on
-    `[t, t + h]`, moving with sign `s`): `(time, position)`."""
+def _velocity_zero(model, t, x, v, s, h, t_guess, one_lane: bool):
+    """Velocity zero of the substep's Taylor polynomial about `(t, x, v)` (valid on
+    `[t, t + h]`, moving with sign `s`): `(time, position)`. Newton's iterations use the
+    series' coefficients carried into their loop, or recomputed in it with `one_lane`."""
+    cs = model.taylor(t, x, v, s, ORDER)
     dcs = derivative(cs)
-    f_cs = [lax.stop_gradient(c * s) for c in dcs]
+    if one_lane:
+        stopped = lax.stop_gradient((model, t, x, v))
+
+        def velocity(y):  # (s v, s dv/dt) at t + y
+            series = derivative(stopped[0].taylor(*stopped[1:], s, ORDER))
+            value, slope = horner_and_derivative(series, y)
+            return s * value, s * slope
+
+    else:
+        f_cs = [lax.stop_gradient(c * s) for c in dcs]
+        velocity = lambda y: horner_and_derivative(f_cs, y)  # noqa: E731
     hi = lax.stop_gradient(h)
     tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
-    tau = bracketed_newton(
-        lambda x: horner_and_derivative(f_cs, x), jnp.zeros_like(hi), hi, tau, NEWTON
-    )
-    tau = implicit_step(lambda x: horner_and_derivative(dcs, x), tau)
+    tau = bracketed_newton(velocity, jnp.zeros_like(hi), hi, tau, NEWTON)
+    tau = implicit_step(lambda y: horner_and_derivative(dcs, y), tau)
     return t + tau, horner(cs, tau)
