@@ -63,7 +63,7 @@ class Exact(AbstractSolver):
       each carried coefficient a kernel of its own (no multi-output fusion), and one lane
       pays for the number of kernels, not their size (a warm call 114-122 -> 83-88 us on
       the 2-core development machine). A batch (`vmap`, sweeps) is faster with the
-      coefficients carried (the default; 4096 points: 8.9-9.9 against 12.4-13.5 ms).
+      coefficients carried (the default; 4096 points: 8.8-10.5 against 12.4-13.5 ms).
 
     For [`vmj.limit_cycle`][], `Exact()` is the event-driven solution of the stick-slip rules.
     """
