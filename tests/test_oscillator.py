@@ -259,28 +259,6 @@ def test_gradients_match_finite_differences(restoring, derivatives):
             jax.grad(lambda q: f(q)[3])(p)
 
 
-def test_one_lane_solve_matches_the_batched_program():
-    """A concrete call compiles the exact solver for one lane (`Exact.one_lane`: Newton's
-    iterations recompute the Taylor coefficients, XLA's loop-invariant code motion off); it
-    gives the turning points of the program a trace or a batch gets (the coefficients carried)
-    to rounding, the same status, and, with `one_lane` set explicitly, the same derivatives."""
-    p = jnp.array([6.0, 0.01, 0.01, 0.05, 0.04, 0.2, 1.1])
-    concrete = np.asarray(_sequence(p, "sine"))
-    traced = np.asarray(jax.jit(lambda q: _sequence(q, "sine"))(p))
-    np.testing.assert_allclose(concrete, traced, rtol=1e-13, atol=1e-15)
-    one = vmj.Exact(one_lane=True)
-    np.testing.assert_allclose(np.asarray(_sequence(p, "sine", one)), traced, rtol=1e-13)
-    jac_one = jax.jacfwd(lambda q: _sequence(q, "sine", one))(p)
-    jac = jax.jacfwd(lambda q: _sequence(q, "sine", vmj.Exact()))(p)
-    np.testing.assert_allclose(np.asarray(jac_one), np.asarray(jac), rtol=1e-11, atol=1e-13)
-    m = vmj.VariableMass(5.0, 4900.0, -2.0, 0.5, 3.0, vmj.Coulomb(14.7))
-    a = vmj.turning_points(m, 0.06, 12)
-    b = jax.jit(lambda mm: vmj.turning_points(mm, 0.06, 12))(m)
-    np.testing.assert_allclose(a.positions, b.positions, rtol=1e-13, atol=1e-17)
-    np.testing.assert_allclose(a.times, b.times, rtol=1e-13)
-    assert int(a.result) == int(b.result) and int(a.count) == int(b.count)
-
-
 @pytest.mark.long
 def test_reverse_mode_matches_forward_mode():
     """`jax.grad` of one turning point's position equals the forward-mode row (with the long

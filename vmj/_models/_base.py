@@ -119,6 +119,9 @@ class AbstractDecayModel(AbstractModel):
 
     #: the exact solver's default step limit per half-swing (`vmj.Exact().max_substeps`)
     exact_substeps: ClassVar[int] = 8
+    #: whether `taylor` is straight-line code (no loop), cheap enough for the exact solver's
+    #: Newton iterations to recompute in a single solve (`vmj.Exact(one_lane=True)`)
+    straight_line_taylor: ClassVar[bool] = False
 
     def release_range(self):
         """`(predicate, allowed range)` of the release amplitude `a0`, checked by

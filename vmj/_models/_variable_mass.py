@@ -97,6 +97,8 @@ class VariableMass(AbstractEnergyMap):
     lifetime_text: ClassVar[str] = "the zero-mass time m0/|delta|"
 
     # -- the exact solver's half-swing ----------------------------------------------------------
+    straight_line_taylor: ClassVar[bool] = True  # (the three-term recurrence below)
+
     def rest(self, t, x):
         """At rest at `(t, x)`: the spring force `c|x|` moves the mass when it exceeds the
         friction `F(t)`; friction that falls with time (mass-proportional friction and a

@@ -58,12 +58,16 @@ class Exact(AbstractSolver):
       loops as the values: faster to trace, compile and run (the fits' Jacobians use it);
       reverse mode then fails with JAX's error for `lax.while_loop`.
     - `one_lane`: compile for a single solve (`vmj.turning_points` sets it for a call with
-      concrete arrays): the Newton iterations for a velocity zero recompute the substep's
-      Taylor coefficients instead of carrying them into their loop. XLA's CPU backend makes
-      each carried coefficient a kernel of its own (no multi-output fusion), and one lane
-      pays for the number of kernels, not their size (a warm call 114-122 -> 83-88 us on
+      concrete arrays): for a model whose Taylor recurrence is straight-line code
+      ([`vmj.VariableMass`][]), the Newton iterations for a velocity zero recompute the
+      substep's coefficients instead of carrying them into their loop. XLA's CPU backend
+      makes each carried coefficient a kernel of its own (no multi-output fusion), and one
+      lane pays for the number of kernels, not their size (a warm call 114-122 -> 83-88 us on
       the 2-core development machine). A batch (`vmap`, sweeps) is faster with the
-      coefficients carried (the default; 4096 points: 8.8-10.5 against 12.4-13.5 ms).
+      coefficients carried (the default; 4096 points: 8.8-10.5 against 12.4-13.5 ms), and so
+      are models whose recurrences are loops of Cauchy products ([`vmj.Oscillator`][]: a
+      warm call 590-620 against 790-830 us recomputed; [`vmj.Rope`][]: 760-890 against
+      1160-1220 us).
 
     For [`vmj.limit_cycle`][], `Exact()` is the event-driven solution of the stick-slip rules.
     """
@@ -179,10 +183,11 @@ def march_to_velocity_zero(
 def _velocity_zero(model, t, x, v, s, h, t_guess, one_lane: bool):
     """Velocity zero of the substep's Taylor polynomial about `(t, x, v)` (valid on
     `[t, t + h]`, moving with sign `s`): `(time, position)`. Newton's iterations use the
-    series' coefficients carried into their loop, or recomputed in it with `one_lane`."""
+    series' coefficients carried into their loop, or recomputed in it with `one_lane` (for a
+    model with a straight-line recurrence)."""
     cs = model.taylor(t, x, v, s, ORDER)
     dcs = derivative(cs)
-    if one_lane:
+    if one_lane and model.straight_line_taylor:
         stopped = lax.stop_gradient((model, t, x, v))
 
         def velocity(y):  # (s v, s dv/dt) at t + y
