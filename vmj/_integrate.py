@@ -132,17 +132,22 @@ def _turning_points(model, a0, n, solver):
 
 
 def _one_lane(solver):
-    """The exact solver compiled for a single solve (`Exact.one_lane`), made once per
-    setting."""
-    if type(solver) is not Exact or solver.one_lane:
+    """The exact solver compiled for a single solve (`Exact.one_lane`), made once per solver
+    object and kept on it (read through `vars`: an equinox module's attribute access costs a
+    microsecond or more, a warm solve's Python overhead is a few)."""
+    if type(solver) is not Exact:
         return solver
-    key = (solver.max_substeps, solver.derivatives)
-    if key not in _ONE_LANE:
-        _ONE_LANE[key] = Exact(max_substeps=key[0], derivatives=key[1], one_lane=True)
-    return _ONE_LANE[key]
+    fields = vars(solver)
+    variant = fields.get(_ONE_LANE)
+    if variant is None:
+        variant = solver
+        if not fields["one_lane"]:
+            variant = Exact(fields["max_substeps"], fields["derivatives"], one_lane=True)
+        object.__setattr__(solver, _ONE_LANE, variant)
+    return variant
 
 
-_ONE_LANE: dict = {}
+_ONE_LANE = "_vmj_one_lane"  #: set on an exact solver: its one-lane variant
 
 
 def turning_points(
