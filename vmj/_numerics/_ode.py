@@ -53,6 +53,11 @@ _TSIT5_DENSE = np.stack(
 )
 
 
+def _weighted(weights, stages):
+    """`sum_i weights[i] * stages[i]`, written out (zero weights left out)."""
+    return sum(float(w) * k for w, k in zip(weights, stages) if w != 0)
+
+
 @functools.cache
 def _tsit5_class():
     import diffrax as dfx  # here, not at the top: `import vmj` and the vmj command stay light
@@ -66,23 +71,25 @@ def _tsit5_class():
         def evaluate(self, t0, t1=None, left=True):
             if t1 is not None:
                 return self.evaluate(t1) - self.evaluate(t0)
-            span = self.t1 - self.t0
-            return self.at_fraction((t0 - self.t0) / jnp.where(span == 0, 1.0, span))
+            return self.at_fraction(self._fraction(t0)[0])
 
         def derivative(self, t, left=True):
-            span = self.t1 - self.t0
-            span = jnp.where(span == 0, 1.0, span)
-            u = (t - self.t0) / span
+            u, span = self._fraction(t)
             slope = jax.jvp(self.at_fraction, (u,), (jnp.ones_like(u),))[1]
             return jax.tree.map(lambda d: d / span, slope)
+
+        def _fraction(self, t):
+            """`(u, span)`: `t` as the fraction `u` of the step, and the step's length (1 for
+            an empty step)."""
+            span = self.t1 - self.t0
+            span = jnp.where(span == 0, 1.0, span)
+            return (t - self.t0) / span, span
 
         def at_fraction(self, u):
             """The state at `t0 + u (t1 - t0)`."""
 
             def one(y0, *k):
-                powers = [
-                    sum(float(w) * s for w, s in zip(row, k) if w != 0) for row in _TSIT5_DENSE
-                ]
+                powers = [_weighted(row, k) for row in _TSIT5_DENSE]
                 value = powers[-1]
                 for c in powers[-2::-1]:
                     value = value * u + c
@@ -100,9 +107,7 @@ def _tsit5_class():
             tab, control, dt = self.tableau, terms.contr(t0, t1), t1 - t0
 
             def combine(weights, stages):
-                return jax.tree.map(
-                    lambda *k: sum(float(w) * s for w, s in zip(weights, k) if w != 0), *stages
-                )
+                return jax.tree.map(lambda *k: _weighted(weights, k), *stages)
 
             ks = [terms.vf_prod(t0, y0, args, control)]
             for c, row in zip(tab.c, tab.a_lower):

@@ -232,8 +232,9 @@ class Smoothed(AbstractSolver):
             # a mass that has crept (`|v| <= CREEP w`) since its last turning point, and is
             # where the stick rule holds, has stopped: the smoothed arrest of a mass that the
             # spring only just moved on, which would creep on, stiffly, to the horizon
-            crept = turned | (crept & (jnp.abs(v1) <= slow))
-            arrested = crept & (jnp.abs(v1) <= slow) & model.rest(t1, x1)[2]
+            creeping = jnp.abs(v1) <= slow
+            crept = turned | (crept & creeping)
+            arrested = crept & creeping & model.rest(t1, x1)[2]
             memo = (s, count, times, positions, events(s, x1, v1), stuck, crept)
             return memo, (turned & (stop | (count >= n))) | arrested
 
