@@ -215,10 +215,14 @@ def test_simulate_follows_the_exact_turning_points():
     assert abs(np.max(np.asarray(traj.xs)) - float(exact.positions[0])) < 1e-5
 
 
-def _positions(theta, law):
+def _sequence(theta, law="F", solver=None, n=8):
     F, mu, eps, delta = theta
     friction = vmj.Coulomb(F) if law == "F" else vmj.MassProportional(F)
-    seq = vmj.turning_points(vmj.VariableMass(M0, C, delta, eps, mu, friction), A0, 8)
+    return vmj.turning_points(vmj.VariableMass(M0, C, delta, eps, mu, friction), A0, n, solver)
+
+
+def _positions(theta, law):
+    seq = _sequence(theta, law)
     return jnp.concatenate([seq.positions, seq.times])
 
 
@@ -263,10 +267,7 @@ def test_one_lane_solve_matches_the_batched_program():
     explicitly, the same forward-mode derivatives."""
 
     def sequence(theta, solver=None):
-        F, mu, eps, delta = theta
-        seq = vmj.turning_points(
-            vmj.VariableMass(M0, C, delta, eps, mu, vmj.Coulomb(F)), A0, 12, solver
-        )
+        seq = _sequence(theta, solver=solver, n=12)
         return jnp.concatenate([seq.positions, seq.times]), seq.count, seq.result
 
     one = vmj.Exact(one_lane=True)
