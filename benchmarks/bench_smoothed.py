@@ -45,9 +45,8 @@ def main():
     for name, solver in (("exact", vmj.Exact()), ("smoothed", vmj.Smoothed())):
         first[name] = repeat(lambda s=solver: run(s), times=1)
     exact, smooth = run(vmj.Exact()), run(vmj.Smoothed())
-    t_exact = repeat(
-        lambda: run(vmj.Exact()), times=max(REPEAT, 21)
-    )  # (ms each: more runs steady the median)
+    # (the exact sweep takes milliseconds: more runs steady its median)
+    t_exact = repeat(lambda: run(vmj.Exact()), times=max(REPEAT, 21))
     t_smooth = repeat(lambda: run(vmj.Smoothed()), times=REPEAT)
     same = np.asarray(exact.count) == np.asarray(smooth.count)
     k = np.arange(N) < np.asarray(exact.count)[..., None]
