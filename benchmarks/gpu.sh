@@ -25,6 +25,8 @@ for name in ("jax", "jaxlib", "equinox", "diffrax", "optimistix", "lineax", "num
 import vmj
 m = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
 print("smoke:", vmj.turning_points(m, 0.06, 12).positions[:3])
+g = vmj.grid(m, eps=[0.0, 0.5, 1.0], mu=[0.0, 5.0])
+print("sweep:", vmj.sweep(vmj.turning_points, g, a0=0.06, n=12).values.positions[0, 0, :3])
 EOF
 
 for flags in "" "--float32"; do

@@ -23,12 +23,16 @@ from vmj._sweep._sweep import (
     ACCELERATOR_CHUNK,
     DEFAULT_CHUNK,
     _SweepJob,
+    chunk_lanes,
     chunk_plan,
     default_chunk,
+    host_output,
 )
 
+LANES = chunk_lanes(jax.local_devices())  #: this machine's cores on a CPU, 1 on a GPU
 
-def n_chunks(n, chunk_size, lanes=CORES):
+
+def n_chunks(n, chunk_size, lanes=LANES):
     return -(-n // chunk_plan(n, chunk_size, lanes))
 
 
@@ -120,7 +124,9 @@ def test_default_chunk_fills_an_accelerator_and_keeps_cpu_chunks_in_cache():
         def __init__(self, platform):
             self.platform = platform
 
-    assert default_chunk(jax.local_devices()) == DEFAULT_CHUNK  # this CPU
+    here = jax.local_devices()  # this machine's: a CPU in CI
+    cpu = here[0].platform == "cpu"
+    assert default_chunk(here) == (DEFAULT_CHUNK if cpu else ACCELERATOR_CHUNK * len(here))
     assert default_chunk(None) == DEFAULT_CHUNK  # a cluster's workers
     assert default_chunk([Device("gpu")]) == ACCELERATOR_CHUNK >= 64 * DEFAULT_CHUNK
     assert default_chunk([Device("gpu")] * 4) == 4 * ACCELERATOR_CHUNK  # sharded over four
@@ -165,7 +171,34 @@ def test_small_sweeps_use_every_core():
     r = vmj.sweep(
         vmj.energy_balance, vmj.grid(paper_model(), eps=np.linspace(0, 1, 10)), a0=A0, n=4
     )
-    assert r.chunks == min(CORES, 10)
+    assert r.chunks == min(LANES, 10)  # (one chunk fills a GPU)
+
+
+def test_results_in_pinned_host_memory_are_the_same(monkeypatch):
+    """On an accelerator the chunks write their results to its pinned host memory
+    (`host_output`); forced here on this machine's device (a CPU's pinned host memory in CI):
+    the same sweep, bit for bit, each chunk's result placed there."""
+    from vmj._sweep import _sweep as sweep_module
+
+    assert host_output(jax.devices("cpu")[:1], None) is None  # a CPU's own memory is the host's
+    g = vmj.grid(paper_model(), eps=np.linspace(0, 1, 7), mu=[0.0, 5.0])
+    want = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4)
+    pinned = lambda devices, sharding: jax.sharding.SingleDeviceSharding(  # noqa: E731
+        devices[0], memory_kind="pinned_host"
+    )
+    monkeypatch.setattr(sweep_module, "host_output", pinned)
+    placed = []
+    real = sweep_module._SweepJob.compute
+    monkeypatch.setattr(
+        sweep_module._SweepJob,
+        "compute",
+        lambda job, c: placed.append(job.function()(*job.args(job.first(c)))) or real(job, c),
+    )
+    got = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4)
+    assert got.chunks == want.chunks >= 4 and len(placed) == got.chunks
+    assert {x.sharding.memory_kind for x in jax.tree.leaves(placed)} == {"pinned_host"}
+    for a, b in zip(jax.tree.leaves(got.values), jax.tree.leaves(want.values)):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_chunking_gives_identical_results_and_reports_progress(capsys):
@@ -383,7 +416,7 @@ def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
     r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
     fits = int(sweep_module.MEMORY_FRACTION * memory[0] / CORES / seen[-1])
     assert 1 <= fits < 4
-    assert r.chunks == n_chunks(8, fits) > CORES
+    assert r.chunks == n_chunks(8, fits) >= 8 // fits >= 2  # chunks of `fits` points at most
     exact = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS)
     np.testing.assert_array_equal(r.values.count, exact.values.count)
     # the turning points before the last (where the smoothed model creeps to its rest)

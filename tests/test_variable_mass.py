@@ -15,6 +15,9 @@ from scipy_reference import variable_mass_turning_points
 import vmj
 
 M0, C, A0, FT = 5.0, 4900.0, 0.06, 14.7
+#: XLA's CPU code reads and makes numbers below the smallest normal float as zero; a GPU's
+#: float64 arithmetic keeps them
+FLUSHES_SUBNORMALS = jax.default_backend() == "cpu"
 
 
 def model(delta=3.0, eps=0.0, mu=2.0, F=FT, f=None):
@@ -161,8 +164,11 @@ def test_smoothed_lanes_do_not_depend_on_their_batch():
     """The smoothed turning points are found in one solve, each lane of a `vmap`ped batch moving
     on to its next swing by itself (a lane that has stopped stays put while the others step):
     a batch gives each lane's turning points as that lane alone does (measured: to 2e-12
-    relative, the rounding of vectorised against scalar code carried through the adaptive steps;
-    asserted to 1e-9, the solve's tolerance being 1e-10)."""
+    relative on a CPU, the rounding of vectorised against scalar code carried through the
+    adaptive steps; on an H200, positions at rest, 2e-4 a0 from zero, to 4e-12 a0, and the time
+    of the rest, where the model creeps to a stop and the velocity's zero is flat, to 6e-9
+    relative). Asserted: positions to 1e-9 relative or 1e-10 a0, the solve's relative and
+    absolute tolerances; times before the rest to 1e-9, the time of the rest to 1e-7."""
     deltas, mus = jnp.array([-3.0, 0.0, 3.0, 1.0]), jnp.array([10.0, 2.0, 0.0, 6.0])
 
     def one(delta, mu):
@@ -174,8 +180,10 @@ def test_smoothed_lanes_do_not_depend_on_their_batch():
         alone = one(deltas[i], mus[i])
         counts.add(int(alone.count))
         assert int(batch.count[i]) == int(alone.count) and int(batch.result[i]) == int(alone.result)
-        np.testing.assert_allclose(batch.positions[i], alone.positions, rtol=1e-9, atol=1e-13)
-        np.testing.assert_allclose(batch.times[i], alone.times, rtol=1e-9)
+        np.testing.assert_allclose(batch.positions[i], alone.positions, rtol=1e-9, atol=1e-10 * A0)
+        moving = np.arange(12) < int(alone.count) - 1  # the turning points before the rest
+        np.testing.assert_allclose(batch.times[i][moving], alone.times[moving], rtol=1e-9)
+        np.testing.assert_allclose(batch.times[i], alone.times, rtol=1e-7)
     assert len(counts) > 1  # lanes that stop after different numbers of swings
 
 
@@ -368,11 +376,10 @@ def energy_balance_reference(m0, c, delta, eps, mu, F, f, use_f, a0, n):
     g = 9.81
     force = (lambda m: f * g * m) if use_f else (lambda m: F)
 
-    # friction falls with the mass where dF/dm delta < 0, in XLA's CPU arithmetic, which
-    # reads and makes numbers below the smallest normal float as zero (delta = -1.1e-308 kg/s
-    # is no change of mass there, and no release)
+    # friction falls with the mass where dF/dm delta < 0, in XLA's arithmetic (on a CPU,
+    # delta = -1.1e-308 kg/s is no change of mass, and no release)
     def flushed(x):
-        return 0.0 if abs(x) < sys.float_info.min else x
+        return 0.0 if FLUSHES_SUBNORMALS and abs(x) < sys.float_info.min else x
 
     falls = use_f and flushed(flushed(flushed(f) * g) * flushed(delta)) < 0
     lam = delta - 2 * delta * eps - 2 * mu

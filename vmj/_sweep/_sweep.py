@@ -89,14 +89,31 @@ def _take(x, shape, idx):
     return jnp.reshape(x, (-1,))[flat]
 
 
+def host_output(devices, sharding):
+    """Where a chunk's result is written: `None` (the device's own memory) on a CPU; on an
+    accelerator, its pinned host memory, which the device writes at the bus's speed and NumPy
+    reads in place (measured on an H200: a 10^6 x 12 float64 result in NumPy 2.6 ms after the
+    call, against 29 ms through JAX's copy of device memory into fresh host memory). `devices`:
+    the sweep's (`None`: this process's default device, as a cluster's worker runs)."""
+    device = devices[0] if devices else jax.local_devices()[0]
+    if device.platform == "cpu":
+        return None
+    if "pinned_host" not in {m.kind for m in device.addressable_memories()}:
+        return None  # pragma: no cover - an accelerator without host memory of its own
+    if sharding is not None:
+        return sharding.with_memory_kind("pinned_host")
+    return jax.sharding.SingleDeviceSharding(device, memory_kind="pinned_host")
+
+
 def _chunk_function(
-    fn, static_kwargs, kwargs_def, static_model, model_def, swept, shape, size, sharding
+    fn, static_kwargs, kwargs_def, static_model, model_def, swept, shape, size, sharding, output
 ):
     """The compiled function of a sweep's chunks, `(model arrays, kwargs arrays, start) -> fn`
     at the points `start ... start + size` (flat, C order; indices past the last point repeat
-    it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`. Everything else
-    is closed over: a call is `jax.jit`'s dispatch of a few arrays (tens of microseconds less
-    per chunk than sorting a whole model and its arguments into static and traced parts)."""
+    it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`, its result
+    placed by `output` (`host_output`'s). Everything else is closed over: a call is `jax.jit`'s
+    dispatch of a few arrays (tens of microseconds less per chunk than sorting a whole model and
+    its arguments into static and traced parts)."""
 
     def run(model_arrays, kwargs_arrays, start):
         global _TRACES
@@ -120,7 +137,7 @@ def _chunk_function(
 
         return jax.vmap(point)([x for x, s in zip(part, swept) if s])
 
-    return jax.jit(run)
+    return jax.jit(run, out_shardings=output)
 
 
 class _SweepJob:
@@ -139,6 +156,7 @@ class _SweepJob:
         self._known = {}  # chunk size -> what `known` says, where the definition has no key
         self._split = None  # what `_parts` returns, worked out once
         self._functions = {}  # chunk size -> compiled chunk function
+        self._output = None  # (host_output's answer,), worked out once
 
     def __getstate__(self):
         # a worker evaluates on its own default device
@@ -150,6 +168,7 @@ class _SweepJob:
             _known={},
             _split=None,
             _functions={},
+            _output=None,
         )
         del state["_lock"]
         return state
@@ -194,6 +213,12 @@ class _SweepJob:
                 self._on_device = (put(model_leaves), put(kwargs_leaves))
             return self._on_device
 
+    def output(self):
+        """Where the chunks' results are written (`host_output`), worked out once."""
+        if self._output is None:
+            self._output = (host_output(self.devices, self.sharding),)
+        return self._output[0]
+
     def first(self, c: int) -> int:
         """The first point evaluated by chunk `c` (the last chunk ends at the last point)."""
         return min(c * self.chunk, max(self.n - self.chunk, 0))
@@ -219,6 +244,7 @@ class _SweepJob:
                 self.shape,
                 chunk,
                 self.sharding,
+                self.output(),
                 bool(jax.config.jax_enable_x64),
             )
             hash(key)
@@ -262,6 +288,7 @@ class _SweepJob:
                     self.shape,
                     chunk,
                     self.sharding,
+                    self.output(),
                 )
             self._functions[chunk] = known["function"]
             return known["function"]
@@ -343,6 +370,12 @@ def chunk_bytes(job, chunk: int) -> int | None:
             need = None
         known["bytes"] = need
     return known["bytes"]
+
+
+def chunk_lanes(devices) -> int:
+    """The fewest chunks an in-process sweep on `devices` is split into: one per core on one
+    CPU device (each thread runs one), one on accelerators (a chunk fills them)."""
+    return CORES if len(devices) == 1 and devices[0].platform == "cpu" else 1
 
 
 def default_chunk(devices) -> int:
@@ -515,7 +548,7 @@ def sweep(
             if nd > 1:
                 mesh = jax.sharding.Mesh(np.array(devs), ("batch",))
                 sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
-            lanes = CORES if nd == 1 and devs[0].platform == "cpu" else 1
+            lanes = chunk_lanes(devs)
             threads = CORES if nd == 1 else 1
             memory = available_memory(devs[0])
             concurrent = threads
