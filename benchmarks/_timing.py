@@ -54,7 +54,9 @@ def _fmt(seconds: float) -> str:
         return f"{seconds:.2f} s"
     if seconds >= 1e-3:
         return f"{seconds * 1e3:.1f} ms"
-    return f"{seconds * 1e6:.1f} us"
+    if seconds >= 1e-6:
+        return f"{seconds * 1e6:.1f} us"
+    return f"{seconds * 1e9:.0f} ns"
 
 
 def repeat(fn, times: int = REPEAT, number: int = 1, block=None) -> Timing:
