@@ -27,6 +27,7 @@ from vmj._sweep._sweep import (
     chunk_plan,
     default_chunk,
     host_output,
+    pinned_host,
 )
 
 LANES = chunk_lanes(jax.local_devices())  #: this machine's cores on a CPU, 1 on a GPU
@@ -183,10 +184,7 @@ def test_results_in_pinned_host_memory_are_the_same(monkeypatch):
     assert host_output(jax.devices("cpu")[:1], None) is None  # a CPU's own memory is the host's
     g = vmj.grid(paper_model(), eps=np.linspace(0, 1, 7), mu=[0.0, 5.0])
     want = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4)
-    pinned = lambda devices, sharding: jax.sharding.SingleDeviceSharding(  # noqa: E731
-        devices[0], memory_kind="pinned_host"
-    )
-    monkeypatch.setattr(sweep_module, "host_output", pinned)
+    monkeypatch.setattr(sweep_module, "host_output", lambda d, s: pinned_host(d[0], s))
     placed = []
     real = sweep_module._SweepJob.compute
     monkeypatch.setattr(
@@ -283,8 +281,12 @@ def test_sharded_over_four_devices_equals_one_device():
         small = vmj.grid(model, eps=np.linspace(0, 1, 5))
         four_small = vmj.sweep(fn, small, a0=0.06, n=12)
         one_small = vmj.sweep(fn, small, a0=0.06, n=12, devices=jax.devices()[:1])
+        # the results in the devices' pinned host memory, as on accelerators
+        from vmj._sweep import _sweep
+        _sweep.host_output = lambda d, s: _sweep.pinned_host(d[0], s)
+        four_pinned = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=24)
         diff = max(float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float))))
-                   for x, y in ((four, one), (four_small, one_small))
+                   for x, y in ((four, one), (four_small, one_small), (four_pinned, one))
                    for a, b in zip(jax.tree.leaves(x.values), jax.tree.leaves(y.values)))
         print(json.dumps({"devices": [four.devices, one.devices], "diff": diff,
                           "chunks": four.chunks, "small": list(four_small.values.positions.shape)}))

@@ -100,6 +100,12 @@ def host_output(devices, sharding):
         return None
     if "pinned_host" not in {m.kind for m in device.addressable_memories()}:
         return None  # pragma: no cover - an accelerator without host memory of its own
+    return pinned_host(device, sharding)
+
+
+def pinned_host(device, sharding):
+    """`sharding` (the sweep's over several devices; `None`: `device` alone) with its arrays in
+    pinned host memory."""
     if sharding is not None:
         return sharding.with_memory_kind("pinned_host")
     return jax.sharding.SingleDeviceSharding(device, memory_kind="pinned_host")
@@ -374,7 +380,8 @@ def chunk_bytes(job, chunk: int) -> int | None:
 
 def chunk_lanes(devices) -> int:
     """The fewest chunks an in-process sweep on `devices` is split into: one per core on one
-    CPU device (each thread runs one), one on accelerators (a chunk fills them)."""
+    CPU device (each thread runs one), else one (a chunk fills an accelerator, or is sharded
+    over the devices)."""
     return CORES if len(devices) == 1 and devices[0].platform == "cpu" else 1
 
 
