@@ -232,14 +232,15 @@ def require_scalar_fields(model) -> bool:
     module = isinstance(model, AbstractParams)
     if module and vars(model).get(_SCALAR_FIELDS, False):
         return True
-    leaves = jax.tree.leaves(model)
-    for leaf in leaves:
-        if getattr(leaf, "shape", ()) != () and not _is_traced(leaf):  # (jnp.ndim: 3x slower)
+    concrete = True
+    for leaf in jax.tree.leaves(model):
+        if _is_traced(leaf):
+            concrete = False
+        elif getattr(leaf, "shape", ()) != ():  # (jnp.ndim: 3x slower)
             raise ValueError(
                 "this entry point takes a model with scalar parameters; for arrays of parameters "
                 "use vmj.sweep or jax.vmap"
             )
-    concrete = not any(_is_traced(leaf) for leaf in leaves)
     if module and concrete:
         object.__setattr__(model, _SCALAR_FIELDS, True)
     return concrete
