@@ -1,8 +1,13 @@
-"""Benchmark of fits: fit latency (first call including compilation, and warm) against SciPy
-least_squares over an event-driven solve_ivp model on the same data, and a batched fit of 1000
-records. Prints ratios measured in this run.
+"""Fits in Python (`fits.fit`, `fits.fit_batch`) against SciPy `least_squares` over an
+event-driven `solve_ivp` model of the same record (no intervals: SciPy's fit has none).
 
-Run: .venv/bin/python benchmarks/bench_fits.py [--records 1000]
+- one fit of (FT, mu) on an 11-point record, the first call (compilation) and warm;
+- a batch of records (`fits.fit_batch`, one compiled solve), without intervals and with the
+  95 % profile-likelihood intervals (the default), per record.
+
+Medians with min/max of 5 repetitions on each side, in one run.
+
+Run: .venv/bin/python benchmarks/bench_fits.py [--records 200]
 """
 
 import argparse
@@ -11,9 +16,10 @@ import sys
 import time
 import warnings
 
-import jax
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _timing import REPEAT, machine, ratio, repeat, set_up_jax  # noqa: E402
 
-jax.config.update("jax_enable_x64", True)
+set_up_jax()
 
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
@@ -52,55 +58,57 @@ def scipy_fit(rec, start):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--records", type=int, default=1000)
+    ap.add_argument("--records", type=int, default=200)
     args = ap.parse_args()
     warnings.simplefilter("ignore")
+    print(machine())
     rec = record(0)
+
+    def fit(intervals=True):
+        return fits.fit(
+            rec, "variable-mass", ("FT", "mu"), GIVEN, compare=False, intervals=intervals
+        )
+
     t = time.perf_counter()
-    first = fits.fit(rec, "variable-mass", ("FT", "mu"), GIVEN, compare=False)
+    first = fit()
     t_first = time.perf_counter() - t
-    warm = []
-    for seed in range(1, 6):
-        r = record(seed)
-        t = time.perf_counter()
-        fits.fit(r, "variable-mass", ("FT", "mu"), GIVEN, compare=False)
-        warm.append(time.perf_counter() - t)
-    t_warm = float(np.median(warm))
     dec = first.decrement
     start = np.array([C * max(dec["xF"], 1e-4), 2.0 * 1.05])
-    t = time.perf_counter()
     sp = scipy_fit(rec, start)
-    t_scipy = time.perf_counter() - t
-    print(f"single fit (FT, mu; {len(rec)} turning points, exact model):")
+    t_warm = repeat(lambda: fit(intervals=False), times=REPEAT)
+    t_warm_intervals = repeat(fit, times=REPEAT)
+    t_scipy = repeat(lambda: scipy_fit(rec, start), times=REPEAT)
+    print(f"one fit of (FT, mu) on {len(rec)} turning points, exact model")
+    print(f"  first call (compilation, intervals):  {t_first:.2f} s")
+    print(f"  warm, no intervals:                   {t_warm}")
+    print(f"  warm, profile-likelihood intervals:   {t_warm_intervals}")
+    print(f"  SciPy least_squares + solve_ivp:      {t_scipy}  ({sp.nfev} model evaluations)")
     print(
-        f"  vmj/fits first call (with compilation): {t_first:8.3f} s  "
-        f"FT={first.params['FT']:.4f} mu={first.params['mu']:.4f}"
+        f"  answers: vmj FT = {first.params['FT']:.4f} N, mu = {first.params['mu']:.4f} kg/s; "
+        f"SciPy FT = {sp.x[0]:.4f} N, mu = {sp.x[1]:.4f} kg/s"
     )
-    print(f"  vmj/fits warm (median of 5):            {t_warm:8.3f} s")
-    print(
-        f"  SciPy least_squares + solve_ivp events: {t_scipy:8.3f} s  "
-        f"FT={sp.x[0]:.4f} mu={sp.x[1]:.4f} ({sp.nfev} model evaluations)"
-    )
-    print(f"  ratio SciPy / vmj warm:  {t_scipy / t_warm:8.2f}")
-    print(f"  ratio SciPy / vmj first: {t_scipy / t_first:8.2f}")
+    ratio("SciPy / vmj warm (no intervals)", t_scipy, t_warm)
+
     recs = [record(100 + i) for i in range(args.records)]
-    t = time.perf_counter()
-    out = fits.fit_batch(recs, "variable-mass", ("FT", "mu"), GIVEN, compare=False)
-    t_batch = time.perf_counter() - t
-    t = time.perf_counter()
-    fits.fit_batch(recs, "variable-mass", ("FT", "mu"), GIVEN, compare=False)
-    t_batch_warm = time.perf_counter() - t
-    ft = np.array([r.params["FT"] for r in out])
-    print(
-        f"batched fit of {args.records} records (jax.vmap): first {t_batch:.2f} s, "
-        f"warm {t_batch_warm:.2f} s = {1e3 * t_batch_warm / args.records:.2f} ms/record; "
-        f"FT mean {ft.mean():.4f} sd {ft.std():.4f}; converged "
-        f"{sum(r.converged for r in out)}/{len(out)}"
-    )
-    print(
-        f"  ratio SciPy single / vmj batched per record: "
-        f"{t_scipy / (t_batch_warm / args.records):.1f}"
-    )
+
+    def batch(intervals):
+        return fits.fit_batch(
+            recs, "variable-mass", ("FT", "mu"), GIVEN, compare=False, intervals=intervals
+        )
+
+    print(f"a batch of {args.records} records (fits.fit_batch), per record")
+    for intervals in (False, True):
+        t = time.perf_counter()
+        out = batch(intervals)
+        t_compile = time.perf_counter() - t
+        t_batch = repeat(lambda i=intervals: batch(i), times=REPEAT).per(args.records)
+        ft = np.array([r.params["FT"] for r in out])
+        what = "with intervals" if intervals else "no intervals"
+        print(
+            f"  {what + ':':16s}{t_batch}  (first call {t_compile:.1f} s; FT mean {ft.mean():.4f} "
+            f"sd {ft.std():.4f}; converged {sum(r.converged for r in out)}/{len(out)})"
+        )
+        ratio(f"SciPy one fit / vmj per record, {what}", t_scipy, t_batch)
 
 
 if __name__ == "__main__":

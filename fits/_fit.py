@@ -55,8 +55,8 @@ from ._params import (
     transform_for,
     warn_if_float32,
 )
-from ._result import FitResult, _information, _result, _robust_scale, _values_of
-from ._solve import _TUNING, _job_arrays, _rss, _Shape, _solve
+from ._result import FitResult, _assess, _information, _result, _robust_scale, _values_of
+from ._solve import _TUNING, _job_arrays, _profiles, _rss, _Shape, _solve
 
 __all__ = ["FitResult", "fit", "fit_batch", "LOSSES", "OPTIMIZERS", "RESIDUALS"]
 
@@ -764,10 +764,11 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     _passes(jobs, problems, shape, settings)
     if settings["residuals"] == "series":
         problems, jobs, shape = _series_stage(problems, jobs, bounds, settings)
-    N = shape.N
-    results = []
-    for i, prob in enumerate(problems):
-        results.append(_result(_lead(jobs, i, prob, N), prob, jobs, shape, outlier_sigma))
+    assessed = [
+        _assess(_lead(jobs, i, prob, shape.N), prob, shape) for i, prob in enumerate(problems)
+    ]
+    ends = _profiles([a.profile(settings) for a in assessed], shape)
+    results = [_result(a, jobs, shape, outlier_sigma, e) for a, e in zip(assessed, ends)]
     for res in results:
         for w in res.warnings:
             warnings.warn(w, stacklevel=4)

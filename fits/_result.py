@@ -12,7 +12,6 @@ import numpy as np
 
 from ._io import Record
 from ._params import HELD
-from ._solve import _profiles
 from ._stats import RANK_RTOL, covariance, diagnostics
 
 __all__ = ["FitResult"]
@@ -210,17 +209,50 @@ def _at_user_bound(job, s) -> bool:
     )
 
 
-def _result(job, prob, jobs, shape, outlier_sigma):
-    space, settings = job.space, shape.settings
+@dataclass
+class _Assessed:
+    """A solved job's covariance and estimates, before its intervals (`_assess`)."""
+
+    job: object
+    prob: object
+    names: list
+    blocks: list  # slices of the used residuals `r`, one per block
+    block_names: list
+    r: np.ndarray  # the residuals that count
+    info: dict  # `_information`
+    active: np.ndarray  # the slots the solver moved
+    cov_c: np.ndarray
+    cov_gn: np.ndarray
+    inflation: float
+    full_rank: bool
+    est: np.ndarray
+    se_c: np.ndarray
+    se_gn: np.ndarray
+    corr: np.ndarray
+
+    @property
+    def n_dof(self) -> int:
+        return self.info["n"] - self.info["q"]
+
+    def profile(self, settings):
+        """The request of its profile-likelihood intervals (`fits._solve._profiles`), or None
+        where they are not computed."""
+        job = self.job
+        if not (self.active.any() and job.out["ok"] and self.full_rank and settings["intervals"]):
+            return None
+        s2 = job.rss / max(self.n_dof, 1)
+        return (job, self.prob, self.est, self.se_gn, self.inflation, s2)
+
+
+def _assess(job, prob, shape) -> _Assessed:
+    """The covariance (corrected and Gauss-Newton) of a solved job over the slots it moved,
+    its rank and its estimates."""
     N = shape.N
-    names = _slot_names(job)
     q = len(job.slots)
     idx, blocks, block_names = _used(job, prob, N)
     J = job.out["J"][:, :q][idx]
     r = job.out["r"][idx]
-    info = _information(job, prob, N)
     active = job.code != HELD
-    warn = []
     # covariance over the slots the solver moved; held slots have none
     cov_c = np.full((q, q), np.nan)
     cov_gn = np.full((q, q), np.nan)
@@ -245,6 +277,37 @@ def _result(job, prob, jobs, shape, outlier_sigma):
     se_gn = np.sqrt(np.where(np.diag(cov_gn) > 0, np.diag(cov_gn), np.nan))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov_c / np.outer(se_c, se_c)
+    return _Assessed(
+        job,
+        prob,
+        _slot_names(job),
+        blocks,
+        block_names,
+        r,
+        _information(job, prob, N),
+        active,
+        cov_c,
+        cov_gn,
+        inflation,
+        full_rank,
+        est,
+        se_c,
+        se_gn,
+        corr,
+    )
+
+
+def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
+    """The [`fits.FitResult`][] of an assessed job; `ends`: its profile-likelihood interval
+    ends (`fits._solve._profiles`; empty where they were not computed)."""
+    job, prob = assessed.job, assessed.prob
+    space, settings = job.space, shape.settings
+    N = shape.N
+    names, q = assessed.names, len(job.slots)
+    info, active, full_rank = assessed.info, assessed.active, assessed.full_rank
+    est, se_c, se_gn, corr = assessed.est, assessed.se_c, assessed.se_gn, assessed.corr
+    vals = _values_of(job)
+    warn = []
     for s, nm in enumerate(names):
         if job.bound_hit[s]:
             if not _at_user_bound(job, s):
@@ -277,9 +340,10 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         warn.append("the optimiser did not converge (step limit or no progress)")
     converged = bool(job.out["ok"] and full_rank and not at_unset_bound)
     # residual diagnostics
-    std_blocks = [r[b] for b in blocks]
-    diag = diagnostics(std_blocks, int(np.sum(active)), block_names)
-    n_dof = info["n"] - info["q"]
+    diag = diagnostics(
+        [assessed.r[b] for b in assessed.blocks], int(np.sum(active)), assessed.block_names
+    )
+    n_dof = assessed.n_dof
     if n_dof < 3:
         warn.append(f"only {n_dof} residual degrees of freedom: the uncertainties are not reliable")
         converged = False if n_dof < 2 else converged
@@ -287,9 +351,7 @@ def _result(job, prob, jobs, shape, outlier_sigma):
         converged = False  # a parameter without a standard error is not determined
     # intervals
     intervals = {}
-    s2 = job.rss / max(n_dof, 1)
-    profiled = bool(active.any() and job.out["ok"] and full_rank and settings["intervals"])
-    ends = _profiles(job, prob, shape, est, se_gn, inflation, s2) if profiled else {}
+    profiled = assessed.profile(settings) is not None
     for s, nm in enumerate(names):
         if not active[s]:
             intervals[nm] = (math.nan, math.nan)

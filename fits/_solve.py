@@ -299,75 +299,93 @@ def _rss(out) -> float:
 
 
 # -- profile likelihood ------------------------------------------------------------------------
-def _profiles(job, prob, shape, est, se, inflation, s2):
-    """95 % profile-likelihood intervals of the job's active slots: all slots and both sides
-    solved together per root-finding iteration (one batched solve, chunked by the call's batch
-    size), each warm-started at its previous point (first at the optimum).
+def _profiles(requests, shape):
+    """95 % profile-likelihood intervals of the active slots of each request `(job, problem,
+    est, se, inflation, s2)` (None: none wanted): every slot and side of every request solved together per
+    root-finding iteration (one batched solve per space, chunked by the call's batch size, so
+    that a batch of records fills its solves instead of padding one per record), each
+    warm-started at its previous point (first at the optimum).
 
     The profile deviance `(rss(v) - rss) / s2` is scaled by the residual-autocorrelation
     `inflation` through the target, `3.84 inflation`; each end is found by the iteration
     `v <- est + (v - est) sqrt(target / deviance(v))` (exact for a quadratic profile), started
-    at the Wald end. An end whose bound lies inside the region is the bound. Returns
-    `{slot: {-1: lo, +1: hi}}` for the ends found; the others failed."""
-    active = [s for s in range(len(job.slots)) if job.code[s] != HELD]
-    target = _CHI2_95 * max(inflation, 1.0)
-    ends = {}
+    at the Wald end. An end whose bound lies inside the region is the bound. Returns per
+    request `{slot: {-1: lo, +1: hi}}` for the ends found; the others failed."""
     state = []
-    base = _job_arrays(job, prob, shape)
-    for s in active:
-        t = job.transforms[s]
-        width = (
-            1.96 * se[s] * math.sqrt(max(inflation, 1.0))
-            if np.isfinite(se[s]) and se[s] > 0
-            else 0.1 * max(abs(est[s]), job.scale[s])
-        )
-        for side in (-1, 1):
-            v = est[s] + side * width
-            state.append(
-                {
-                    "slot": s,
-                    "side": side,
-                    "v": v,
-                    "done": False,
-                    "ok": False,
-                    "p": base["p"],
-                    "bound": t.lo if side < 0 else t.hi,
-                }
+    for n, request in enumerate(requests):
+        if request is None:
+            continue
+        job, prob, est, se, inflation, s2 = request
+        base = _job_arrays(job, prob, shape)
+        for s in range(len(job.slots)):
+            if job.code[s] == HELD:
+                continue
+            t = job.transforms[s]
+            width = (
+                1.96 * se[s] * math.sqrt(max(inflation, 1.0))
+                if np.isfinite(se[s]) and se[s] > 0
+                else 0.1 * max(abs(est[s]), job.scale[s])
             )
+            for side in (-1, 1):
+                state.append(
+                    {
+                        "request": n,
+                        "job": job,
+                        "base": base,
+                        "slot": s,
+                        "side": side,
+                        "est": est[s],
+                        "target": _CHI2_95 * max(inflation, 1.0),
+                        "s2": s2,
+                        "v": est[s] + side * width,
+                        "done": False,
+                        "ok": False,
+                        "p": base["p"],
+                        "bound": t.lo if side < 0 else t.hi,
+                    }
+                )
     for _ in range(_PROFILE_STEPS):
         live = [st for st in state if not st["done"]]
         if not live:
             break
-        items = []
+        by_space = {}
         for st in live:
-            lo_b, hi_b = job.transforms[st["slot"]].lo, job.transforms[st["slot"]].hi
-            st["v"] = min(max(st["v"], lo_b), hi_b)
-            it = {k: np.copy(v) for k, v in base.items()}
-            it["code"][st["slot"]] = HELD
-            it["held"][st["slot"]] = st["v"]
-            it["p"] = np.copy(st["p"])
-            items.append(it)
-        outs = _solve(job.space, items, shape, optimizer="lm")  # profiles need exact minima
-        for st, out in zip(live, outs):
-            dev = (_rss(out) - job.rss) / s2
-            st["p"] = out["p"]
-            if not np.isfinite(dev):
-                st["done"] = True
-                continue
-            at_edge = st["v"] == st["bound"]
-            if at_edge and dev < target:
-                st["done"], st["ok"] = True, True  # the bound is inside the 95 % region
-                continue
-            if abs(dev / target - 1) < _PROFILE_TOL:
-                st["done"], st["ok"] = True, True
-                continue
-            s = st["slot"]
-            dist = st["v"] - est[s]
-            if dev <= 1e-3 * target:
-                st["v"] = est[s] + 4 * dist
-            else:
-                st["v"] = est[s] + dist * math.sqrt(target / dev)
+            by_space.setdefault(st["job"].space, []).append(st)
+        for space, group in by_space.items():
+            items = []
+            for st in group:
+                t = st["job"].transforms[st["slot"]]
+                st["v"] = min(max(st["v"], t.lo), t.hi)
+                it = {k: np.copy(v) for k, v in st["base"].items()}
+                it["code"][st["slot"]] = HELD
+                it["held"][st["slot"]] = st["v"]
+                it["p"] = np.copy(st["p"])
+                items.append(it)
+            outs = _solve(space, items, shape, optimizer="lm")  # profiles need exact minima
+            for st, out in zip(group, outs):
+                _profile_step(st, out)
+    ends = [{} for _ in requests]
     for st in state:
         if st["ok"]:
-            ends.setdefault(st["slot"], {})[st["side"]] = st["v"]
+            ends[st["request"]].setdefault(st["slot"], {})[st["side"]] = st["v"]
     return ends
+
+
+def _profile_step(st, out):
+    """One root-finding iteration of a profile end `st` (see `_profiles`) from the solve `out`
+    at its current point."""
+    dev = (_rss(out) - st["job"].rss) / st["s2"]
+    target = st["target"]
+    st["p"] = out["p"]
+    if not np.isfinite(dev):
+        st["done"] = True
+    elif st["v"] == st["bound"] and dev < target:
+        st["done"], st["ok"] = True, True  # the bound is inside the 95 % region
+    elif abs(dev / target - 1) < _PROFILE_TOL:
+        st["done"], st["ok"] = True, True
+    else:
+        dist = st["v"] - st["est"]
+        if dev <= 1e-3 * target:
+            st["v"] = st["est"] + 4 * dist
+        else:
+            st["v"] = st["est"] + dist * math.sqrt(target / dev)

@@ -262,14 +262,41 @@ def _release(a0, offset, seed):
     )
 
 
-def test_joint_fit_narrows_the_shared_intervals():
+RELEASE_FREE = ("omega", "zeta", "xF", "a0", "offset")
+
+
+@pytest.fixture(scope="module")
+def releases():
+    """Three releases of the oscillator, each fitted on its own in one batch (intervals)."""
     records = [
         _release(a0, off, s) for a0, off, s in ((10.0, 1.0, 1), (8.0, -0.5, 2), (6.0, 0.3, 3))
     ]
-    free = ("omega", "zeta", "xF", "a0", "offset")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        singles = fits.fit_batch(records, "oscillator", free, compare=False)
+        singles = fits.fit_batch(records, "oscillator", RELEASE_FREE, compare=False)
+    return records, singles
+
+
+def test_a_batch_profiles_each_record_as_if_alone(releases):
+    """A batch's profile-likelihood iterations run together (one batched solve per iteration
+    over every record's interval ends): each record's intervals are those of its fit alone."""
+    records, singles = releases
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        alone = [fits.fit(rec, "oscillator", RELEASE_FREE, compare=False) for rec in records]
+    for one, batched in zip(alone, singles):
+        assert one.params == pytest.approx(batched.params, rel=1e-9)
+        for name in RELEASE_FREE:
+            assert one.intervals[name] == pytest.approx(batched.intervals[name], rel=1e-8), name
+    # the records' intervals differ (the comparison above can tell them apart)
+    assert singles[0].intervals["a0"] != pytest.approx(singles[1].intervals["a0"], rel=1e-3)
+
+
+def test_joint_fit_narrows_the_shared_intervals(releases):
+    records, singles = releases
+    free = RELEASE_FREE
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
         joint = fits.fit(records, "oscillator", free, shared=("omega", "zeta", "xF"), compare=False)
     assert set(joint.params) == {"omega", "zeta", "xF"}
     assert len(joint.records) == 3 and set(joint.records[0]["params"]) == {"a0", "offset"}
