@@ -221,10 +221,9 @@ class _Assessed:
     r: np.ndarray  # the residuals that count
     info: dict  # `_information`
     active: np.ndarray  # the slots the solver moved
-    cov_c: np.ndarray
-    cov_gn: np.ndarray
-    inflation: float
+    inflation: float  # of the covariance, for correlated residuals (`fits._stats.covariance`)
     full_rank: bool
+    vals: list  # `_values_of`
     est: np.ndarray
     se_c: np.ndarray
     se_gn: np.ndarray
@@ -286,10 +285,9 @@ def _assess(job, prob, shape) -> _Assessed:
         r,
         _information(job, prob, N),
         active,
-        cov_c,
-        cov_gn,
         inflation,
         full_rank,
+        vals,
         est,
         se_c,
         se_gn,
@@ -306,7 +304,7 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     names, q = assessed.names, len(job.slots)
     info, active, full_rank = assessed.info, assessed.active, assessed.full_rank
     est, se_c, se_gn, corr = assessed.est, assessed.se_c, assessed.se_gn, assessed.corr
-    vals = _values_of(job)
+    vals = assessed.vals
     warn = []
     for s, nm in enumerate(names):
         if job.bound_hit[s]:
