@@ -277,27 +277,27 @@ def _assess(job, prob, shape) -> _Assessed:
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov_c / np.outer(se_c, se_c)
     return _Assessed(
-        job,
-        prob,
-        _slot_names(job),
-        blocks,
-        block_names,
-        r,
-        _information(job, prob, N),
-        active,
-        inflation,
-        full_rank,
-        vals,
-        est,
-        se_c,
-        se_gn,
-        corr,
+        job=job,
+        prob=prob,
+        names=_slot_names(job),
+        blocks=blocks,
+        block_names=block_names,
+        r=r,
+        info=_information(job, prob, N),
+        active=active,
+        inflation=inflation,
+        full_rank=full_rank,
+        vals=vals,
+        est=est,
+        se_c=se_c,
+        se_gn=se_gn,
+        corr=corr,
     )
 
 
 def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     """The [`fits.FitResult`][] of an assessed job; `ends`: its profile-likelihood interval
-    ends (`fits._solve._profiles`; empty where they were not computed)."""
+    ends (`fits._solve._profiles`; None where they were not computed)."""
     job, prob = assessed.job, assessed.prob
     space, settings = job.space, shape.settings
     N = shape.N
@@ -349,18 +349,17 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         converged = False  # a parameter without a standard error is not determined
     # intervals
     intervals = {}
-    profiled = assessed.profile(settings) is not None
     for s, nm in enumerate(names):
         if not active[s]:
             intervals[nm] = (math.nan, math.nan)
             continue
-        got = ends.get(s, {})
+        got = {} if ends is None else ends.get(s, {})
         wald = 1.96 * se_c[s]
         lo = got.get(-1, est[s] - wald)
         hi = got.get(1, est[s] + wald)
         t = job.transforms[s]
         lo, hi = max(lo, t.lo), min(hi, t.hi)
-        if len(got) < 2 and np.isfinite(wald) and profiled:
+        if len(got) < 2 and np.isfinite(wald) and ends is not None:
             warn.append(
                 f"{nm}: the profile likelihood failed; the interval is the Wald "
                 f"interval +- 1.96 stderr"

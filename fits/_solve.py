@@ -301,21 +301,22 @@ def _rss(out) -> float:
 # -- profile likelihood ------------------------------------------------------------------------
 def _profiles(requests, shape):
     """95 % profile-likelihood intervals of the active slots of each request `(job, problem,
-    est, se, inflation, s2)` (None: none wanted): every slot and side of every request solved together per
-    root-finding iteration (one batched solve per space, chunked by the call's batch size, so
-    that a batch of records fills its solves instead of padding one per record), each
-    warm-started at its previous point (first at the optimum).
+    est, se, inflation, s2)` (None: none wanted): every slot and side of every request solved
+    together per root-finding iteration (one batched solve per space, chunked by the call's
+    batch size, so that a batch of records fills its solves instead of padding one per
+    record), each warm-started at its previous point (first at the optimum).
 
     The profile deviance `(rss(v) - rss) / s2` is scaled by the residual-autocorrelation
     `inflation` through the target, `3.84 inflation`; each end is found by the iteration
     `v <- est + (v - est) sqrt(target / deviance(v))` (exact for a quadratic profile), started
     at the Wald end. An end whose bound lies inside the region is the bound. Returns per
-    request `{slot: {-1: lo, +1: hi}}` for the ends found; the others failed."""
-    state = []
+    request `{slot: {-1: lo, +1: hi}}` for the ends found (the others failed), None where none
+    was wanted."""
+    state = []  # one per interval end: its request, slot and side, and where it stands
     for n, request in enumerate(requests):
         if request is None:
             continue
-        job, prob, est, se, inflation, s2 = request
+        job, prob, est, se, inflation, _ = request
         base = _job_arrays(job, prob, shape)
         for s in range(len(job.slots)):
             if job.code[s] == HELD:
@@ -330,13 +331,9 @@ def _profiles(requests, shape):
                 state.append(
                     {
                         "request": n,
-                        "job": job,
                         "base": base,
                         "slot": s,
                         "side": side,
-                        "est": est[s],
-                        "target": _CHI2_95 * max(inflation, 1.0),
-                        "s2": s2,
                         "v": est[s] + side * width,
                         "done": False,
                         "ok": False,
@@ -345,16 +342,16 @@ def _profiles(requests, shape):
                     }
                 )
     for _ in range(_PROFILE_STEPS):
-        live = [st for st in state if not st["done"]]
-        if not live:
-            break
         by_space = {}
-        for st in live:
-            by_space.setdefault(st["job"].space, []).append(st)
+        for st in state:
+            if not st["done"]:
+                by_space.setdefault(requests[st["request"]][0].space, []).append(st)
+        if not by_space:
+            break
         for space, group in by_space.items():
             items = []
             for st in group:
-                t = st["job"].transforms[st["slot"]]
+                t = requests[st["request"]][0].transforms[st["slot"]]
                 st["v"] = min(max(st["v"], t.lo), t.hi)
                 it = {k: np.copy(v) for k, v in st["base"].items()}
                 it["code"][st["slot"]] = HELD
@@ -363,19 +360,20 @@ def _profiles(requests, shape):
                 items.append(it)
             outs = _solve(space, items, shape, optimizer="lm")  # profiles need exact minima
             for st, out in zip(group, outs):
-                _profile_step(st, out)
-    ends = [{} for _ in requests]
+                _profile_step(st, out, requests[st["request"]])
+    ends = [None if request is None else {} for request in requests]
     for st in state:
         if st["ok"]:
             ends[st["request"]].setdefault(st["slot"], {})[st["side"]] = st["v"]
     return ends
 
 
-def _profile_step(st, out):
-    """One root-finding iteration of a profile end `st` (see `_profiles`) from the solve `out`
-    at its current point."""
-    dev = (_rss(out) - st["job"].rss) / st["s2"]
-    target = st["target"]
+def _profile_step(st, out, request):
+    """One root-finding iteration of the interval end `st` of `request` (see `_profiles`)
+    from the solve `out` at its current point."""
+    job, _, est, _, inflation, s2 = request
+    dev = (_rss(out) - job.rss) / s2
+    target = _CHI2_95 * max(inflation, 1.0)
     st["p"] = out["p"]
     if not np.isfinite(dev):
         st["done"] = True
@@ -384,8 +382,9 @@ def _profile_step(st, out):
     elif abs(dev / target - 1) < _PROFILE_TOL:
         st["done"], st["ok"] = True, True
     else:
-        dist = st["v"] - st["est"]
+        centre = est[st["slot"]]
+        dist = st["v"] - centre
         if dev <= 1e-3 * target:
-            st["v"] = st["est"] + 4 * dist
+            st["v"] = centre + 4 * dist
         else:
-            st["v"] = st["est"] + dist * math.sqrt(target / dev)
+            st["v"] = centre + dist * math.sqrt(target / dev)
