@@ -29,7 +29,8 @@ def decrement(record: Record, centre: float | None = None) -> dict:
     **Returns** a dict: `r` (amplitude ratio per half-swing), `xF` (Coulomb dead band, in the
     record's units), `zeta`, `half_period` [s] and `omega` [rad/s] (when the record has times,
     else `None`), `slope`, `intercept`, `stderr_r`, `stderr_xF`, `pairs` (the regression data
-    `A_k`, `A_{k+1}`), `centre`.
+    `A_k`, `A_{k+1}`, the second negative where the swing did not pass the centre), `pair_k`
+    (the swing index `k` of each pair's first point), `centre`.
 
     Raises `ValueError` when the amplitudes do not decay.
     """
@@ -59,6 +60,7 @@ def decrement(record: Record, centre: float | None = None) -> dict:
     a_next = (-np.sign(x[:-1]) * x[1:])[consecutive]  # negative: did not pass the centre
     moving = np.abs(x[1:] - x[:-1])[consecutive] > 0
     a_now, a_next = a_now[moving], a_next[moving]
+    k_now = k[:-1][consecutive][moving]
     if a_now.size < 2:
         raise ValueError(f"{src}need at least 2 pairs of successive turning points")
     A = np.stack([a_now, np.ones_like(a_now)], axis=1)
@@ -93,6 +95,7 @@ def decrement(record: Record, centre: float | None = None) -> dict:
         "stderr_r": float(math.sqrt(max(cov[0, 0], 0.0))),
         "stderr_xF": float(math.sqrt(max(g @ cov @ g, 0.0))),
         "pairs": (a_now, a_next),
+        "pair_k": k_now,
         "centre": c,
     }
 
@@ -104,9 +107,11 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
     if getattr(space, "start", None) is not None:
         return {**space.start(record, given, dec), **{k: float(v) for k, v in given.items()}}
     names = set(space.names)  # the family by its parameters (a variant space shares them)
-    a0 = float(abs(record.positions[0] - dec["centre"])) if record.k[0] == 0 else None
-    if a0 is None:
-        a0 = float(np.max(record.amplitudes))
+    a0 = float(abs(record.positions[0] - dec["centre"]))
+    if record.k[0] > 0:  # no release row: back along the decrement line to k = 0
+        for _ in range(int(record.k[0])):
+            a0 = (a0 + (1 + dec["r"]) * dec["xF"]) / dec["r"]
+        a0 = max(a0, float(np.max(record.amplitudes)))
     zeta = max(dec["zeta"], 1e-3)
     xF = max(dec["xF"], 2e-3 * a0)
     start = {"a0": a0, "offset": dec["centre"]}
@@ -126,17 +131,13 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
         half = math.pi * math.sqrt(m0 / c)
         m_mid = max(m0 + delta * half * n / 2, 0.2 * m0)
         lam = 4 * math.sqrt(c * m_mid) * math.log(dec["r"]) / math.pi
+        friction = {"FT": c * xF, "f": c * xF / (g * m_mid)}
+        fitted = _energy_balance_start(dec, m0, c, delta, g, given)
+        if fitted is not None:  # the mass's change taken into account
+            lam, found = fitted
+            friction.update(found)
         mu = max((delta - 2 * delta * eps - lam) / 2, 2e-3 * math.sqrt(c * m0))
-        start.update(
-            mu=mu,
-            eps=min(max(eps, 0.05), 0.95),
-            delta=delta,
-            g=g,
-            m0=m0,
-            c=c,
-            FT=c * xF,
-            f=c * xF / (g * m_mid),
-        )
+        start.update(mu=mu, eps=min(max(eps, 0.05), 0.95), delta=delta, g=g, m0=m0, c=c, **friction)
     elif {"T", "e", "l0"} <= names:
         # the dead band xF = A T / (A e / l0): T = e xF / l0 (first-order, length at release)
         e = given.get("e", 1.0)
@@ -153,3 +154,57 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
         start["asym"] = float(np.clip(sensor_start(record)["asym"], -0.4, 0.4))
     start.update({k: float(v) for k, v in given.items()})
     return start
+
+
+def _energy_balance_start(dec: dict, m0, c, delta, g, given: dict):
+    """The variable-mass model's damping exponent `lam` [kg/s] and its unknown friction terms
+    (`FT` [N], `f` [-], those not in `given`) from the decrement pairs by least squares on the
+    energy-balance recurrences (`vmj.energy_balance`), whose masses `m_k` follow from `m0`,
+    `c` and `delta` alone:
+
+        A_{k+1} = A_k E_k - (2 F_k / c) phi(x_k),  x_k = pi lam / (4 sqrt(c m_k)),
+
+    `E_k = exp(x_k)`, `phi(x) = (e^x - 1)/x`, `F_k = FT + f g m` at the swing's middle mass:
+    linear in the friction terms for each `lam`, searched over the oscillating range
+    `|lam| < 4 sqrt(c m)`. The constant-ratio decrement ignores the mass change: with a
+    shrinking mass and mass-proportional friction its `mu` can start the fit in the basin of a
+    wrong stick count. `None` when the pairs or the masses do not allow it."""
+    k = np.asarray(dec.get("pair_k", ()), dtype=int)
+    a_now, a_next = dec["pairs"]
+    if k.size < 2:
+        return None
+    m = np.empty(int(k.max()) + 1)
+    m[0] = m0
+    for j in range(m.size - 1):
+        m[j + 1] = m[j] + delta * math.pi * math.sqrt(max(m[j], 0.0) / c)
+    if not np.all(m > 0):
+        return None
+    mk = m[k]
+    mid = mk + 0.5 * delta * math.pi * np.sqrt(mk / c)
+    columns = {"FT": np.ones_like(mid), "f": g * mid}
+    unknown = [name for name in columns if name not in given]
+    known = sum(float(given.get(name, 0.0)) * col for name, col in columns.items())
+
+    def misfit(lam):
+        x = math.pi * lam / (4 * np.sqrt(c * mk))
+        safe = np.where(x == 0, 1.0, x)
+        phi = np.where(x == 0, 1.0, np.expm1(x) / safe)
+        y = a_next - a_now * np.exp(x) + (2 / c) * phi * known
+        coef = np.zeros(len(unknown))
+        if unknown:
+            A = np.stack([-(2 / c) * phi * columns[name] for name in unknown], axis=1)
+            coef = np.maximum(np.linalg.lstsq(A, y, rcond=None)[0], 0.0)
+            y = y - A @ coef
+        return float(y @ y), coef
+
+    top = 4 * math.sqrt(c * float(m.min())) * (1 - 1e-6)
+    grid = np.linspace(-top, top, 401)
+    for _ in range(3):  # refined twice around the best point
+        costs = [misfit(lam)[0] for lam in grid]
+        i = int(np.argmin(costs))
+        grid = np.linspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 101)
+    lam = float(grid[50])
+    cost, coef = misfit(lam)
+    if not math.isfinite(cost):
+        return None
+    return lam, {name: float(v) for name, v in zip(unknown, coef)}

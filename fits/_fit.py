@@ -298,7 +298,9 @@ def _starts(prob, space, free, fixed) -> list:
     for rec, g, dec, fx in zip(prob.records, prob.givens, prob.decs, fixed):
         given = {**fx, **{k: v for k, v in g.items() if k in space.names}}
         guess = starting_guess(space, rec, given, dec)
-        defaults = {n: space.default(n, rec) for n in free if n in space.defaults}
+        defaults = {
+            n: space.default(n, rec) for n in free if n in space.defaults and n not in guess
+        }
         st = {**{n: v for n, v in defaults.items() if v is not None}, **guess, **fx}
         for name in free:
             if name not in st:
