@@ -14,6 +14,7 @@ through `(k, t_k)` gives the half-period.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -185,26 +186,41 @@ def _energy_balance_start(dec: dict, m0, c, delta, g, given: dict):
     unknown = [name for name in columns if name not in given]
     known = sum(float(given.get(name, 0.0)) * col for name, col in columns.items())
 
-    def misfit(lam):
-        x = math.pi * lam / (4 * np.sqrt(c * mk))
+    def misfit(lams):
+        """Per `lam` the least misfit over friction terms >= 0 (each subset of the unknowns
+        solved by its normal equations: exact for these one or two terms) and its terms."""
+        x = math.pi * lams[:, None] / (4 * np.sqrt(c * mk))
         safe = np.where(x == 0, 1.0, x)
         phi = np.where(x == 0, 1.0, np.expm1(x) / safe)
         y = a_next - a_now * np.exp(x) + (2 / c) * phi * known
-        coef = np.zeros(len(unknown))
-        if unknown:
-            A = np.stack([-(2 / c) * phi * columns[name] for name in unknown], axis=1)
-            coef = np.maximum(np.linalg.lstsq(A, y, rcond=None)[0], 0.0)
-            y = y - A @ coef
-        return float(y @ y), coef
+        A = np.zeros(y.shape + (len(unknown),))
+        for i, name in enumerate(unknown):
+            A[..., i] = -(2 / c) * phi * columns[name]
+        best = np.einsum("gp,gp->g", y, y)
+        coef = np.zeros((lams.size, len(unknown)))
+        for subset in itertools.product((False, True), repeat=len(unknown)):
+            use = np.flatnonzero(subset)
+            if use.size == 0:
+                continue
+            Au = A[..., use]
+            gram = np.einsum("gpi,gpj->gij", Au, Au) + 1e-300 * np.eye(use.size)
+            sol = np.linalg.solve(gram, np.einsum("gpi,gp->gi", Au, y)[..., None])[..., 0]
+            r = y - np.einsum("gpi,gi->gp", Au, sol)
+            cost = np.where(np.all(sol >= 0, axis=1), np.einsum("gp,gp->g", r, r), np.inf)
+            better = cost < best
+            best = np.where(better, cost, best)
+            full = np.zeros_like(coef)
+            full[:, use] = sol
+            coef = np.where(better[:, None], full, coef)
+        return best, coef
 
     top = 4 * math.sqrt(c * float(m.min())) * (1 - 1e-6)
     grid = np.linspace(-top, top, 401)
-    for _ in range(3):  # refined twice around the best point
-        costs = [misfit(lam)[0] for lam in grid]
-        i = int(np.argmin(costs))
-        grid = np.linspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 101)
-    lam = float(grid[50])
-    cost, coef = misfit(lam)
-    if not math.isfinite(cost):
+    i = int(np.argmin(misfit(grid)[0]))
+    grid = np.linspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 401)  # refined
+    cost, coefs = misfit(grid)
+    i = int(np.argmin(cost))
+    if not np.isfinite(cost[i]):
         return None
+    lam, coef = float(grid[i]), coefs[i]
     return lam, {name: float(v) for name, v in zip(unknown, coef)}
