@@ -133,17 +133,15 @@ class DecaySequence(eqx.Module):
     result: Array
 
     @classmethod
+    def from_code(cls, times, positions, crossed, count, code) -> DecaySequence:
+        """Assemble a sequence from a solver's turning points, their count and its final status
+        code (`stopped` read off the code)."""
+        return cls(times, positions, crossed, count, code == RESULTS.stopped, code)
+
+    @classmethod
     def from_scan(cls, times, positions, crossed, advanced, code) -> DecaySequence:
-        """Assemble a sequence from a solver's per-swing outputs (`advanced`: the swing was
-        reached) and its final status code."""
-        return cls(
-            times=times,
-            positions=positions,
-            crossed=crossed,
-            count=jnp.sum(advanced.astype(jnp.int32)),
-            stopped=code == RESULTS.stopped,
-            result=code,
-        )
+        """The same from per-swing outputs (`advanced`: the swing was reached)."""
+        return cls.from_code(times, positions, crossed, jnp.sum(advanced.astype(jnp.int32)), code)
 
     @property
     def amplitudes(self) -> Array:

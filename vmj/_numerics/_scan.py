@@ -80,11 +80,4 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
     crossed = crossed & run
     _, _, stuck = model.rest(t, x)
     code = jnp.where((code == RESULTS.successful) & stuck, RESULTS.stopped, code)
-    return DecaySequence(
-        times=times,
-        positions=positions,
-        crossed=crossed,
-        count=count,
-        stopped=code == RESULTS.stopped,
-        result=code,
-    )
+    return DecaySequence.from_code(times, positions, crossed, count, code)

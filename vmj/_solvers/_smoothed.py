@@ -287,14 +287,7 @@ class Smoothed(AbstractSolver):
             ),
         )
         code = code.astype(jnp.int32)
-        return DecaySequence(
-            times=times,
-            positions=positions,
-            crossed=crossed,
-            count=count,
-            stopped=code == RESULTS.stopped,
-            result=code,
-        )
+        return DecaySequence.from_code(times, positions, crossed, count, code)
 
 
 def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):

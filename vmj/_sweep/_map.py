@@ -110,14 +110,11 @@ def map_chunks(
                 plan={"n": n, "chunk": chunk, "n_chunks": n_chunks},
             )
         out: list = [None] * n
-        todo = list(range(n_chunks))
-        if st is not None and resume:
-            todo = []
-            for c, blob in st.finished():
-                if blob is None:
-                    todo.append(c)
-                else:
-                    out[c * chunk : (c + 1) * chunk] = pickle.loads(blob)
+
+        def place(c, blob):
+            out[c * chunk : (c + 1) * chunk] = pickle.loads(blob)
+
+        todo = st.remaining(place) if st is not None and resume else list(range(n_chunks))
         resumed = n_chunks - len(todo)
 
         def sink(c, got):

@@ -213,14 +213,13 @@ class SweepResult:
             nm: np.empty((n,) + tuple(inner), dtype=np.dtype(dt))
             for nm, dt, inner in meta["fields"]
         }
-        missing = []
-        for c, got in st.finished(names):
-            if got is None:
-                missing.append(c)
-                continue
+
+        def place(c, got):
             lo = c * meta["chunk"]
             for nm, g in zip(names, got):
                 out[nm][lo : lo + len(g)] = g
+
+        missing = st.remaining(place, names)
         if missing:
             raise ValueError(
                 f"store {path!r} holds an unfinished sweep: {len(missing)} of "

@@ -307,6 +307,17 @@ class ChunkStore:
         for c in range(self.meta["n_chunks"]):
             yield c, (self.read(c, names) if status[c] == DONE else None)
 
+    def remaining(self, place, names=None) -> list:
+        """The chunks still to compute (a resumed sweep); each complete one is handed to
+        `place(c, data)` instead."""
+        todo = []
+        for c, data in self.finished(names):
+            if data is None:
+                todo.append(c)
+            else:
+                place(c, data)
+        return todo
+
     def read(self, c: int, names=None):
         """The data of chunk `c` (marked done) if it matches its checksum, else None."""
         try:

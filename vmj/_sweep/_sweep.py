@@ -622,20 +622,15 @@ def sweep(
         def rows(c):
             return slice(c * chunk, min((c + 1) * chunk, n))
 
-        todo = list(range(n_chunks))
-        if st is not None and resume:
-            todo = []
-            for c, got in st.finished(names):
-                if got is None:
-                    todo.append(c)
-                else:
-                    for o, g in zip(out, got):
-                        o[rows(c)] = g
+        def place(c, got):
+            for o, g in zip(out, got):
+                o[rows(c)] = g
+
+        todo = st.remaining(place, names) if st is not None and resume else list(range(n_chunks))
         resumed = n_chunks - len(todo)
 
         def sink(c, got):
-            for o, g in zip(out, got):
-                o[rows(c)] = g
+            place(c, got)
             if st is not None:
                 st.write(c, got, names)
 
