@@ -203,8 +203,10 @@ def _energy_balance_start(dec: dict, m0, c, delta, g, given: dict):
             if use.size == 0:
                 continue
             Au = A[..., use]
-            gram = np.einsum("gpi,gpj->gij", Au, Au) + 1e-300 * np.eye(use.size)
-            sol = np.linalg.solve(gram, np.einsum("gpi,gp->gi", Au, y)[..., None])[..., 0]
+            gram = np.einsum("gpi,gpj->gij", Au, Au)
+            # (one term: a division; FT and f together: collinear while the mass is constant)
+            inverse = 1 / np.where(gram == 0, 1.0, gram) if use.size == 1 else np.linalg.pinv(gram)
+            sol = np.einsum("gij,gpj,gp->gi", inverse, Au, y)
             r = y - np.einsum("gpi,gi->gp", Au, sol)
             cost = np.where(np.all(sol >= 0, axis=1), np.einsum("gp,gp->g", r, r), np.inf)
             better = cost < best

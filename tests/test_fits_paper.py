@@ -170,3 +170,16 @@ def test_shrinking_mass_starts_in_the_basin_of_the_right_stick_count():
         assert abs(r.params["f"] - 0.3) < 0.01, (r.record.source, r.params)
         assert abs(r.params["mu"] - 5.0) < 0.5, (r.record.source, r.params)
         assert abs(r.params["a0"] / A0 - 1) < 0.01, (r.record.source, r.params)
+
+
+def test_both_friction_terms_free_with_a_constant_mass():
+    """With a constant mass `FT` and `f g m` are the same term: the energy-balance start's
+    least squares is singular there (it raised numpy's LinAlgError); the fit says that the
+    Jacobian is rank-deficient and finds their sum."""
+    item = _synthetic("FT", 0.0, SEEDS[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(item["record"], "variable-mass", ("FT", "f", "mu"), item["given"])
+    assert any("rank-deficient" in w for w in r.warnings), r.warnings
+    friction = r.params["FT"] + r.params["f"] * PAPER["g"] * PAPER["m0"]
+    assert abs(friction / PAPER["FT"] - 1) < 0.03, r.params
