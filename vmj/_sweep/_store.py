@@ -300,18 +300,13 @@ class ChunkStore:
                     pass
             return out
 
-    def finished(self, names=None):
-        """`(c, data)` for every chunk: its data if it is complete and matches its checksum,
-        else None (to be computed)."""
-        status = self.status()
-        for c in range(self.meta["n_chunks"]):
-            yield c, (self.read(c, names) if status[c] == DONE else None)
-
     def remaining(self, place, names=None) -> list:
-        """The chunks still to compute (a resumed sweep); each complete one is handed to
-        `place(c, data)` instead."""
+        """The chunks still to compute (a resumed sweep); each complete one (marked done and
+        matching its checksum) is handed to `place(c, data)` instead."""
+        status = self.status()
         todo = []
-        for c, data in self.finished(names):
+        for c in range(self.meta["n_chunks"]):
+            data = self.read(c, names) if status[c] == DONE else None
             if data is None:
                 todo.append(c)
             else:
