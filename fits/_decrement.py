@@ -169,9 +169,17 @@ def _energy_balance_start(dec: dict, m0, c, delta, g, given: dict):
     linear in the friction terms for each `lam`, searched over the oscillating range
     `|lam| < 4 sqrt(c m)`. The constant-ratio decrement ignores the mass change: with a
     shrinking mass and mass-proportional friction its `mu` can start the fit in the basin of a
-    wrong stick count. `None` when the pairs or the masses do not allow it."""
+    wrong stick count. Only the swings before the first that does not pass the centre are used
+    (a mass may have stuck before that one). `None` when the pairs or the masses do not allow
+    it."""
     k = np.asarray(dec.get("pair_k", ()), dtype=int)
     a_now, a_next = dec["pairs"]
+    # the swings that pass the centre, up to the first that does not: a mass that stuck
+    # before it may have waited there while its mass changed (friction that falls with the
+    # mass releases it later), which the chain of masses below does not know
+    last = np.flatnonzero(a_next <= 0)
+    end = int(last[0]) if last.size else k.size
+    k, a_now, a_next = k[:end], a_now[:end], a_next[:end]
     if k.size < 2:
         return None
     m = np.empty(int(k.max()) + 1)
