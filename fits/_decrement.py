@@ -128,15 +128,14 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
         delta = given.get("delta", 0.0)
         eps = given.get("eps", 0.0)
         g = given.get("g", 9.81)
-        n = int(record.k[-1])
-        half = math.pi * math.sqrt(m0 / c)
-        m_mid = max(m0 + delta * half * n / 2, 0.2 * m0)
-        lam = 4 * math.sqrt(c * m_mid) * math.log(dec["r"]) / math.pi
-        friction = {"FT": c * xF, "f": c * xF / (g * m_mid)}
         fitted = _energy_balance_start(dec, m0, c, delta, g, given)
         if fitted is not None:  # the mass's change taken into account
-            lam, found = fitted
-            friction.update(found)
+            lam, friction = fitted  # (the friction terms in `given` are set below)
+        else:  # the constant-ratio decrement at the record's middle mass
+            half = math.pi * math.sqrt(m0 / c)
+            m_mid = max(m0 + delta * half * int(record.k[-1]) / 2, 0.2 * m0)
+            lam = 4 * math.sqrt(c * m_mid) * math.log(dec["r"]) / math.pi
+            friction = {"FT": c * xF, "f": c * xF / (g * m_mid)}
         mu = max((delta - 2 * delta * eps - lam) / 2, 2e-3 * math.sqrt(c * m0))
         start.update(mu=mu, eps=min(max(eps, 0.05), 0.95), delta=delta, g=g, m0=m0, c=c, **friction)
     elif {"T", "e", "l0"} <= names:

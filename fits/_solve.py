@@ -313,11 +313,12 @@ def _profiles(requests, shape):
     request `{slot: {-1: lo, +1: hi}}` for the ends found (the others failed), None where none
     was wanted."""
     state = []  # one per interval end: its request, slot and side, and where it stands
+    bases = {}  # per request: its job's solve arrays at the optimum
     for n, request in enumerate(requests):
         if request is None:
             continue
         job, prob, est, se, inflation, _ = request
-        base = _job_arrays(job, prob, shape)
+        base = bases[n] = _job_arrays(job, prob, shape)
         for s in range(len(job.slots)):
             if job.code[s] == HELD:
                 continue
@@ -331,7 +332,6 @@ def _profiles(requests, shape):
                 state.append(
                     {
                         "request": n,
-                        "base": base,
                         "slot": s,
                         "side": side,
                         "v": est[s] + side * width,
@@ -353,10 +353,12 @@ def _profiles(requests, shape):
             for st in group:
                 t = requests[st["request"]][0].transforms[st["slot"]]
                 st["v"] = min(max(st["v"], t.lo), t.hi)
-                it = {k: np.copy(v) for k, v in st["base"].items()}
+                base = bases[st["request"]]
+                # (only what the end changes is copied: the data are shared, not written)
+                it = {**base, "code": base["code"].copy(), "held": base["held"].copy()}
                 it["code"][st["slot"]] = HELD
                 it["held"][st["slot"]] = st["v"]
-                it["p"] = np.copy(st["p"])
+                it["p"] = st["p"]
                 items.append(it)
             outs = _solve(space, items, shape, optimizer="lm")  # profiles need exact minima
             for st, out in zip(group, outs):
