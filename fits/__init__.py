@@ -17,6 +17,7 @@ from ._clock import recover_clock
 from ._decrement import decrement
 from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
 from ._io import (
+    EDGE_RELEASE,
     MAX_ROWS,
     Record,
     Signal,
@@ -41,6 +42,7 @@ __all__ = [
     "recover_clock",
     "sensor_start",
     "MAX_ROWS",
+    "EDGE_RELEASE",
     "decrement",
     "fit",
     "fit_batch",

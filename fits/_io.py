@@ -26,7 +26,11 @@ __all__ = [
     "record_from_sequence",
     "read_record",
     "MAX_ROWS",
+    "EDGE_RELEASE",
 ]
+
+EDGE_RELEASE = "edge: at the signal's first samples, located from one side (not weighed)"
+"""`Record.meta["release"]` of a record whose signal starts at its release."""
 
 MAX_ROWS = 2_000_000
 """Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
@@ -470,8 +474,9 @@ def record_from_sequence(
 ) -> Record:
     """A [`fits.Record`][] from arrays: signed `positions`, or `amplitudes` (`|x|`) with optional
     `crossed` flags (`1` where the swing ending at that point passed `x = 0`); swing indices `k`
-    (default `0, 1, ...`) and optional `times` [s]. Times are measured from the release: from
-    the `k = 0` row if there is one, else taken as given.
+    (default `0, 1, ...`) and optional `times` [s], measured from the `k = 0` row if there is
+    one, else taken as given (a fit aligns the record's clock with the model's by a fitted
+    shift, so their origin need not be the release).
 
     Amplitudes without `crossed` give a record with `sides_known = False`: its positions
     alternate provisionally (as if every swing crossed), and a fit must let the model decide
@@ -861,8 +866,10 @@ def extract_turning_points(
     the median local centre `(x[k-1] + 2 x[k] + x[k+1]) / 4`. A release from a hold (the first
     half-swing more than 10 % longer or shorter than the second: the first extremum is then a
     flat stretch, not a sharp turning point) is timed one half-swing before the end of the
-    first swing, at the hold's level; `meta` says so (`"release"`) and holds the `hysteresis`
-    and the dry-friction `kink` levels of the maxima and the minima [signal units].
+    first swing, at the hold's level; `meta` says so (`"release"`), as it does of a release at
+    the signal's first sample (`EDGE_RELEASE`: located from one side only, so the fits do not
+    weigh its position), and holds the `hysteresis` and the dry-friction `kink` levels of the
+    maxima and the minima [signal units].
     The signal's clock report is `record.clock`.
     """
     t, y = np.asarray(signal.t, dtype=float), np.asarray(signal.y, dtype=float)
@@ -910,6 +917,8 @@ def extract_turning_points(
     if max(kinks) > 0:
         refined = refine(kinks)
     tk, xk = refined[:, 0], refined[:, 1]
+    # the first extremum's window reaches before the first sample: located from one side only
+    one_sided = bool(tk[0] - t[0] < _WINDOW * half[0])
     if xk.size >= 5:
         # before the release the mass may be held, or nudged, on the release side: extrema on
         # the same side of the centre as their successor are no swings; the release is the
@@ -919,7 +928,7 @@ def extract_turning_points(
         while lead + 3 < xk.size and (xk[lead] - c) * (xk[lead + 1] - c) > 0:
             lead += 1
         if lead:
-            tk, xk, starts_at_edge = tk[lead:], xk[lead:], False
+            tk, xk, starts_at_edge, one_sided = tk[lead:], xk[lead:], False, False
     if starts_at_edge and xk.size >= 5:
         # an extremum at the first sample is a release from rest only if it is at least as far
         # from the centre as the next one on its side (not a record that starts mid-swing).
@@ -928,8 +937,13 @@ def extract_turning_points(
         # data, beyond even the next swing
         c = np.median(_local_centres(xk[1:]))
         if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
-            tk, xk = tk[1:], xk[1:]
+            tk, xk, one_sided = tk[1:], xk[1:], False
     meta = {"hysteresis": h, "kink": kinks}
+    if one_sided:
+        # released at (or just after) the first sample: its extremum is located from one side,
+        # biased towards the centre (by 0.020 of a0 = 1 noise sd on average, 20 synthetic
+        # signals sampled 0.5-6 ms apart); the fits do not weigh its position
+        meta["release"] = EDGE_RELEASE
     if xk.size >= 4 and abs((tk[1] - tk[0]) - (tk[2] - tk[1])) > 0.1 * (tk[2] - tk[1]):
         # released from a hold: the first extremum is no sharp turning point, its time is
         # anywhere in the hold. The release is one half-swing before the first swing's end;

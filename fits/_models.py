@@ -82,7 +82,8 @@ class Space:
     time series, with the time shift `t0` [s] of the release: see `series_space`);
     `time_noise` (`"constant"`: every turning point's time equally precise; `"amplitude"`: the
     times' noise inversely proportional to the amplitude, as for extrema located in a sampled
-    signal, weighted accordingly).
+    signal, weighted accordingly; records extracted from a raw signal are weighted so
+    whatever the space's value).
 
     Sensor parameters, applied by the fit when present in `names`: `offset` (the reading's
     zero) and `asym` (side-dependent gain): the reading is

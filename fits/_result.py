@@ -167,6 +167,12 @@ def _used(job, prob, N):
     return np.concatenate(idx), blocks, names
 
 
+def _clock_shifts(prob) -> int:
+    """Nuisance parameters profiled out of the residuals: one clock shift per record with timed
+    residuals (`fits._solve._clock_shift`)."""
+    return sum(bool(np.any(w > 0)) for w in prob.wt)
+
+
 def _information(job, prob, N):
     """AIC and BIC of a solved job: `-2 log L` of Gaussian residuals with one unknown variance
     per block (each record's positions, its times), each at its maximum-likelihood value
@@ -181,13 +187,15 @@ def _information(job, prob, N):
     moves it by was chosen over the true law set (2 of 10 seeds)."""
     idx, blocks, _ = _used(job, prob, N)
     n = idx.size
-    q = int(np.sum(job.code != HELD))  # moved by the solver: the residuals' degrees of freedom
+    shifts = _clock_shifts(prob)
+    # moved by the solver, and each timed record's clock shift: the residuals' degrees of freedom
+    q = int(np.sum(job.code != HELD)) + shifts
     # the criteria count every free parameter of the model, also one that ended on a bound (a
     # law whose level went to 0 is still a law of the model: counting only the moved ones
     # would tie a model whose extra law vanished with its sub-model, and a tie or a 1e-9 lower
     # rss would then report the larger law set). The blocks' variances are parameters of every
-    # model alike and left out.
-    k = len(job.slots)
+    # model alike and left out; the clock shifts are counted (the same for every model).
+    k = len(job.slots) + shifts
     rss = job.rss
     if math.isfinite(rss):
         r = np.asarray(job.out["r"])[idx]
@@ -259,7 +267,7 @@ def _assess(job, prob, shape) -> _Assessed:
     full_rank = True
     if active.any():
         Ja = J[:, active]
-        c_c, c_gn, inflation = covariance(Ja, r, blocks)
+        c_c, c_gn, inflation = covariance(Ja, r, blocks, _clock_shifts(prob))
         sel = np.ix_(active, active)
         cov_c[sel], cov_gn[sel] = c_c, c_gn
         norms = np.linalg.norm(Ja, axis=0)
@@ -339,7 +347,9 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     converged = bool(job.out["ok"] and full_rank and not at_unset_bound)
     # residual diagnostics
     diag = diagnostics(
-        [assessed.r[b] for b in assessed.blocks], int(np.sum(active)), assessed.block_names
+        [assessed.r[b] for b in assessed.blocks],
+        int(np.sum(active)) + _clock_shifts(assessed.prob),
+        assessed.block_names,
     )
     n_dof = assessed.n_dof
     if n_dof < 3:

@@ -268,7 +268,7 @@ def _block_rhos(blocks_J, blocks_r, pinv, iterations=2):
 
 
 def covariance(
-    J: np.ndarray, r: np.ndarray, blocks: list[slice]
+    J: np.ndarray, r: np.ndarray, blocks: list[slice], nuisance: int = 0
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Gauss-Newton covariance and its correction for serially correlated residuals.
 
@@ -280,11 +280,13 @@ def covariance(
     - `blocks`: slices of `r` in record order (positions, times, one record after another);
       rows outside every block are ignored. Rows with `r = 0` and a zero Jacobian row (padding,
       zero weight) are not counted.
+    - `nuisance`: parameters already profiled out of `r` and `J` (the fits' clock shifts of
+      timed records): not in `J`, but counted in the degrees of freedom.
 
     **Returns:** `(cov_corrected, cov_gn, inflation)`, covariances in the parameters' units
     squared:
 
-    - `cov_gn = s^2 (J^T J)^-1` with `s^2 = rss / (n - q)`;
+    - `cov_gn = s^2 (J^T J)^-1` with `s^2 = rss / (n - q - nuisance)`;
     - `inflation >= 1` [-]: the largest ratio, over the identified parameters, of the variance
       under AR(1) residuals to the Gauss-Newton variance: the sandwich
       `(J^T J)^-1 (sum_b J_b^T R_b J_b) (J^T J)^-1` with `R_b` the AR(1) correlation matrix
@@ -292,7 +294,7 @@ def covariance(
       whose expected residual lag-1 autocorrelation, after the fit (hat matrix of `J`) has
       absorbed what it can, equals the observed one (method of moments; the raw residual
       correlation would understate it badly when the parameters shape the error); the noise
-      variance `rss / (n - tr((J^T J)^-1 sum_b J_b^T R_b J_b))` (the expected residual sum of
+      variance `rss / (n - tr((J^T J)^-1 sum_b J_b^T R_b J_b) - nuisance)` (the expected residual sum of
       squares under those correlations). For smooth regressors this is the familiar
       `(1 + rho)/(1 - rho)`; unlike that factor it is right for alternating regressors too
       (signed turning points), and for any mix of blocks (positions, times, records);
@@ -319,7 +321,7 @@ def covariance(
     n = used.size
     if q == 0:
         return np.zeros((0, 0)), np.zeros((0, 0)), 1.0
-    if n <= q or not np.all(np.isfinite(J[used])) or not np.all(np.isfinite(r[used])):
+    if n <= q + nuisance or not np.all(np.isfinite(J[used])) or not np.all(np.isfinite(r[used])):
         return nan, nan.copy(), float("nan")
     Ju = J[used]
     norms = np.linalg.norm(Ju, axis=0)
@@ -332,13 +334,13 @@ def covariance(
     inv_s2 = np.where(ok, 1.0 / np.where(ok, s, 1.0) ** 2, 0.0)
     pinv = (Vt.T * inv_s2) @ Vt / np.outer(safe, safe)
     rss = float(np.dot(r[used], r[used]))
-    s2 = rss / (n - q)
+    s2 = rss / (n - q - nuisance)
     cov_gn = s2 * pinv
     nonempty = [idx for idx in rows if idx.size]
     _, grams = _block_rhos([J[idx] for idx in nonempty], [r[idx] for idx in nonempty], pinv)
     meat = sum(grams, np.zeros((q, q)))
     # E[rss] = sigma^2 (n - tr(H R)) under correlated residuals, tr(H R) = tr((J^T J)^+ meat)
-    s2_ar = rss / max(n - float(np.trace(pinv @ meat)), 1.0)
+    s2_ar = rss / max(n - float(np.trace(pinv @ meat)) - nuisance, 1.0)
     sandwich = s2_ar * pinv @ meat @ pinv
     d_gn = np.diag(cov_gn)[identified]
     d_sw = np.diag(sandwich)[identified]

@@ -273,7 +273,8 @@ def test_bic_counts_a_law_that_ended_on_its_bound():
     sub = type("Sub", (), {"slots": Job.slots[:2], "code": Job.code[:2], "out": Job.out})
     sub.rss = Job.rss
     big, small = _information(Job, prob, N), _information(sub, prob, N)
-    assert big["q"] == small["q"] == 2  # the residuals' degrees of freedom
+    # the residuals' degrees of freedom: the moved slots and the record's clock shift
+    assert big["q"] == small["q"] == 2 + 1
     assert big["bic"] - small["bic"] == pytest.approx(math.log(2 * m))
     # the times of smaller extrema weigh less: precision proportional to the amplitude
     tw = _time_precision(PENDULUM, rec, N)
