@@ -19,6 +19,7 @@ from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
 from ._io import (
     EDGE_RELEASE,
     MAX_ROWS,
+    TIME_UNITS,
     Record,
     Signal,
     extract_turning_points,
@@ -43,6 +44,7 @@ __all__ = [
     "sensor_start",
     "MAX_ROWS",
     "EDGE_RELEASE",
+    "TIME_UNITS",
     "decrement",
     "fit",
     "fit_batch",

@@ -14,7 +14,7 @@ import sys
 
 from vmj.cli import figure_path, input_file, number, parse_set
 
-__all__ = ["add_arguments", "run", "MODELS"]
+__all__ = ["add_arguments", "run", "MODELS", "TIME_UNITS"]
 
 #: the model families (kept equal to `fits._models.SPACES` by a test)
 MODELS = ("variable-mass", "rope", "oscillator", "pendulum")
@@ -26,6 +26,8 @@ _DEFAULT_FREE = {
     "pendulum": "omega,zeta,xF,cq,b2,a0,offset,asym",  # fits._pendulum.FREE (a test checks)
 }
 _ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180}
+#: a raw signal's time units (kept equal to `fits.TIME_UNITS`' keys by a test)
+TIME_UNITS = ("s", "ms", "us", "ns", "min")
 
 
 def _settings(text: str) -> dict:
@@ -128,6 +130,12 @@ def add_arguments(p):
     p.add_argument("--time-col", help="raw signal: time column (name or 0-based index)")
     p.add_argument("--signal-col", help="raw signal: signal column (name or 0-based index)")
     p.add_argument(
+        "--time-unit",
+        choices=TIME_UNITS,
+        help="raw signal: unit of the time column (default: the unit its name ends with, as in "
+        "time_ms or 't [ms]', else s)",
+    )
+    p.add_argument(
         "--angle-unit",
         choices=tuple(_ANGLE_UNITS),
         help="unit of an angle signal, for models with an angle_unit parameter (default: deg)",
@@ -177,9 +185,18 @@ def run(args) -> int:
             f"--angle-unit applies only to models with an angle_unit parameter "
             f"(the {args.model} model has none)"
         )
+    raw = {"--time-col": args.time_col, "--signal-col": args.signal_col}
+    raw["--time-unit"] = args.time_unit
+    asked = [name for name, value in raw.items() if value is not None]
+    if asked and not args.series:
+        raise ValueError(f"{', '.join(asked)}: for a raw signal, read with --series")
     records = [
         fits.read_record(
-            path, series=args.series, time_col=args.time_col, signal_col=args.signal_col
+            path,
+            series=args.series,
+            time_col=args.time_col,
+            signal_col=args.signal_col,
+            time_unit=args.time_unit,
         )
         for path in args.FILE
     ]

@@ -27,6 +27,7 @@ __all__ = [
     "read_record",
     "MAX_ROWS",
     "EDGE_RELEASE",
+    "TIME_UNITS",
 ]
 
 EDGE_RELEASE = "edge: at the signal's first samples, located from one side (not weighed)"
@@ -37,7 +38,29 @@ MAX_ROWS = 2_000_000
 beyond it a file is refused before it is read, unless `max_rows` is raised or `None`."""
 
 _CLOCK = re.compile(r"^(?:(\d+):)?(\d+):(\d+(?:\.\d*)?)$")
-_TIME_NAME = re.compile(r"time|stamp|elapsed|^t$|^t[\s(\[_]|^sec|\(s\)|\[s\]", re.IGNORECASE)
+_TIME_NAME = re.compile(
+    r"time|stamp|elapsed|zeit|^t$|^t[\s(\[_/]|^sec|[(\[](?:s|ms|us|µs|ns|min)[)\]]", re.IGNORECASE
+)
+#: a time column's unit at the end of its name: `time_ms`, `t [ms]`, `Time (us)`, `t/min`
+_TIME_UNIT = re.compile(
+    r"(?:^|[\s_(\[/,-])(?:in\s+)?(ns|us|µs|μs|usec|ms|msec|s|sec|secs|seconds?|min|minutes?)"
+    r"\s*[)\]]?\s*$",
+    re.IGNORECASE,
+)
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0}
+"""Units of a raw signal's time column, in seconds (`read_signal`'s `time_unit`)."""
+_UNIT_SPELLINGS = {
+    "ns": "ns",
+    "us": "us",
+    "µs": "us",
+    "μs": "us",
+    "usec": "us",
+    "ms": "ms",
+    "msec": "ms",
+    "min": "min",
+    "minute": "min",
+    "minutes": "min",
+}
 
 
 @dataclass(frozen=True)
@@ -240,6 +263,24 @@ class _Table:
     first: list  # its cells
 
 
+def _data_cells(line: str) -> tuple:
+    """`(separator, cells, decimal_comma)` of a line of numbers, or `(separator, None, False)`
+    of a line of text. The separators tried: `;` (a comma beside it is a decimal mark), `,`, a
+    tab, whitespace (with decimal points, or commas: `0,005 -19,41`)."""
+    seps = [c for c in (";", ",", "\t") if c in line] + [None]
+    for sep in seps:
+        cells = _splitter(sep)(line)
+        while len(cells) > 1 and not cells[-1]:  # a trailing separator
+            cells.pop()
+        if all(c and _is_number(c) for c in cells):
+            return sep, cells, False
+        if sep != "," and any("," in c for c in cells):
+            cells = [c.replace(",", ".") for c in cells]
+            if all(c and _is_number(c) for c in cells):
+                return sep, cells, True
+    return seps[0], None, False
+
+
 def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
     """Header, separator and first data row of a text table (a header line is optional unless
     `need_header`; lines of units below the header are skipped)."""
@@ -252,11 +293,10 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
         pos, no = end + 1, no + 1
         if _skip(line):
             continue
-        sep = "," if "," in line else ";" if ";" in line else "\t" if "\t" in line else None
-        cells = _splitter(sep)(line)
-        while len(cells) > 1 and not cells[-1]:  # a trailing separator
-            cells.pop()
-        if all(c and _is_number(c) for c in cells):
+        sep, cells, comma = _data_cells(line)
+        if comma:  # decimal commas (`0,005;-19,41`): every comma of the data is one
+            text = text[:start] + text[start:].replace(",", ".")
+        if cells is not None:
             if header is None and need_header:
                 _fail(
                     source,
@@ -572,9 +612,20 @@ def _time_candidates(tab: _Table, yi: int) -> list:
     return out
 
 
-def _stamps(tab: _Table, candidates: list, names: list) -> tuple[np.ndarray, str, str]:
+def _time_unit(name: str) -> str:
+    """The unit of a time column named `name` (`TIME_UNITS`' keys): from the end of the name
+    (`time_ms`, `t [ms]`, `Time (us)`), seconds where it names none."""
+    m = _TIME_UNIT.search(name.strip())
+    return _UNIT_SPELLINGS.get(m.group(1).lower(), "s") if m else "s"
+
+
+def _stamps(
+    tab: _Table, candidates: list, names: list, unit: str | None = None
+) -> tuple[np.ndarray, str, str]:
     """The time stamps [s] from the finest of the candidate columns (the most distinct values
-    among those that parse and never decrease), its name, and a note on the others."""
+    among those that parse and never decrease), its name, and a note on the others and on the
+    unit: `unit` (`TIME_UNITS`), else the one the column's name ends with, else seconds (clock
+    times `HH:MM:SS` are always read as such)."""
     parsed, first_error = [], None
     for c in candidates:
         try:
@@ -615,6 +666,11 @@ def _stamps(tab: _Table, candidates: list, names: list) -> tuple[np.ndarray, str
         if others
         else ""
     )
+    if not _CLOCK.match(tab.first[ti].strip()):
+        unit = unit or _time_unit(names[ti])
+        if unit != "s":
+            stamps = stamps * TIME_UNITS[unit]
+            note += f"; {names[ti]!r} read in {unit}"
     return stamps, names[ti], note
 
 
@@ -625,9 +681,11 @@ def read_signal(
     clock: str = "auto",
     *,
     rate: float | None = None,
+    time_unit: str | None = None,
     max_rows: int | None = MAX_ROWS,
 ) -> Signal:
-    """Read a raw signal from a CSV (`,` or `;`), tab- or whitespace-separated text file.
+    """Read a raw signal from a CSV (`,`, or `;` with decimal points or commas), tab- or
+    whitespace-separated text file (decimal commas there too).
 
     **Arguments:**
 
@@ -646,6 +704,9 @@ def read_signal(
       uniform sampling clock recovered from their lower envelope, and genuine stamps kept.
     - `rate`: the sampling rate [Hz], when known: the samples are put on a uniform clock at
       that rate.
+    - `time_unit`: the time column's unit, one of [`fits.TIME_UNITS`][] (`"s"`, `"ms"`,
+      `"us"`, `"ns"`, `"min"`); default: the unit its name ends with (`time_ms`, `t [ms]`,
+      `Time (us)`), else seconds. Clock times `HH:MM:SS.mmm` are read as such.
     - `max_rows`: refuse files with more data rows than this (estimated from the file size
       before reading; default [`fits.MAX_ROWS`][]); `None` for no limit.
 
@@ -655,10 +716,14 @@ def read_signal(
     Raises `ValueError` naming the file, and the line and column where there is one, for a
     missing, unreadable or binary file, a directory, an empty or header-only file, fewer than
     3 rows, a missing column, a non-numeric, empty or non-finite cell, time that decreases,
-    an unknown `clock`, a bad `rate`, and too many rows.
+    an unknown `clock` or `time_unit`, a bad `rate`, and too many rows.
     """
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {', '.join(map(repr, CLOCKS))} (got {clock!r})")
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise ValueError(
+            f"time_unit must be one of {', '.join(map(repr, TIME_UNITS))} (got {time_unit!r})"
+        )
     text, source = _text(path, max_rows)
     tab = _table(text, source)
     header, ncols = tab.header, tab.ncols
@@ -674,7 +739,9 @@ def read_signal(
         candidates = _time_candidates(tab, yi) or [0 if yi != 0 else 1]
     y = _columns(tab, [yi])[0]
     _rows_ok(len(y), source, max_rows, 3, "a raw signal")
-    stamps, tname, ignored = _stamps(tab, candidates, names) if candidates else (None, None, "")
+    stamps, tname, ignored = (
+        _stamps(tab, candidates, names, time_unit) if candidates else (None, None, "")
+    )
     try:
         t, report = recover_clock(stamps, clock=clock, rate=rate, column=tname, rows=len(y))
     except ValueError as err:
@@ -989,15 +1056,27 @@ def read_record(
     signal_col: str | int | None = None,
     clock: str = "auto",
     rate: float | None = None,
+    time_unit: str | None = None,
     max_rows: int | None = MAX_ROWS,
 ) -> Record:
     """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
     turning points extracted from a raw signal (see [`fits.read_signal`][] for `time_col`,
-    `signal_col`, `clock`, `rate` and [`fits.extract_turning_points`][])."""
+    `signal_col`, `clock`, `rate`, `time_unit` and [`fits.extract_turning_points`][])."""
     if series:
         return extract_turning_points(
-            read_signal(path, time_col, signal_col, clock, rate=rate, max_rows=max_rows)
+            read_signal(
+                path,
+                time_col,
+                signal_col,
+                clock,
+                rate=rate,
+                time_unit=time_unit,
+                max_rows=max_rows,
+            )
         )
-    if time_col is not None or signal_col is not None or rate is not None or clock != "auto":
-        raise ValueError("time_col, signal_col, clock and rate apply to raw signals (series=True)")
+    raw = (time_col, signal_col, rate, time_unit)
+    if any(v is not None for v in raw) or clock != "auto":
+        raise ValueError(
+            "time_col, signal_col, clock, rate and time_unit apply to raw signals (series=True)"
+        )
     return read_peaks(path, max_rows=max_rows)

@@ -453,6 +453,45 @@ def test_encodings_and_line_ends_are_read(tmp_path):
     np.testing.assert_array_equal(sig.y, plain.y)
 
 
+def test_decimal_commas(tmp_path):
+    """A spreadsheet export with `;` between the cells and decimal commas (and the same with
+    tabs or spaces) reads as the file with decimal points."""
+    plain = fits.read_signal(_write(tmp_path, "t,angle\n0,1.5\n0.1,-2.25\n0.2,1e-3\n"))
+    for sep in (";", "\t", " "):
+        text = f"Zeit{sep}Winkel\n0{sep}1,5\n0,1{sep}-2,25\n0,2{sep}1e-3\n"
+        sig = fits.read_signal(_write(tmp_path, text, "comma.txt"))
+        np.testing.assert_array_equal(sig.y, plain.y)
+        np.testing.assert_array_equal(sig.t, plain.t)
+    # decimal points with semicolons are unchanged
+    sig = fits.read_signal(_write(tmp_path, "t;angle\n0;1.5\n0.1;-2.25\n0.2;1e-3\n"))
+    np.testing.assert_array_equal(sig.y, plain.y)
+
+
+def test_time_unit_from_the_header_or_given(tmp_path):
+    """A time column in milliseconds, microseconds or minutes is read in seconds: from the
+    unit its name ends with, or from `time_unit`; the clock report says so."""
+    from fits._cli import TIME_UNITS
+
+    assert TIME_UNITS == tuple(fits.TIME_UNITS)  # the command line's choices
+    for name, scale in (
+        ("time_ms", 1e-3),
+        ("t [ms]", 1e-3),
+        ("Time (us)", 1e-6),
+        ("time in ms", 1e-3),
+        ("t/min", 60.0),
+        ("Time_Elapsed(s)", 1.0),
+        ("time", 1.0),
+    ):
+        text = f"{name},x\n0,1\n5,2\n10,-1\n"
+        sig = fits.read_signal(_write(tmp_path, text, "unit.csv"))
+        np.testing.assert_allclose(sig.t, np.array([0.0, 5.0, 10.0]) * scale)
+        assert ("read in" in sig.clock_report["message"]) == (scale != 1.0), name
+    sig = fits.read_signal(_write(tmp_path, "t,x\n0,1\n5,2\n10,-1\n"), time_unit="ms")
+    np.testing.assert_allclose(sig.t, [0.0, 0.005, 0.01])
+    with pytest.raises(ValueError, match="time_unit must be one of 's', 'ms'"):
+        fits.read_signal(_write(tmp_path, "t,x\n0,1\n5,2\n10,-1\n"), time_unit="hours")
+
+
 def test_the_time_column_is_chosen(tmp_path):
     """Of the columns named like a time, the finest that never decreases; without a header the
     first column."""
