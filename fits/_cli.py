@@ -185,8 +185,11 @@ def run(args) -> int:
             f"--angle-unit applies only to models with an angle_unit parameter "
             f"(the {args.model} model has none)"
         )
-    raw = {"--time-col": args.time_col, "--signal-col": args.signal_col}
-    raw["--time-unit"] = args.time_unit
+    raw = {
+        "--time-col": args.time_col,
+        "--signal-col": args.signal_col,
+        "--time-unit": args.time_unit,
+    }
     asked = [name for name, value in raw.items() if value is not None]
     if asked and not args.series:
         raise ValueError(f"{', '.join(asked)}: for a raw signal, read with --series")

@@ -377,7 +377,7 @@ def _psi_weight(loss, u):
 def _time_precision(space, rec, N) -> np.ndarray:
     """Relative precision of each turning point's time (padded to `N`): 1, or the point's
     amplitude over the record's largest, at least 0.02, for a record extracted from a raw
-    signal and with `space.time_noise == "amplitude"` (the vertex of an extremum of amplitude
+    signal or with `space.time_noise == "amplitude"` (the vertex of an extremum of amplitude
     `a` located in noisy samples is timed to about `noise / (a omega^2)`). Measured on 50
     synthetic signals of the linear oscillator (`test_fits_coverage`): with equal weights the
     times of the small swings dominated, omega's 95 % interval held the truth in 45 of 50

@@ -934,7 +934,7 @@ def extract_turning_points(
     half-swing more than 10 % longer or shorter than the second: the first extremum is then a
     flat stretch, not a sharp turning point) is timed one half-swing before the end of the
     first swing, at the hold's level; `meta` says so (`"release"`), as it does of a release at
-    the signal's first sample (`EDGE_RELEASE`: located from one side only, so the fits do not
+    the signal's first samples (`EDGE_RELEASE`: located from one side only, so the fits do not
     weigh its position), and holds the `hysteresis` and the dry-friction `kink` levels of the
     maxima and the minima [signal units].
     The signal's clock report is `record.clock`.

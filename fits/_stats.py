@@ -294,8 +294,8 @@ def covariance(
       whose expected residual lag-1 autocorrelation, after the fit (hat matrix of `J`) has
       absorbed what it can, equals the observed one (method of moments; the raw residual
       correlation would understate it badly when the parameters shape the error); the noise
-      variance `rss / (n - tr((J^T J)^-1 sum_b J_b^T R_b J_b) - nuisance)` (the expected residual sum of
-      squares under those correlations). For smooth regressors this is the familiar
+      variance `rss / (n - tr((J^T J)^-1 sum_b J_b^T R_b J_b) - nuisance)` (the expected
+      residual sum of squares under those correlations). For smooth regressors this is the familiar
       `(1 + rho)/(1 - rho)`; unlike that factor it is right for alternating regressors too
       (signed turning points), and for any mix of blocks (positions, times, records);
     - `cov_corrected = inflation * cov_gn` (one factor for every parameter, so that profile

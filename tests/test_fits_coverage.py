@@ -227,6 +227,23 @@ def test_coverage_oscillator_extracted_from_raw_signals():
     assert sum(_flagged(r) for r in results) <= 5
 
 
+def test_the_times_of_a_record_without_its_release_may_start_anywhere(oscillator_model):
+    """A record's clock is aligned with the model's by a fitted shift, so a record without its
+    release row (its times a logger's clock) fits the same whatever their origin. (Before,
+    they were taken as measured from the release: such a record's fit was meaningless.)"""
+    pos, times = _oscillator_clean(oscillator_model)
+    rec = _oscillator_records(pos, times, seeds=[0])[0]
+    records = [
+        fits.record_from_sequence(positions=rec.positions[1:], times=rec.times[1:] + c, k=rec.k[1:])
+        for c in (0.0, 1234.5)
+    ]
+    a, b = _fit(records, "oscillator", tuple(OSC_TRUTH))
+    assert a.converged and b.converged
+    for name, value in OSC_TRUTH.items():
+        assert b.params[name] == pytest.approx(a.params[name], rel=1e-7, abs=1e-9), name
+        assert abs(a.params[name] - value) < 4 * a.stderr[name], name
+
+
 # -- autocorrelated residuals ------------------------------------------------------------------
 @pytest.mark.slow
 def test_coverage_autocorrelated_amplitude_error(oscillator_model):

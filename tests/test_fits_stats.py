@@ -115,6 +115,27 @@ def test_white_noise_regression_not_inflated_much():
     assert 1.0 <= np.median(infl) < 1.3
 
 
+def test_a_profiled_nuisance_parameter_gives_the_same_covariance():
+    """A weighted time shift profiled out of the residuals (`fits._solve._clock_shift`: the
+    residuals and the Jacobian projected off the weights' direction), with `nuisance=1`, gives
+    the Gauss-Newton covariance of the other parameters that fitting the shift as a
+    parameter gives, to rounding."""
+    rng = np.random.default_rng(3)
+    n = 40
+    w = rng.uniform(0.5, 2.0, n)  # the weights of the times
+    J = rng.normal(size=(n, 3))
+    r = rng.normal(size=n)
+    full = np.column_stack([J, w])  # the shift's column: d(w (dt - s))/ds = -w, sign immaterial
+    w_hat = w / np.linalg.norm(w)
+    project = np.eye(n) - np.outer(w_hat, w_hat)
+    r_full = r - full @ np.linalg.lstsq(full, r, rcond=None)[0]  # residuals at the optimum
+    _, g_full, _ = covariance(full, r_full, [slice(0, n)])
+    _, g_prof, _ = covariance(project @ J, project @ r_full, [slice(0, n)], nuisance=1)
+    np.testing.assert_allclose(g_prof, g_full[:3, :3], rtol=1e-10)
+    _, g_naive, _ = covariance(project @ J, project @ r_full, [slice(0, n)])
+    assert not np.allclose(g_naive, g_full[:3, :3], rtol=1e-3)  # the degree of freedom counts
+
+
 def test_rank_deficient_gives_nan_never_zero():
     rng = np.random.default_rng(1)
     n = 50
