@@ -18,6 +18,7 @@ from ._decrement import decrement
 from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
 from ._io import (
     EDGE_RELEASE,
+    HELD_RELEASE,
     MAX_ROWS,
     TIME_UNITS,
     Record,
@@ -44,6 +45,7 @@ __all__ = [
     "sensor_start",
     "MAX_ROWS",
     "EDGE_RELEASE",
+    "HELD_RELEASE",
     "TIME_UNITS",
     "decrement",
     "fit",

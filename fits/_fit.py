@@ -41,7 +41,7 @@ import numpy as np
 import vmj
 
 from ._decrement import decrement, starting_guess
-from ._io import EDGE_RELEASE, Record, sample_window
+from ._io import EDGE_RELEASE, HELD_RELEASE, Record, sample_window
 from ._models import FORWARDS, SPACES, Space, series_space
 from ._params import (
     HELD,
@@ -413,16 +413,17 @@ def _set_weights(prob, N):
         m = len(rec)
         on = np.zeros(N)
         on[:m] = 1.0
-        onx = on.copy()
-        if rec.k[0] == 0 and prob.turning is None and rec.meta.get("release") == EDGE_RELEASE:
-            onx[0] = 0.0  # a release at the signal's edge: its position is no measurement
+        onx, ont = on.copy(), on.copy()
+        release = rec.meta.get("release") if rec.k[0] == 0 and prob.turning is None else None
+        if release == EDGE_RELEASE:
+            onx[0] = 0.0  # a release at the signal's edge: its position and time are no
+            ont[0] = 0.0  # measurements (located from one side)
+        elif release == HELD_RELEASE:
+            ont[0] = 0.0  # its time is extrapolated (its position is the hold's level)
         prob.wx.append(onx * np.sqrt(prob.robust_x[r]) / prob.sx[r])
         if not _timed(prob, rec):
             prob.wt.append(np.zeros(N))
         else:
-            ont = on.copy()
-            if rec.k[0] == 0:
-                ont[0] = 0.0  # the release's time is the clock's zero, not a measurement
             prob.wt.append(ont * np.sqrt(prob.robust_t[r]) * prob.tw[r] / prob.st[r])
 
 

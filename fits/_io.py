@@ -27,11 +27,14 @@ __all__ = [
     "read_record",
     "MAX_ROWS",
     "EDGE_RELEASE",
+    "HELD_RELEASE",
     "TIME_UNITS",
 ]
 
 EDGE_RELEASE = "edge: at the signal's first samples, located from one side (not weighed)"
 """`Record.meta["release"]` of a record whose signal starts at its release."""
+HELD_RELEASE = "held: time extrapolated from the first half-swing (not weighed)"
+"""`Record.meta["release"]` of a record released from a hold."""
 
 MAX_ROWS = 2_000_000
 """Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
@@ -933,9 +936,10 @@ def extract_turning_points(
     the median local centre `(x[k-1] + 2 x[k] + x[k+1]) / 4`. A release from a hold (the first
     half-swing more than 10 % longer or shorter than the second: the first extremum is then a
     flat stretch, not a sharp turning point) is timed one half-swing before the end of the
-    first swing, at the hold's level; `meta` says so (`"release"`), as it does of a release at
-    the signal's first samples (`EDGE_RELEASE`: located from one side only, so the fits do not
-    weigh its position), and holds the `hysteresis` and the dry-friction `kink` levels of the
+    first swing, at the hold's level; `meta` says so (`"release"`: `HELD_RELEASE`, the fits do
+    not weigh its time), as it does of a release at the signal's first samples
+    (`EDGE_RELEASE`: located from one side only, the fits weigh neither its position nor its
+    time), and holds the `hysteresis` and the dry-friction `kink` levels of the
     maxima and the minima [signal units].
     The signal's clock report is `record.clock`.
     """
@@ -1009,7 +1013,7 @@ def extract_turning_points(
     if one_sided:
         # released at (or just after) the first sample: its extremum is located from one side,
         # biased towards the centre (by 0.020 of a0 = 1 noise sd on average, 20 synthetic
-        # signals sampled 0.5-6 ms apart); the fits do not weigh its position
+        # signals sampled 0.5-6 ms apart), and timed late (1.5 ms); the fits weigh neither
         meta["release"] = EDGE_RELEASE
     if xk.size >= 4 and abs((tk[1] - tk[0]) - (tk[2] - tk[1])) > 0.1 * (tk[2] - tk[1]):
         # released from a hold: the first extremum is no sharp turning point, its time is
@@ -1019,7 +1023,7 @@ def extract_turning_points(
         held = (t >= tk[0] - 0.2 * (tk[2] - tk[1])) & (t <= tk[0])
         if np.any(held):
             xk[0] = float(np.median(y_clean[held]))
-        meta["release"] = "held: time extrapolated from the first half-swing"
+        meta["release"] = HELD_RELEASE
     small = np.nonzero(np.abs(np.diff(xk)) < 2 * floor)[0]
     if small.size:
         tk, xk = tk[: small[0] + 1], xk[: small[0] + 1]

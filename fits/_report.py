@@ -279,7 +279,7 @@ def plot_fit(
                 color="r",
                 label="flagged outlier" if i == 0 else None,
             )
-        acf_n["position"] += rx.size
+        acf_n["position"] += int(np.isfinite(rx).sum())
         ax_acf.plot(
             np.arange(1, lags + 1) + 0.15 * i,
             _acf(rx, lags),
@@ -294,7 +294,7 @@ def plot_fit(
             rt = np.asarray(rt, dtype=float)
             ax_rt.axhline(0, color="k", lw=0.5)
             ax_rt.plot(x_res, rt, ".-", lw=0.6, ms=4, color=colour, label="time" + tag)
-            rt_used = rt[1:] if k[0] == 0 else rt  # the release time is not a datum
+            rt_used = rt[np.isfinite(rt)]  # NaN: not a datum (a release's time)
             acf_n["time"] += rt_used.size
             ax_acf.plot(
                 np.arange(1, lags + 1) + 0.15 * i + 0.3,

@@ -386,13 +386,14 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         m = len(rec)
         wx, wt = prob.wx[i][:m], prob.wt[i][:m]
         res_x = r_all[i, 0, :m] / np.where(wx > 0, wx, 1.0)
+        res_x[wx == 0] = np.nan  # not a datum (a release located from one side)
         floor = 1e-4 * float(np.max(rec.amplitudes))
         z = res_x / _robust_scale(res_x, floor)
         flagged = np.abs(z) > outlier_sigma
         res_t = None
         if rec.times is not None and not series:
             res_t = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
-            res_t[wt == 0] = 0.0
+            res_t[wt == 0] = np.nan  # not a datum (a release's time from a hold or one side)
             z_t = res_t / _robust_scale(res_t[wt > 0], 1e-12)
             flagged |= np.abs(z_t) > outlier_sigma
         per_record.append(
@@ -404,8 +405,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                     "standardized": z.tolist(),
                     "outlier": flagged.tolist(),
                 },
-                "rms": float(np.sqrt(np.mean(res_x**2))),
-                "rms_time": None if res_t is None else float(np.sqrt(np.mean(res_t[1:] ** 2))),
+                "rms": float(np.sqrt(np.nanmean(res_x**2))),
+                "rms_time": None if res_t is None else float(np.sqrt(np.nanmean(res_t**2))),
                 "outliers": [int(kk) for kk in rec.k[flagged]],
             }
         )

@@ -73,9 +73,10 @@ def _clock_shift(dt, wt):
     `wt^2`, 0 for a record without timed points.
 
     A record's times are measured from its release, but the release's time is no better known
-    than the turning points' (an extracted release at the signal's first sample is located
-    one-sidedly, one from a hold is extrapolated; a peak file's first row need not be the
-    release): taken as exact, its error shifts every time and biases the frequency (a clean
+    than the turning points' (or worse: an extracted release at the signal's first samples is
+    located from one side, one from a hold is extrapolated, and neither is weighed; a peak
+    file's first row need not be the release): taken as exact, its error shifts every time
+    and biases the frequency (a clean
     synthetic signal released at its first sample: the release 2.4 ms late, `omega` 10
     Gauss-Newton standard errors off, the times' residuals flagged as structured). The shift
     is a nuisance parameter per timed record, profiled out here in closed form (the

@@ -271,7 +271,7 @@ def test_coverage_autocorrelated_amplitude_error(oscillator_model):
 def test_model_error_is_flagged(oscillator_model):
     """Data with quadratic drag fitted with viscous + Coulomb damping only: the residuals are
     structured, the diagnostics say so and the standard errors are widened. Measured: 50/50
-    flagged, median inflation 7.0, omega covered 50/50 corrected against 28/50 Gauss-Newton."""
+    flagged, median inflation 7.0, omega covered 50/50 corrected against 27/50 Gauss-Newton."""
     truth = vmj.Oscillator(
         OSC_TRUTH["omega"],
         vmj.LinearRestoring(),
