@@ -414,7 +414,7 @@ def _set_weights(prob, N):
         on = np.zeros(N)
         on[:m] = 1.0
         onx, ont = on.copy(), on.copy()
-        release = rec.meta.get("release") if rec.k[0] == 0 and prob.turning is None else None
+        release = rec.meta.get("release") if rec.k[0] == 0 else None
         if release == EDGE_RELEASE:
             onx[0] = 0.0  # a release at the signal's edge: its position and time are no
             ont[0] = 0.0  # measurements (located from one side)
@@ -721,7 +721,8 @@ def _samples(rec: Record) -> Record:
     """The raw samples of an extracted record from its release to its last turning point: the
     data of a fit on the whole time series (`k` numbers the samples)."""
     t, y = sample_window(rec)  # (a record without a signal is refused by `_settings`)
-    return dataclasses.replace(rec, k=np.arange(t.size), positions=y, times=t)
+    meta = {k: v for k, v in rec.meta.items() if k != "release"}  # its first row is a sample
+    return dataclasses.replace(rec, k=np.arange(t.size), positions=y, times=t, meta=meta)
 
 
 def _series_stage(problems, jobs, bounds, settings):

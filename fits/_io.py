@@ -53,14 +53,11 @@ _TIME_UNIT = re.compile(
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0}
 """Units of a raw signal's time column, in seconds (`read_signal`'s `time_unit`)."""
 _UNIT_SPELLINGS = {
-    "ns": "ns",
-    "us": "us",
+    **{unit: unit for unit in TIME_UNITS},
     "µs": "us",
     "μs": "us",
     "usec": "us",
-    "ms": "ms",
     "msec": "ms",
-    "min": "min",
     "minute": "min",
     "minutes": "min",
 }

@@ -206,7 +206,14 @@ def _information(job, prob, N):
         )
     else:
         ll = math.inf
-    return {"aic": ll + 2 * k, "bic": ll + k * math.log(n), "rss": rss, "n": n, "q": q}
+    return {
+        "aic": ll + 2 * k,
+        "bic": ll + k * math.log(n),
+        "rss": rss,
+        "n": n,
+        "q": q,
+        "nuisance": shifts,
+    }
 
 
 # -- results -----------------------------------------------------------------------------------
@@ -261,6 +268,7 @@ def _assess(job, prob, shape) -> _Assessed:
     J = job.out["J"][:, :q][idx]
     r = job.out["r"][idx]
     active = job.code != HELD
+    info = _information(job, prob, N)
     # covariance over the slots the solver moved; held slots have none
     cov_c = np.full((q, q), np.nan)
     cov_gn = np.full((q, q), np.nan)
@@ -268,7 +276,7 @@ def _assess(job, prob, shape) -> _Assessed:
     full_rank = True
     if active.any():
         Ja = J[:, active]
-        c_c, c_gn, inflation = covariance(Ja, r, blocks, _clock_shifts(prob))
+        c_c, c_gn, inflation = covariance(Ja, r, blocks, info["nuisance"])
         sel = np.ix_(active, active)
         cov_c[sel], cov_gn[sel] = c_c, c_gn
         norms = np.linalg.norm(Ja, axis=0)
@@ -292,7 +300,7 @@ def _assess(job, prob, shape) -> _Assessed:
         blocks=blocks,
         block_names=block_names,
         r=r,
-        info=_information(job, prob, N),
+        info=info,
         active=active,
         inflation=inflation,
         full_rank=full_rank,
@@ -348,9 +356,7 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     converged = bool(job.out["ok"] and full_rank and not at_unset_bound)
     # residual diagnostics
     diag = diagnostics(
-        [assessed.r[b] for b in assessed.blocks],
-        int(np.sum(active)) + _clock_shifts(assessed.prob),
-        assessed.block_names,
+        [assessed.r[b] for b in assessed.blocks], assessed.info["q"], assessed.block_names
     )
     n_dof = assessed.n_dof
     if n_dof < 3:

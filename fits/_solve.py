@@ -76,11 +76,11 @@ def _clock_shift(dt, wt):
     than the turning points' (or worse: an extracted release at the signal's first samples is
     located from one side, one from a hold is extrapolated, and neither is weighed; a peak
     file's first row need not be the release): taken as exact, its error shifts every time
-    and biases the frequency (a clean
-    synthetic signal released at its first sample: the release 2.4 ms late, `omega` 10
-    Gauss-Newton standard errors off, the times' residuals flagged as structured). The shift
-    is a nuisance parameter per timed record, profiled out here in closed form (the
-    residuals are linear in it) and counted in the degrees of freedom (`fits._result`)."""
+    and biases the frequency (a clean synthetic signal released at its first sample: the
+    release 2.4 ms late, `omega` 10 Gauss-Newton standard errors off, the times' residuals
+    flagged as structured). The shift is a nuisance parameter per timed record, profiled out
+    here in closed form (the residuals are linear in it) and counted in the degrees of
+    freedom (`fits._result`)."""
     w2 = wt * wt
     total = jnp.sum(w2)
     safe = jnp.where(total > 0, total, 1.0)
