@@ -170,7 +170,7 @@ def _used(job, prob, N):
 
 def _clock_shifts(prob) -> int:
     """Nuisance parameters profiled out of the residuals: one clock shift per record with timed
-    residuals (`fits._solve._clock_shift`)."""
+    residuals (`fits._solve._align_clocks`)."""
     return sum(bool(np.any(w > 0)) for w in prob.wt)
 
 

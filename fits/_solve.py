@@ -67,10 +67,12 @@ def _values(d: _Data, p):
     return apply(d.code, d.lo, d.hi, d.scale, p, d.held)
 
 
-def _clock_shift(dt, wt):
-    """The shift of a record's clock that best aligns the model's turning-point times with the
-    measured ones: the weighted mean of `dt` (model minus measured times [s]) with weights
-    `wt^2`, 0 for a record without timed points.
+def _align_clocks(r, J, wt):
+    """The time residuals `r` and their Jacobian `J` on each record's clock shifted to align
+    best with the model's: the weighted mean time residual removed, `r_t - wt (wt . r_t) /
+    (wt . wt)` per record (a projection off the weights' direction; `J` likewise), nothing
+    for a record without timed points. `r` `(R * 2N,)` and `J` `(R * 2N, q)` as `_residual`
+    makes them, `wt` `(R, N)` the times' weights.
 
     A record's times are measured from its release, but the release's time is no better known
     than the turning points' (or worse: an extracted release at the signal's first samples is
@@ -79,17 +81,26 @@ def _clock_shift(dt, wt):
     and biases the frequency (a clean synthetic signal released at its first sample: the
     release 2.4 ms late, `omega` 10 Gauss-Newton standard errors off, the times' residuals
     flagged as structured). The shift is a nuisance parameter per timed record, profiled out
-    here in closed form (the residuals are linear in it) and counted in the degrees of
-    freedom (`fits._result`)."""
-    w2 = wt * wt
-    total = jnp.sum(w2)
-    safe = jnp.where(total > 0, total, 1.0)
-    return jnp.where(total > 0, jnp.sum(w2 * dt) / safe, 0.0)
+    in closed form (the residuals are linear in it) and counted in the degrees of freedom
+    (`fits._result`). Applied to the residuals and the Jacobian after the forward-mode pass,
+    not inside it: the shift inside took each Levenberg-Marquardt step of the pendulum fit of
+    `fits/data/80P.txt` from 59-65 to 150 ms (XLA then ran the batched solve's loops
+    differently)."""
+    R, N = wt.shape
+    total = jnp.sum(wt * wt, axis=1, keepdims=True)
+    unit = wt / jnp.sqrt(jnp.where(total > 0, total, 1.0))  # 0 for a record without times
+    rt = r.reshape(R, 2, N)[:, 1]
+    Jt = J.reshape(R, 2, N, -1)[:, 1]
+    rt = rt - unit * jnp.sum(unit * rt, axis=1, keepdims=True)
+    Jt = Jt - unit[..., None] * jnp.einsum("rn,rnq->rq", unit, Jt)[:, None, :]
+    r = r.reshape(R, 2, N).at[:, 1].set(rt).reshape(-1)
+    J = J.reshape(R, 2, N, -1).at[:, 1].set(Jt).reshape(R * 2 * N, -1)
+    return r, J
 
 
 def _residual(space, forward, n, theta, d: _Data):
-    """Weighted residuals `(R * 2N,)`: per record the positions, then the times (on the
-    record's clock aligned with the model's, `_clock_shift`). A series space compares the
+    """Weighted residuals `(R * 2N,)`: per record the positions, then the times (from the
+    record's release; `_align_clocks` aligns the clocks). A series space compares the
     motion at the sample times `t` (shifted by `t0`) with the samples `x`; its time residuals
     are zero."""
 
@@ -101,7 +112,6 @@ def _residual(space, forward, n, theta, d: _Data):
         else:
             times, y = space.predict(th, n, forward)
             y, dt = y[k], times[k] - t
-            dt = dt - _clock_shift(dt, wt)
         oy = orient * y
         dev = oy * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else oy
         offset = th["offset"] if "offset" in th else 0.0
@@ -114,7 +124,7 @@ def _residual(space, forward, n, theta, d: _Data):
 
 def _residual_and_jacobian_impl(space, forward, n, p, d):
     """Residuals at `p` and their Jacobian with respect to the slot values (in the parameters'
-    units), from one forward-mode pass. Wrapping it as a `custom_jvp` whose tangent is that
+    units), from one forward-mode pass, the records' clocks aligned (`_align_clocks`). Wrapping it as a `custom_jvp` whose tangent is that
     materialised Jacobian keeps the solvers from tracing (and compiling) the forward model
     again for linearisation and transposition: one compiled Jacobian serves the
     Levenberg-Marquardt steps, Adam's gradients and the standard errors."""
@@ -127,7 +137,7 @@ def _residual_and_jacobian_impl(space, forward, n, p, d):
     # the smoothed model's diffrax solve differentiates in reverse mode only
     jacobian = jax.jacrev if forward == "smooth" else jax.jacfwd
     J, r = jacobian(r_of, has_aux=True)(val)
-    return r, J
+    return _align_clocks(r, J, d.wt)
 
 
 # (an inner `jit`, called in one trace context (`_NO_MESH` in `_solve_lm`): every call of it

@@ -116,7 +116,7 @@ def test_white_noise_regression_not_inflated_much():
 
 
 def test_a_profiled_nuisance_parameter_gives_the_same_covariance():
-    """A weighted time shift profiled out of the residuals (`fits._solve._clock_shift`: the
+    """A weighted time shift profiled out of the residuals (`fits._solve._align_clocks`: the
     residuals and the Jacobian projected off the weights' direction), with `nuisance=1`, gives
     the Gauss-Newton covariance of the other parameters that fitting the shift as a
     parameter gives, to rounding."""
