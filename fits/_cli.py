@@ -63,6 +63,14 @@ def _bounds(text: str | None) -> dict:
     return out
 
 
+def _rate(text: str) -> float:
+    """`--rate`: a sampling rate [Hz] > 0 (argparse type)."""
+    value = number(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a sampling rate > 0 [Hz] (got {text!r})")
+    return value
+
+
 def _names(text: str | None, option: str) -> tuple:
     names = tuple(n.strip() for n in (text or "").split(",") if n.strip())
     if len(set(names)) != len(names):
@@ -130,6 +138,13 @@ def add_arguments(p):
     p.add_argument("--time-col", help="raw signal: time column (name or 0-based index)")
     p.add_argument("--signal-col", help="raw signal: signal column (name or 0-based index)")
     p.add_argument(
+        "--rate",
+        metavar="HZ",
+        type=_rate,
+        help="raw signal: sampling rate [Hz], > 0; needed for a file without a time column, "
+        "and with one it puts the samples on a uniform clock at that rate",
+    )
+    p.add_argument(
         "--time-unit",
         choices=TIME_UNITS,
         help="raw signal: unit of the time column (default: the unit its name ends with, as in "
@@ -189,6 +204,7 @@ def run(args) -> int:
         "--time-col": args.time_col,
         "--signal-col": args.signal_col,
         "--time-unit": args.time_unit,
+        "--rate": args.rate,
     }
     asked = [name for name, value in raw.items() if value is not None]
     if asked and not args.series:
@@ -200,6 +216,7 @@ def run(args) -> int:
             time_col=args.time_col,
             signal_col=args.signal_col,
             time_unit=args.time_unit,
+            rate=args.rate,
         )
         for path in args.FILE
     ]

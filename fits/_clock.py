@@ -292,7 +292,8 @@ def recover_clock(
     if stamps is None:
         if rate is None:
             raise ValueError(
-                "the signal has no time column: give the sampling rate (rate=... [Hz])"
+                "the signal has no time column: give its sampling rate [Hz] (rate=... in "
+                "Python, --rate HZ on the command line)"
             )
         report.update(
             method="rate",

@@ -96,6 +96,34 @@ def test_series_needs_a_raw_signal_and_an_exact_forward_model(signal_file, tmp_p
         fits.fit(record, "oscillator", FREE.split(","), residuals="samples")
 
 
+def test_a_signal_without_a_time_column_takes_its_rate_on_the_command_line(tmp_path):
+    """`--rate HZ` puts a one-column signal on its sampling clock: the same fit as the same
+    samples with their times in a column; without it, one line naming the option."""
+    rate = 400.0
+    t = np.arange(int(4 * rate)) / rate
+    rng = np.random.default_rng(5)
+    y = 2.0 + 10.0 * np.exp(-0.3 * t) * np.cos(20.0 * t) + rng.normal(0, 0.02, t.size)
+    one, two = tmp_path / "one.csv", tmp_path / "two.csv"
+    np.savetxt(one, y, header="angle", comments="")
+    np.savetxt(two, np.column_stack([t, y]), delimiter=",", header="t,angle", comments="")
+    base = ["--series", "--model", "oscillator", "--json"]
+    code, _, err = _run(["fit", str(one)] + base)
+    assert code == 2 and "no time column" in err and "--rate HZ" in err
+    assert len(err.strip().splitlines()) == 1
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), pytest.raises(SystemExit) as stop:
+        main(["fit", str(one), "--rate", "-5"] + base)  # (argparse's own exit)
+    assert stop.value.code == 2 and "--rate: must be a sampling rate > 0 [Hz]" in err.getvalue()
+    code, text_one, err = _run(["fit", str(one), "--rate", str(rate)] + base)
+    assert code == 0, err
+    code, text_two, err = _run(["fit", str(two)] + base)
+    assert code == 0, err
+    p1, p2 = json.loads(text_one)["params"], json.loads(text_two)["params"]
+    assert p1.keys() == p2.keys() and abs(p1["omega"] / 20.0 - 1) < 1e-3
+    for name in p1:
+        assert p1[name] == pytest.approx(p2[name], rel=1e-9, abs=1e-12), name
+
+
 @pytest.mark.long
 def test_series_interval_coverage():
     """95 % intervals of the series fit contain the true values in at least 90 % of 50 seeded
