@@ -910,6 +910,48 @@ def _local_centres(x):
     return (x[:-2] + 2 * x[1:-1] + x[2:]) / 4
 
 
+def _clipped(t, y, idx, peak, half):
+    """Which extrema `idx` (samples of `y`; `peak`: maxima) a saturated sensor cut off, and
+    the levels it clipped at: `(mask, {"max": level or None, "min": level or None})`.
+
+    A side (the maxima, or the minima) is clipped when at least two of its extrema sit on
+    a flat run at the signal's extreme value (within half its quantisation step) that lasts
+    more than three times as long as an unclipped sinusoidal extremum of that amplitude
+    stays within that step of its vertex, and more than two sample intervals. A decay
+    reaches its extreme value once (at the release, or over a hold before it); a sensor at
+    the end of its range reads the same value at every swing beyond it. Every extremum of a
+    clipped side at the level is then cut off: its true value lies beyond."""
+    steps = np.abs(np.diff(y))
+    steps = steps[steps > 1e-12 * max(float(np.max(np.abs(y))), 1e-300)]
+    quantum = float(np.min(steps)) if steps.size else 0.0
+    dt = float(np.median(np.diff(t)))
+    centre = float(np.median(y))
+    mask = np.zeros(idx.size, dtype=bool)
+    levels = {"max": None, "min": None}
+    for name, side, level in (("max", peak, float(np.max(y))), ("min", ~peak, float(np.min(y)))):
+        tol = max(0.5 * quantum, 1e-12 * abs(level))
+        at = np.abs(y - level) <= tol
+        amplitude = max(abs(level - centre), 1e-300)
+        # an unclipped vertex of amplitude a stays within q of it for (2 h / pi) sqrt(2 q / a)
+        long_runs, touching = 0, []
+        for j in np.nonzero(side)[0]:
+            i = int(idx[j])
+            if not at[i]:
+                continue
+            touching.append(j)
+            lo, hi = i, i
+            while lo > 0 and at[lo - 1]:
+                lo -= 1
+            while hi + 1 < y.size and at[hi + 1]:
+                hi += 1
+            natural = 2 * half[j] / math.pi * math.sqrt(2 * max(tol, quantum) / amplitude)
+            long_runs += bool(t[hi] - t[lo] > max(3 * natural, 2.5 * dt))
+        if long_runs >= 2:
+            mask[touching] = True
+            levels[name] = level
+    return mask, levels
+
+
 def extract_turning_points(
     signal: Signal, *, hysteresis: float | None = None, min_amplitude: float | None = None
 ) -> Record:
@@ -927,7 +969,12 @@ def extract_turning_points(
        shows (at a turning point the friction force reverses: the curvature steps); leading
        extrema on the same side of the centre as the next one (the mass held or nudged before
        its release) are dropped, so the record starts at the release;
-    4. the record ends where the swings fall below `min_amplitude` (default `10 h`).
+    4. the record ends where the swings fall below `min_amplitude` (default `10 h`);
+    5. extrema cut off by a saturated sensor (flat runs at the signal's extreme value at two
+       or more swings, `_clipped`) are left out of the record (their `k` skipped; positions
+       and times), of the dry-friction level and of the centre; `meta["clipped"]` holds the
+       levels (`{"max": ..., "min": ...}`, `None` for a side not clipped), and a fit on the
+       whole time series leaves out the samples at those levels.
 
     The first turning point is the release (`k = 0`); times are measured from it. `centre` is
     the median local centre `(x[k-1] + 2 x[k] + x[k+1]) / 4`. A release from a hold (the first
@@ -969,6 +1016,7 @@ def extract_turning_points(
     peak = np.empty(idx.size, dtype=bool)
     peak[:-1] = y_clean[idx[:-1]] > y_clean[idx[1:]]
     peak[-1] = not peak[-2]
+    clipped, clip_levels = _clipped(t, y_clean, idx, peak, half)
 
     def refine(kinks):  # every extremum, (time, value) rows
         return np.array(
@@ -981,7 +1029,7 @@ def extract_turning_points(
     # a dry-friction level bends every turning point (`_refine`): measured from the decay of
     # the extrema refined without it, then each extremum refined again with it
     refined = refine((0.0, 0.0))
-    kinks = _dry_level(refined[:, 1], peak)
+    kinks = _dry_level(refined[~clipped, 1], peak[~clipped])
     if max(kinks) > 0:
         refined = refine(kinks)
     tk, xk = refined[:, 0], refined[:, 1]
@@ -997,6 +1045,7 @@ def extract_turning_points(
             lead += 1
         if lead:
             tk, xk, starts_at_edge, one_sided = tk[lead:], xk[lead:], False, False
+            clipped = clipped[lead:]
     if starts_at_edge and xk.size >= 5:
         # an extremum at the first sample is a release from rest only if it is at least as far
         # from the centre as the next one on its side (not a record that starts mid-swing).
@@ -1005,7 +1054,7 @@ def extract_turning_points(
         # data, beyond even the next swing
         c = np.median(_local_centres(xk[1:]))
         if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
-            tk, xk, one_sided = tk[1:], xk[1:], False
+            tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
     meta = {"hysteresis": h, "kink": kinks}
     if one_sided:
         # released at (or just after) the first sample: its extremum is located from one side,
@@ -1023,15 +1072,27 @@ def extract_turning_points(
         meta["release"] = HELD_RELEASE
     small = np.nonzero(np.abs(np.diff(xk)) < 2 * floor)[0]
     if small.size:
-        tk, xk = tk[: small[0] + 1], xk[: small[0] + 1]
+        tk, xk, clipped = tk[: small[0] + 1], xk[: small[0] + 1], clipped[: small[0] + 1]
     if xk.size < 3:
         _fail(source, "fewer than 3 turning points above the amplitude floor: no decay to fit")
-    centre = float(np.median(_local_centres(xk)))
+    centres = _local_centres(xk)
+    whole = ~(clipped[:-2] | clipped[1:-1] | clipped[2:])
+    centre = float(np.median(centres[whole] if np.any(whole) else centres))
     origin = float(tk[0])
+    if np.any(clipped):
+        meta["clipped"] = clip_levels
+        if np.count_nonzero(~clipped) < 3:
+            levels = ", ".join(f"{v:.6g}" for v in clip_levels.values() if v is not None)
+            _fail(
+                source,
+                f"the signal is clipped at {levels} (a saturated sensor): fewer than 3 "
+                f"turning points are not cut off",
+            )
+    keep = ~clipped
     return Record(
-        k=np.arange(xk.size),
-        positions=xk,
-        times=tk - origin,
+        k=np.arange(xk.size)[keep],
+        positions=xk[keep],
+        times=(tk - origin)[keep],
         centre=centre,
         noise=sigma,
         signal=signal,
@@ -1043,10 +1104,15 @@ def extract_turning_points(
 
 def sample_window(record: Record) -> tuple[np.ndarray, np.ndarray]:
     """`(t [s] from the release, samples)` of an extracted record's raw signal from its release
-    to its last turning point: the data of a fit on the whole time series."""
+    to its last turning point, less the samples at a saturated sensor's levels
+    (`meta["clipped"]`): the data of a fit on the whole time series."""
     t = np.asarray(record.signal.t, dtype=float) - record.time_origin
+    y = np.asarray(record.signal.y, dtype=float)
     keep = (t >= 0) & (t <= record.times[-1])
-    return t[keep], np.asarray(record.signal.y, dtype=float)[keep]
+    for level in record.meta.get("clipped", {}).values():
+        if level is not None:  # samples at a saturated sensor's level are no measurements
+            keep &= y != level
+    return t[keep], y[keep]
 
 
 def read_record(

@@ -313,7 +313,16 @@ def plot_fit(
         if series:
             # the model's reading at the samples, and its turning points for the diagram
             y_fit = sample_window(rec)[1] + rx
-            ax_data.plot(x_res, y_fit, "-", lw=0.8, color="C3", label=f"fit ({result.forward})")
+            # (broken where samples were left out: a saturated sensor's flat runs)
+            gap = np.append(np.diff(x_res) > 2.5 * np.median(np.diff(x_res)), False)
+            ax_data.plot(
+                np.insert(x_res, np.nonzero(gap)[0] + 1, np.nan),
+                np.insert(y_fit, np.nonzero(gap)[0] + 1, np.nan),
+                "-",
+                lw=0.8,
+                color="C3",
+                label=f"fit ({result.forward})",
+            )
             curve = extract_turning_points(Signal(t=x_res, y=y_fit, clock="uniform"))
             n = min(len(curve), len(rec))
             x_axis, data = x_axis[:n], data[:n]

@@ -382,6 +382,13 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                 f"interval +- 1.96 stderr"
             )
         intervals[nm] = (float(lo), float(hi))
+    for rec in prob.records:
+        levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
+        if levels:
+            warn.append(
+                f"{rec.source}: the signal is clipped at {' and '.join(levels)} (a saturated "
+                f"sensor): the extrema cut off there are left out of the fit"
+            )
     warn += diag["warnings"]
     diag = {**diag, "warnings": warn}
     # per-record residuals in data units

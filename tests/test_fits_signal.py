@@ -225,6 +225,55 @@ def test_oscillator_fit_of_a_raw_signal(synthetic_signal):
     assert abs(r.decrement["zeta"] / TRUE["zeta"] - 1) < 0.2
 
 
+def test_a_clipped_signal_leaves_its_cut_off_extrema_out(synthetic_signal, tmp_path):
+    """A saturated sensor: the synthetic record clipped at 70 % of its release amplitude above
+    the centre and 60 % below. The extrema on the flat tops are no turning points (read, they
+    were taken at the clipping level: the fit found Coulomb friction where there is mostly
+    viscous damping); they are left out (their `k` skipped), the fit of the rest recovers the
+    parameters as the unclipped record's does and says what was left out. Unclipped records,
+    also with a hold at their extreme value before the release, are not marked."""
+    path, turning = synthetic_signal
+    t, y = np.loadtxt(path, delimiter=",", skiprows=1).T
+    hi, lo = TRUE["offset"] + 0.7 * TRUE["a0"], TRUE["offset"] - 0.6 * TRUE["a0"]
+    clipped = tmp_path / "clipped.csv"
+    np.savetxt(
+        clipped,
+        np.column_stack([t, np.clip(y, lo, hi)]),
+        delimiter=",",
+        header="t,angle",
+        comments="",
+    )
+    rec = fits.read_record(str(clipped), series=True)
+    assert rec.meta["clipped"] == {"max": hi, "min": lo}
+    # left out: exactly the extrema whose true value lies beyond a level (the first 9 and
+    # the 11th; the 10th, 8.75 against the level 9, is kept)
+    truth = turning[: rec.k[-1] + 1, 1] + TRUE["offset"]
+    beyond = np.nonzero((truth > hi) | (truth < lo))[0]
+    assert beyond.size == 10 and set(rec.k).isdisjoint(beyond)
+    assert len(rec) == rec.k[-1] + 1 - beyond.size
+    assert np.all((rec.positions < hi) & (rec.positions > lo))
+    plain = fits.read_record(path, series=True)
+    assert "clipped" not in plain.meta
+    r = fits.fit(rec, "oscillator", FREE)
+    assert r.converged and any("clipped at" in w for w in r.warnings)
+    assert abs(r.params["zeta"] / TRUE["zeta"] - 1) < 0.05
+    assert abs(r.params["xF"] / TRUE["xF"] - 1) < 0.25
+    assert abs(r.params["omega"] / TRUE["omega"] - 1) < 1e-3
+    assert abs(r.params["a0"] / TRUE["a0"] - 1) < 0.01
+    # a hold at the extreme value before the release is one flat run: not clipping
+    t_hold = np.arange(-0.5, 0.0, 2e-3)
+    y0 = float(np.min(y[:20]))
+    held = tmp_path / "held.csv"
+    np.savetxt(
+        held,
+        np.column_stack([np.concatenate([t_hold, t]), np.concatenate([0 * t_hold + y0, y])]),
+        delimiter=",",
+        header="t,angle",
+        comments="",
+    )
+    assert "clipped" not in fits.read_record(str(held), series=True).meta
+
+
 @pytest.mark.long  # 20-25 s: with the long runs, for CI's time
 def test_batched_equals_single_and_adam_agrees(synthetic_signal):
     path, _ = synthetic_signal

@@ -510,7 +510,9 @@ def test_the_time_column_is_chosen(tmp_path):
 
 def test_one_column_signal_needs_a_rate(tmp_path):
     path = _write(tmp_path, "angle\n1\n2\n3\n2\n")
-    with pytest.raises(ValueError, match=r"no time column: give the sampling rate"):
+    with pytest.raises(
+        ValueError, match=r"no time column: give its sampling rate \[Hz\] \(rate=\.\.\. in Python"
+    ):
         fits.read_signal(path)
     sig = fits.read_signal(path, rate=50.0)
     np.testing.assert_allclose(sig.t, np.arange(4) / 50.0)
