@@ -791,10 +791,15 @@ def _noise(t, y) -> float:
             * float(np.median(np.abs(dk - np.median(dk))))
             / math.sqrt(math.comb(2 * order, order))
         )
+    return max(min(estimates) if estimates else 0.0, _quantum(y) / math.sqrt(12))
+
+
+def _quantum(y) -> float:
+    """The smallest change between successive samples (the step of a quantised signal;
+    changes below 1e-12 of the signal's size are rounding)."""
     steps = np.abs(np.diff(y))
     steps = steps[steps > 1e-12 * max(float(np.max(np.abs(y))), 1e-300)]
-    quantum = float(np.min(steps)) if steps.size else 0.0
-    return max(min(estimates) if estimates else 0.0, quantum / math.sqrt(12))
+    return float(np.min(steps)) if steps.size else 0.0
 
 
 def _despike(y, sigma, threshold):
@@ -915,22 +920,19 @@ def _clipped(t, y, idx, peak, half):
     the levels it clipped at: `(mask, {"max": level or None, "min": level or None})`.
 
     A side (the maxima, or the minima) is clipped when at least two of its extrema sit on
-    a flat run at the signal's extreme value (within half its quantisation step) that lasts
-    more than three times as long as an unclipped sinusoidal extremum of that amplitude
-    stays within that step of its vertex, and more than two sample intervals. A decay
-    reaches its extreme value once (at the release, or over a hold before it); a sensor at
-    the end of its range reads the same value at every swing beyond it. Every extremum of a
-    clipped side at the level is then cut off: its true value lies beyond."""
-    steps = np.abs(np.diff(y))
-    steps = steps[steps > 1e-12 * max(float(np.max(np.abs(y))), 1e-300)]
-    quantum = float(np.min(steps)) if steps.size else 0.0
+    a flat run of samples equal to the signal's extreme value that lasts more than three
+    times as long as an unclipped sinusoidal extremum of that amplitude stays within one
+    quantisation step of its vertex, and more than 2.5 sample intervals. A decay reaches its
+    extreme value once (at the release, or over a hold before it); a sensor at the end of its
+    range reads the same value at every swing beyond it. Every extremum of a clipped side at
+    the level is then cut off: its true value lies beyond."""
+    quantum = _quantum(y)
     dt = float(np.median(np.diff(t)))
     centre = float(np.median(y))
     mask = np.zeros(idx.size, dtype=bool)
     levels = {"max": None, "min": None}
     for name, side, level in (("max", peak, float(np.max(y))), ("min", ~peak, float(np.min(y)))):
-        tol = max(0.5 * quantum, 1e-12 * abs(level))
-        at = np.abs(y - level) <= tol
+        at = y == level
         amplitude = max(abs(level - centre), 1e-300)
         # an unclipped vertex of amplitude a stays within q of it for (2 h / pi) sqrt(2 q / a)
         long_runs, touching = 0, []
@@ -944,7 +946,7 @@ def _clipped(t, y, idx, peak, half):
                 lo -= 1
             while hi + 1 < y.size and at[hi + 1]:
                 hi += 1
-            natural = 2 * half[j] / math.pi * math.sqrt(2 * max(tol, quantum) / amplitude)
+            natural = 2 * half[j] / math.pi * math.sqrt(2 * quantum / amplitude)
             long_runs += bool(t[hi] - t[lo] > max(3 * natural, 2.5 * dt))
         if long_runs >= 2:
             mask[touching] = True
