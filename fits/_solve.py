@@ -360,23 +360,9 @@ def _profiles(requests, shape):
                 else 0.1 * max(abs(est[s]), job.scale[s])
             )
             for side in (-1, 1):
-                state.append(
-                    {
-                        "request": n,
-                        "slot": s,
-                        "side": side,
-                        "v": est[s] + side * width,
-                        "done": False,
-                        "ok": False,
-                        "p": base["p"],
-                        "bound": t.lo if side < 0 else t.hi,
-                        # (v, g, p) farthest inside the region (g = sqrt(deviance /
-                        # target) - 1 < 0) and nearest outside it (g > 0): `_profile_step`
-                        "inside": (est[s], -1.0, base["p"]),
-                        "outside": None,
-                        "moved": None,  # the bracket's end that the last step replaced
-                    }
-                )
+                bound = t.lo if side < 0 else t.hi
+                start = est[s] + side * width
+                state.append(_profile_end(n, s, side, est[s], start, bound, base["p"]))
     for _ in range(_PROFILE_STEPS):
         by_space = {}
         for st in state:
@@ -404,6 +390,27 @@ def _profiles(requests, shape):
         if st["ok"]:
             ends[st["request"]].setdefault(st["slot"], {})[st["side"]] = st["v"]
     return ends
+
+
+def _profile_end(request: int, slot: int, side: int, est: float, start: float, bound, p):
+    """The state of the interval end `side` (-1, +1) of `slot` of `_profiles`' request
+    `request`: started at `start` (the Wald end) from the solution `p` at the estimate `est`,
+    towards `bound`."""
+    return {
+        "request": request,
+        "slot": slot,
+        "side": side,
+        "v": start,
+        "done": False,
+        "ok": False,
+        "p": p,
+        "bound": bound,
+        # (v, g, p) farthest inside the region (g = sqrt(deviance / target) - 1 < 0) and
+        # nearest outside it (g > 0), see `_profile_step`
+        "inside": (est, -1.0, p),
+        "outside": None,
+        "moved": None,  # the bracket's end that the last step replaced
+    }
 
 
 def _profile_step(st, out, request):

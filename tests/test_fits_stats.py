@@ -258,28 +258,17 @@ def test_report_and_figure_of_a_joint_amplitude_only_result(tmp_path):
 
 
 # -- the profile-likelihood root finding (fits._solve._profile_step), on given profiles --------
-def _profile_end(deviance, est=0.0, wald=1.0, steps=8):
+def _drive_profile_end(deviance, est=0.0, wald=1.0, steps=8):
     """Drive one interval end (side +1) of `fits._solve._profiles`' iteration on a profile
     deviance given as a function: returns (v, ok, the deviances visited)."""
     from types import SimpleNamespace
 
-    from fits._solve import _CHI2_95, _PROFILE_STEPS, _profile_step
+    from fits._solve import _PROFILE_STEPS, _profile_end, _profile_step
 
     assert steps == _PROFILE_STEPS
     job = SimpleNamespace(rss=10.0)
     request = (job, None, [est], None, 1.0, 1.0)  # (job, problem, est, se, inflation, s2)
-    st = {
-        "slot": 0,
-        "side": 1,
-        "v": est + wald,
-        "done": False,
-        "ok": False,
-        "p": None,
-        "bound": math.inf,
-        "inside": (est, -1.0, "optimum"),
-        "outside": None,
-        "moved": None,
-    }
+    st = _profile_end(0, 0, 1, est, est + wald, math.inf, "optimum")
     seen = []
     for _ in range(steps):
         dev = deviance(st["v"])
@@ -288,7 +277,6 @@ def _profile_end(deviance, est=0.0, wald=1.0, steps=8):
         _profile_step(st, out, request)
         if st["done"]:
             break
-    assert _CHI2_95 == pytest.approx(3.841, abs=1e-3)
     return st["v"], st["ok"], seen
 
 
@@ -300,12 +288,13 @@ def test_profile_ends_quadratic_curved_and_jumping():
     bracketed and found within the tolerance (2 % of the deviance); where the profile jumps over
     the target (another local minimum), an end is either the jump's place to 1 % of its
     distance or reported as not found (the Wald interval is used then), never elsewhere."""
-    target = 3.841458820694124
-    v, ok, seen = _profile_end(lambda v: (v / 0.8) ** 2)
+    from fits._solve import _CHI2_95 as target  # (inflation 1)
+
+    v, ok, seen = _drive_profile_end(lambda v: (v / 0.8) ** 2)
     assert ok and len(seen) == 2 and v == pytest.approx(0.8 * math.sqrt(target), rel=1e-12)
 
     steep = lambda v: (v / 0.8) ** 2 * math.exp(6 * max(v - 1.2, 0))  # noqa: E731
-    v, ok, seen = _profile_end(steep)
+    v, ok, seen = _drive_profile_end(steep)
     assert ok and abs(steep(v) / target - 1) < 0.02
     naive = [1.0]  # the extrapolation alone: v <- v sqrt(target / deviance(v))
     for _ in range(8):
@@ -314,5 +303,5 @@ def test_profile_ends_quadratic_curved_and_jumping():
 
     for at in (1.05, 1.2, 1.3, 1.45, 1.55):
         jump = lambda v: (v / 0.8) ** 2 + (50.0 if v > at else 0.0)  # noqa: E731,B023
-        v, ok, _ = _profile_end(jump)
+        v, ok, _ = _drive_profile_end(jump)
         assert not ok or abs(v - at) <= 0.01 * at + 1e-12, (at, v)

@@ -27,7 +27,7 @@ class RESULTS(enum.IntEnum):
     successful = 0  #: every requested turning point was reached
     stopped = 1  #: the mass came to rest for good (stick rule); okay, not a failure
     mass_exhausted = 2  #: the mass reaches zero (delta < 0) before the next turning point
-    step_limit = 3  #: no velocity zero within the step limit (overdamped or creeping motion)
+    step_limit = 3  #: no velocity zero within the step limit (overdamped, creeping, not turning)
     solver_failed = 4  #: the diffrax solve of the smoothed model did not finish
     length_exhausted = 5  #: the rope length l(t) reaches zero before the next turning point
     unbounded = 6  #: no turning point: the swing goes over the potential barrier
@@ -68,8 +68,9 @@ _MESSAGES = {
     "turning point",
     RESULTS.mass_exhausted: "the mass m0 + delta*t reaches zero (at t = m0/|delta|) before the "
     "next turning point; the solve stopped there",
-    RESULTS.step_limit: "no velocity zero within the step limit: the motion is overdamped or "
-    "creeping (raise max_substeps if it is only slow)",
+    RESULTS.step_limit: "no velocity zero within the step limit: the motion is overdamped, "
+    "creeping (raise max_substeps if it is only slow), or does not turn back (a pendulum "
+    "over the top: a restoring law that does not hold the swing)",
     RESULTS.solver_failed: "the smoothed ODE solve failed (step limit or non-finite state); try a "
     "larger smoothing or max_steps",
     RESULTS.length_exhausted: "the rope length l(t) reaches zero before the next turning point; "

@@ -51,7 +51,8 @@ class Exact(AbstractSolver):
     - `max_substeps`: step limit per half-swing; default: the model's (8 for most models,
       where a substep is about 0.64 of a half-period for the variable-mass model; 12 for
       [`vmj.Oscillator`][], whose nonlinear laws need shorter substeps). A half-swing that
-      needs more reports `RESULTS.step_limit` (overdamped or creeping motion).
+      needs more reports `RESULTS.step_limit` (overdamped or creeping motion, or one that does
+      not turn back).
     - `derivatives`: `"any"` (default): `jax.grad` (reverse mode) and `jax.jacfwd` both
       differentiate the turning points, the derivatives running every step of bounded loops.
       `"forward"`: forward mode only (`jax.jvp`, `jax.jacfwd`), through the same early-exit
