@@ -894,13 +894,14 @@ def _shape_bias(x4, x6, raw, usable) -> np.ndarray:
     `a` from the median centre on side `s`, `f(a) = b1 a + b3 a^3 + b5 a^5` by least squares
     over the `usable` extrema whose fits found a vertex (`raw` the extrema's samples: a fit
     that did not keeps them), the first left out (a hold before the release is no vertex,
-    and a release at the signal's start is fitted from one side). Returns the bias to subtract (`s f(a)`) where `f` is significant
-    (somewhere over the record's amplitudes more than 3 standard errors from 0), else zeros:
-    where the quartic suffices its values are kept as they are.
+    and a release at the signal's start is fitted from one side). Returns the bias to
+    subtract (`s f(a)`, not extrapolated beyond the largest amplitude fitted) where `f` is
+    significant (somewhere over the record's amplitudes more than 3 standard errors from 0),
+    else zeros: where the quartic suffices its values are kept as they are.
 
     Measured (noise-free synthetic pendulum records, sine law, the extrema above half the
     release): the quartic overstates the amplitudes by 1.5e-3 deg released from 27 deg, 2.8e-3
-    from 60 deg and 4.3e-2 from 120 deg (a fifth of the noise of a turning point at 0.2 %
+    from 60 deg and 4.3e-2 from 120 deg (half the scatter of a turning point at 0.2 %
     noise there), a trend in the amplitude that a fit reads as quadratic drag."""
     x4, x6 = np.asarray(x4, dtype=float), np.asarray(x6, dtype=float)
     ok = usable & (x4 != raw) & (x6 != raw) & np.isfinite(x6)

@@ -124,10 +124,11 @@ def _residual(space, forward, n, theta, d: _Data):
 
 def _residual_and_jacobian_impl(space, forward, n, p, d):
     """Residuals at `p` and their Jacobian with respect to the slot values (in the parameters'
-    units), from one forward-mode pass, the records' clocks aligned (`_align_clocks`). Wrapping it as a `custom_jvp` whose tangent is that
-    materialised Jacobian keeps the solvers from tracing (and compiling) the forward model
-    again for linearisation and transposition: one compiled Jacobian serves the
-    Levenberg-Marquardt steps, Adam's gradients and the standard errors."""
+    units), from one forward-mode pass, the records' clocks aligned (`_align_clocks`).
+    Wrapping it as a `custom_jvp` whose tangent is that materialised Jacobian keeps the
+    solvers from tracing (and compiling) the forward model again for linearisation and
+    transposition: one compiled Jacobian serves the Levenberg-Marquardt steps, Adam's
+    gradients and the standard errors."""
     val = _values(d, p)
 
     def r_of(v):
