@@ -840,10 +840,11 @@ _WINDOW = 0.4  #: half-width of the local fit around an extremum, in local half-
 
 
 def _refine(t, y, i, half, peak, kink=0.0, degree=4):
-    """Time and value of the extremum near sample `i`: a least-squares quartic through the
-    samples within `0.4 half` of it (a parabola where fewer than 7 samples fall inside) less
-    the dry-friction kink `kink sign(tau) (1 - cos(pi tau / half))` about its vertex, the
-    vertex nearest the centre, the window re-centred on that vertex twice. `half` is the local
+    """Time and value of the extremum near sample `i`: a least-squares polynomial of `degree`
+    (a quartic by default; a parabola where fewer than `degree + 3` samples fall inside)
+    through the samples within `0.4 half` of it, less the dry-friction kink `kink sign(tau)
+    (1 - cos(pi tau / half))` about its vertex, the vertex nearest the centre, the window
+    re-centred on that vertex twice. `half` is the local
     half-period [s]; `peak` says a maximum is sought (else a minimum). The sample itself is
     kept where the fit has no such vertex inside the window.
 

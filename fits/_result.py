@@ -47,7 +47,8 @@ class FitResult:
     - `residuals` (per point of the first record: `k`, `position`, `time`, `standardized`,
       `outlier`, NaN (JSON null) where a point is no datum: the position and time of a release
       at the signal's edge, the time of one from a hold; for a series fit per sample: `t` [s]
-      from the release instead of `k` and `time`); `outliers` (the flagged `k`, or sample indices); `decrement` (the decrement-method estimate);
+      from the release instead of `k` and `time`); `outliers` (the flagged `k`, or sample
+      indices); `decrement` (the decrement-method estimate);
       `record`; `records` (joint fits: per record `source`, `params`, `stderr`, `stderr_gn`,
       `intervals`, `rms`, `outliers`); `clock` (the sample-clock report of a raw signal).
     """

@@ -89,13 +89,11 @@ def _align_clocks(r, J, wt):
     R, N = wt.shape
     total = jnp.sum(wt * wt, axis=1, keepdims=True)
     unit = wt / jnp.sqrt(jnp.where(total > 0, total, 1.0))  # 0 for a record without times
-    rt = r.reshape(R, 2, N)[:, 1]
-    Jt = J.reshape(R, 2, N, -1)[:, 1]
-    rt = rt - unit * jnp.sum(unit * rt, axis=1, keepdims=True)
-    Jt = Jt - unit[..., None] * jnp.einsum("rn,rnq->rq", unit, Jt)[:, None, :]
-    r = r.reshape(R, 2, N).at[:, 1].set(rt).reshape(-1)
-    J = J.reshape(R, 2, N, -1).at[:, 1].set(Jt).reshape(R * 2 * N, -1)
-    return r, J
+    both = jnp.concatenate([J, r[:, None]], axis=1).reshape(R, 2, N, -1)  # (one projection)
+    times = both[:, 1]
+    times = times - unit[..., None] * jnp.einsum("rn,rnq->rq", unit, times)[:, None, :]
+    both = both.at[:, 1].set(times).reshape(R * 2 * N, -1)
+    return both[:, -1], both[:, :-1]
 
 
 def _residual(space, forward, n, theta, d: _Data):
@@ -445,9 +443,11 @@ def _profile_step(st, out, request):
     centre = est[st["slot"]]
     point = (st["v"], math.sqrt(max(dev, 0.0) / target) - 1.0, out["p"])
     end, other = ("inside", "outside") if dev < target else ("outside", "inside")
-    known = st[end]
-    if known is None or (abs(point[0] - centre) > abs(known[0] - centre)) == (end == "inside"):
+    known, dist = st[end], abs(st["v"] - centre)
+    if known is None:
         st[end] = point
+    elif (dist > abs(known[0] - centre)) if end == "inside" else (dist < abs(known[0] - centre)):
+        st[end] = point  # farther inside, or nearer outside
     if st["moved"] == end and st[other] is not None:  # Illinois: the other end kept twice
         v, g, p = st[other]
         st[other] = (v, 0.5 * g, p)
