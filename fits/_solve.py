@@ -31,6 +31,12 @@ __all__ = []
 
 _TUNING = {"huber": 1.345, "cauchy": 2.385}  #: 95 % efficiency constants of the robust losses
 _LM_RTOL, _LM_ATOL = 1e-10, 1e-12
+#: Bates and Watts' relative offset at which a Levenberg-Marquardt solve has converged, and
+#: the singular values (relative to the largest) that count as the Jacobian's rank there
+_OFFSET_RTOL, _RANK_RTOL = 1e-4, 1e-10
+#: no progress: accepted steps in a row that lowered the residual sum of squares by less than
+#: this many residual variances together
+_STALL_STEPS, _STALL_DEVIANCE = 10, 1e-5
 _CHI2_95 = 3.841458820694124  #: 95 % quantile of chi-square with 1 degree of freedom
 _PROFILE_STEPS = 8  #: root-finding iterations of a profile-likelihood end
 _PROFILE_TOL = 0.02  #: relative tolerance on the deviance at an interval end
@@ -158,6 +164,78 @@ def _residual_and_jacobian_jvp(space, forward, n, primals, tangents):
 _NO_MESH = jax.sharding.AbstractMesh((), ())
 
 
+def _offset_and_scale(r, J):
+    """Bates and Watts' relative offset at `(r, J)` (squared): the residuals' projection on
+    the Jacobian's column space against their orthogonal part, `(|P r|^2 / p) / (|r - P
+    r|^2 / (n - p))`, and the residual variance `|r - P r|^2 / (n - p)` (n, p: the rows and
+    the rank that count; padding rows and held slots are zero)."""
+    u, sv, _ = jnp.linalg.svd(J, full_matrices=False)
+    kept = sv > sv[0] * _RANK_RTOL
+    along = jnp.sum(jnp.where(kept, u.T @ r, 0.0) ** 2)
+    p = jnp.sum(kept)
+    dof = jnp.sum(jnp.any(J != 0, axis=1) | (r != 0)) - p
+    s2 = (jnp.sum(r * r) - along) / jnp.maximum(dof, 1)
+    return jnp.where(dof > 0, along / jnp.maximum(p, 1) / s2, jnp.inf), s2
+
+
+class _LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
+    """optimistix's Levenberg-Marquardt with two more ends, both converged, for fits of
+    measured data:
+
+    - Bates and Watts' relative offset (`_offset_and_scale`) below `_OFFSET_RTOL`: the
+      Gauss-Newton step that remains would move the parameters by about that fraction of
+      their standard errors;
+    - no progress: `_STALL_STEPS` accepted steps in a row lowered the residual sum of
+      squares by less than `_STALL_DEVIANCE` residual variances together (SciPy's
+      `least_squares` ends on the same kind of test, its `ftol`). In a long, curved valley
+      (a law set that misfits the record) the solver otherwise crawls on to its step limit,
+      each step lowering the loss by a few parts in 1e9, and holds up the whole batch it is
+      solved in; at a kink of the loss (a mass that sticks or not) the trust region shrinks
+      until optimistix's own test ends it.
+
+    optimistix's own test (every slot and every residual changed by less than
+    `atol + rtol |value|` in an accepted step) still ends fits without noise, whose offset
+    is rounding over rounding. Not converged: the step limit, or values that are not
+    finite. `fn` returns `(r, J)` as its auxiliary output."""
+
+    rtol: float
+    atol: float
+    norm: object = optx.max_norm
+
+    @property
+    def _lm(self):
+        return optx.LevenbergMarquardt(self.rtol, self.atol, self.norm)
+
+    def init(self, fn, y, args, options, f_struct, aux_struct, tags):
+        inner = self._lm.init(fn, y, args, options, f_struct, aux_struct, tags)
+        return (
+            inner,
+            jnp.asarray(jnp.inf, f_struct.dtype),
+            jnp.asarray(0),
+            jnp.zeros((), f_struct.dtype),
+        )
+
+    def step(self, fn, y, args, options, state, tags):
+        inner, ref, quiet, _ = state
+        accepted = inner.num_accepted_steps
+        y, inner, aux = self._lm.step(fn, y, args, options, inner, tags)
+        r, J = aux  # at the last accepted point
+        offset2, s2 = _offset_and_scale(r, J)
+        rss = jnp.sum(r * r)
+        progress = ref - rss > _STALL_DEVIANCE * s2
+        quiet = jnp.where(progress, 0, quiet + (inner.num_accepted_steps > accepted))
+        return y, (inner, jnp.where(progress, rss, ref), quiet, offset2), aux
+
+    def terminate(self, fn, y, args, options, state, tags):
+        inner, _, quiet, offset2 = state
+        done, result = self._lm.terminate(fn, y, args, options, inner, tags)
+        offset = (inner.num_accepted_steps > 0) & (offset2 < _OFFSET_RTOL**2)
+        return done | offset | (quiet >= _STALL_STEPS), result
+
+    def postprocess(self, fn, y, aux, args, options, state, tags, result):
+        return self._lm.postprocess(fn, y, aux, args, options, state[0], tags, result)
+
+
 @exported_jit(static_argnums=(0, 1, 2, 3))  # a repeated `vmj fit` loads it untraced
 def _solve_lm(space, forward, n, max_steps, d, p0):
     def one(d, p0):
@@ -171,7 +249,7 @@ def _solve_lm(space, forward, n, max_steps, d, p0):
 
         sol = optx.least_squares(
             fn,
-            optx.LevenbergMarquardt(_LM_RTOL, _LM_ATOL),
+            _LevenbergMarquardt(_LM_RTOL, _LM_ATOL),
             p0,
             d,
             has_aux=True,
