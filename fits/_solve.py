@@ -196,7 +196,9 @@ class _LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
     optimistix's own test (every slot and every residual changed by less than
     `atol + rtol |value|` in an accepted step) still ends fits without noise, whose offset
     is rounding over rounding. Not converged: the step limit, or values that are not
-    finite. `fn` returns `(r, J)` as its auxiliary output."""
+    finite. `fn` returns `(r, J, dv)` as its auxiliary output: the residuals, their Jacobian
+    in the parameters' units and the parameters' derivatives in the solver's coordinates
+    (zero for a held slot: a profile's point is not a minimum in its direction)."""
 
     rtol: float
     atol: float
@@ -219,8 +221,8 @@ class _LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
         inner, ref, quiet, _ = state
         accepted = inner.num_accepted_steps
         y, inner, aux = self._lm.step(fn, y, args, options, inner, tags)
-        r, J = aux  # at the last accepted point
-        offset2, s2 = _offset_and_scale(r, J)
+        r, J, dv = aux  # at the last accepted point
+        offset2, s2 = _offset_and_scale(r, J * dv)  # (held slots: dv = 0)
         rss = jnp.sum(r * r)
         progress = ref - rss > _STALL_DEVIANCE * s2
         quiet = jnp.where(progress, 0, quiet + (inner.num_accepted_steps > accepted))
@@ -245,7 +247,7 @@ def _solve_lm(space, forward, n, max_steps, d, p0):
             # inner jit's traces are then shared, not made twice
             with jax.sharding.use_abstract_mesh(_NO_MESH):
                 r, J = _residual_and_jacobian(space, forward, n, p, d)
-            return r, (r, J)
+            return r, (r, J, derivative(d.code, d.lo, d.hi, d.scale, p))
 
         sol = optx.least_squares(
             fn,
@@ -256,7 +258,7 @@ def _solve_lm(space, forward, n, max_steps, d, p0):
             max_steps=max_steps,
             throw=False,
         )
-        r, J = sol.aux  # at the returned point: no second compiled copy of the Jacobian
+        r, J, _ = sol.aux  # at the returned point: no second compiled copy of the Jacobian
         ok = sol.result == optx.RESULTS.successful
         return sol.value, _place(d, _values(d, sol.value)), J, r, ok, sol.stats["num_steps"]
 

@@ -305,3 +305,86 @@ def test_profile_ends_quadratic_curved_and_jumping():
         jump = lambda v: (v / 0.8) ** 2 + (50.0 if v > at else 0.0)  # noqa: E731,B023
         v, ok, _ = _drive_profile_end(jump)
         assert not ok or abs(v - at) <= 0.01 * at + 1e-12, (at, v)
+
+
+# -- the Levenberg-Marquardt solve's ends (fits._solve._LevenbergMarquardt) -------------------
+def _least_squares(residuals, y0, strict=False, max_steps=200):
+    """Solve with the fits' Levenberg-Marquardt (or optimistix's own, `strict`): (y, rss,
+    steps, converged)."""
+    import jax
+    import jax.numpy as jnp
+    import optimistix as optx
+
+    from fits._solve import _LM_ATOL, _LM_RTOL, _LevenbergMarquardt
+
+    def fn(y, _):
+        r = residuals(y)
+        return r, (r, jax.jacfwd(residuals)(y), jnp.ones_like(y))
+
+    solver = (optx.LevenbergMarquardt if strict else _LevenbergMarquardt)(_LM_RTOL, _LM_ATOL)
+    sol = optx.least_squares(
+        fn, solver, jnp.asarray(y0), has_aux=True, max_steps=max_steps, throw=False
+    )
+    r = np.asarray(sol.aux[0])
+    ok = bool(sol.result == optx.RESULTS.successful)
+    return np.asarray(sol.value), float(r @ r), int(sol.stats["num_steps"]), ok
+
+
+def test_relative_offset_against_a_direct_projection():
+    """`_offset_and_scale` (Bates and Watts' relative offset, squared, and the residual
+    variance) against the projection by NumPy's least squares, with a held slot (a zero column)
+    and padding rows (zero), which count neither as parameters nor as data."""
+    from fits._solve import _offset_and_scale
+
+    rng = np.random.default_rng(3)
+    n, p = 40, 3
+    J = rng.normal(size=(n, p))
+    r = rng.normal(size=n) + J @ np.array([0.3, -0.2, 0.1])
+    coef = np.linalg.lstsq(J, r, rcond=None)[0]
+    along, across = np.sum((J @ coef) ** 2), np.sum((r - J @ coef) ** 2)
+    want = (along / p) / (across / (n - p))
+    padded_J = np.zeros((n + 8, p + 1))
+    padded_J[:n, [0, 1, 3]] = J  # slot 2 held
+    padded_r = np.concatenate([r, np.zeros(8)])
+    offset2, s2 = _offset_and_scale(padded_r, padded_J)
+    assert float(offset2) == pytest.approx(want, rel=1e-10)
+    assert float(s2) == pytest.approx(across / (n - p), rel=1e-10)
+
+
+def test_levenberg_marquardt_ends_at_a_fraction_of_the_standard_errors():
+    """Converged by the relative offset: a noisy exponential decay (60 points, noise 0.01)
+    ends in fewer steps than optimistix's own test needs, at the same parameters to 1e-3 of
+    their standard errors. No progress: in Rosenbrock's curved valley with noise rows
+    (`10 (y1 - y0^2)`, `0.01 (1 - y0)`, 30 constant residuals of variance 1) optimistix's
+    solver takes 392 steps to the minimum (1, 1); the fits' solver ends in fewer than 200,
+    its residual sum of squares within 1e-3 residual variances of the minimum's, on the
+    valley's floor within 1 % of y0's 95 % profile interval (y0 is barely determined: the
+    interval is 1 +- 196)."""
+    import jax.numpy as jnp
+
+    rng = np.random.default_rng(5)
+    t = np.linspace(0, 3, 60)
+    data = 2.0 * np.exp(-1.3 * t) + 0.01 * rng.normal(size=t.size)
+
+    def decay(y):
+        return y[0] * jnp.exp(-y[1] * t) - data
+
+    y, rss, steps, ok = _least_squares(decay, [1.0, 0.5])
+    y_strict, rss_strict, steps_strict, ok_strict = _least_squares(decay, [1.0, 0.5], strict=True)
+    assert ok and ok_strict and steps < steps_strict
+    J = np.stack([np.exp(-y_strict[1] * t), -y_strict[0] * t * np.exp(-y_strict[1] * t)], 1)
+    se = np.sqrt(np.diag(np.linalg.inv(J.T @ J)) * rss_strict / (t.size - 2))
+    assert np.all(np.abs(y - y_strict) < 1e-3 * se)
+
+    noise = rng.normal(size=30)
+    noise *= math.sqrt(30 / (noise @ noise))  # residual variance about 1
+
+    def valley(y):
+        return jnp.concatenate([jnp.stack([10 * (y[1] - y[0] ** 2), 1e-2 * (1 - y[0])]), noise])
+
+    y, rss, steps, ok = _least_squares(valley, [-1.2, 1.0], max_steps=2000)
+    assert ok and steps < 200
+    s2 = (noise @ noise) / (32 - 2)
+    assert rss - noise @ noise < 1e-3 * s2
+    # on the valley's floor, within 1 % of y0's 95 % profile interval (|1 - y0| <= 196)
+    assert abs(y[1] - y[0] ** 2) < 1e-3 and abs(y[0] - 1) < 0.01 * 1.96 / 1e-2
