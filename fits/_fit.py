@@ -41,7 +41,7 @@ import numpy as np
 import vmj
 
 from ._decrement import decrement, starting_guess
-from ._io import EDGE_RELEASE, HELD_RELEASE, Record, sample_window
+from ._io import EDGE_RELEASE, HELD_RELEASE, Record, extract_turning_points, sample_window
 from ._models import FORWARDS, SPACES, Space, series_space
 from ._params import (
     HELD,
@@ -647,12 +647,29 @@ def _restart_from_larger(jobs, problems, shape):
 
 
 # -- the driver --------------------------------------------------------------------------------
+def _extracted_for(space, rec: Record, given: dict) -> Record:
+    """`rec`, or where it was extracted from a raw signal and `space` reads the signal as an
+    angle (its `angle_unit`) but the extraction did not, the same signal extracted again with
+    that unit (the dry-friction level from a pendulum's decrements, `fits._io._dry_level`)."""
+    if "angle_unit" not in space.names or rec.signal is None or "min_amplitude" not in rec.meta:
+        return rec
+    unit = float(given.get("angle_unit", space.defaults["angle_unit"]))
+    if rec.meta["angle_unit"] == unit:
+        return rec
+    return extract_turning_points(
+        rec.signal,
+        hysteresis=rec.meta["hysteresis"],
+        min_amplitude=rec.meta["min_amplitude"],
+        angle_unit=unit,
+    )
+
+
 def _problem(space, records, givens, free, shared):
     recs = []
-    for rec in records:
+    for rec, given in zip(records, givens):
         if not isinstance(rec, Record):
             raise ValueError("records must be fits.Record objects (see fits.read_record)")
-        recs.append(rec)
+        recs.append(_extracted_for(space, rec, given))
     for rec, given in zip(recs, givens):
         _fixed_values(space, rec, free, given)  # a parameter without a value: its name first
     decs = []

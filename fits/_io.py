@@ -928,14 +928,33 @@ def _shape_bias(x4, x6, raw, usable) -> np.ndarray:
     return side * (basis @ coef)
 
 
-def _dry_level(x, peak) -> list:
+def _pendulum_decrements(angle) -> tuple:
+    """Shapes of a pendulum's decrements per half-swing at the amplitudes `angle` [rad], each
+    relative to the linear oscillator's (1 at small swings), for weak damping (from the energy
+    lost over a half-swing, `dA = dE / (omega^2 sin A)`): Coulomb `A / sin A`; viscous
+    `2 I1 / (pi A sin A)` with `I1 = int sqrt(2 (cos t - cos A)) dt` over `(-A, A)`; quadratic
+    drag `3 (sin A - A cos A) / (A^2 sin A)`. `I1 = 4 k^2 int cos^2 p / sqrt(1 - k^2 sin^2 p) dp`
+    over `(-pi/2, pi/2)`, `k = sin(A/2)` (Gauss-Legendre, 24 nodes: within 1e-12 up to 120 deg, 1e-7 at 170)."""
+    A = np.clip(np.asarray(angle, dtype=float), 1e-6, 3.0)
+    nodes, weights = np.polynomial.legendre.leggauss(24)
+    phi = 0.5 * math.pi * nodes
+    k2 = np.sin(0.5 * A)[:, None] ** 2
+    inner = np.cos(phi) ** 2 / np.sqrt(1.0 - k2 * np.sin(phi) ** 2)
+    I1 = 4 * k2[:, 0] * (0.5 * math.pi) * (inner @ weights)
+    s = np.sin(A)
+    return A / s, 2 * I1 / (math.pi * A * s), 3 * (s - A * np.cos(A)) / (A * A * s)
+
+
+def _dry_level(x, peak, angle_unit=None) -> list:
     """The dry-friction level seen at the maxima and at the minima of a decay [signal units],
     from the decay of each side's amplitudes `a` (about the median local centre) over a
-    period: `a[j] - a[j+1] = 4 xF + c1 a[j] + c2 a[j]^2` (Coulomb, viscous and quadratic
-    decrements; the `4 xF` exact for a linear restoring law), at least 0; 0 with fewer than 6
-    extrema on a side, and at most a quarter of the median decay over a period (all of the
-    decay dry friction's). The first extremum is left out (it may be a hold before the
-    release)."""
+    period: `a[j] - a[j+1] = 4 xF g_c + c1 a g_v + c2 a^2 g_q` (Coulomb, viscous and quadratic
+    decrements at `a[j]`), at least 0; 0 with fewer than 6 extrema on a side, and at most a
+    quarter of the median decay over a period (all of the decay dry friction's). For a linear
+    restoring law the shapes `g` are 1; for a pendulum's angle (`angle_unit` [rad per signal
+    unit] given) they are its own (`_pendulum_decrements`: Coulomb's 2.4 at 120 deg), without
+    which the level of a record released from 120 deg came out 3-4 times too large. The first
+    extremum is left out (it may be a hold before the release)."""
     x, peak = np.asarray(x, dtype=float)[1:], np.asarray(peak)[1:]
     c = np.median(_local_centres(x)) if x.size >= 3 else 0.0
     out = []
@@ -945,9 +964,13 @@ def _dry_level(x, peak) -> list:
             out.append(0.0)
             continue
         d = a[:-1] - a[1:]
-        A = np.column_stack([np.ones(a.size - 1), a[:-1], a[:-1] ** 2])
+        mid = 0.5 * (a[:-1] + a[1:])  # (the loss rate at the period's middle: second order)
+        shapes = np.ones((3, a.size - 1))
+        if angle_unit is not None:
+            shapes = np.array(_pendulum_decrements(mid * angle_unit))
+        A = np.column_stack([shapes[0], mid * shapes[1], mid**2 * shapes[2]])
         level = float(np.linalg.lstsq(A, d, rcond=None)[0][0]) / 4
-        out.append(min(max(level, 0.0), max(float(np.median(d)), 0.0) / 4))
+        out.append(min(max(level, 0.0), max(float(np.median(d / shapes[0])), 0.0) / 4))
     return out
 
 
@@ -998,7 +1021,11 @@ def _clipped(t, y, idx, peak, half):
 
 
 def extract_turning_points(
-    signal: Signal, *, hysteresis: float | None = None, min_amplitude: float | None = None
+    signal: Signal,
+    *,
+    hysteresis: float | None = None,
+    min_amplitude: float | None = None,
+    angle_unit: float | None = None,
 ) -> Record:
     """Turning points of a raw decaying signal, robust to irregular sampling, noise,
     quantisation, a constant offset and a few spurious extrema.
@@ -1030,8 +1057,12 @@ def extract_turning_points(
     first swing, at the hold's level; `meta` says so (`"release"`: `HELD_RELEASE`, the fits do
     not weigh its time), as it does of a release at the signal's first samples
     (`EDGE_RELEASE`: located from one side only, the fits weigh neither its position nor its
-    time), and holds the `hysteresis` and the dry-friction `kink` levels of the
-    maxima and the minima [signal units].
+    time), and holds the `hysteresis`, the `min_amplitude`, the `angle_unit` and the
+    dry-friction `kink` levels of the maxima and the minima [signal units].
+
+    `angle_unit` [rad per signal unit]: the signal is a pendulum's angle; the dry-friction
+    level is then measured with a pendulum's decrements (`_dry_level`). The fits of a model
+    with an angle unit (the pendulum) extract a record again with theirs.
     The signal's clock report is `record.clock`.
     """
     t, y = np.asarray(signal.t, dtype=float), np.asarray(signal.y, dtype=float)
@@ -1076,7 +1107,7 @@ def extract_turning_points(
     # a dry-friction level bends every turning point (`_refine`): measured from the decay of
     # the extrema refined without it, then each extremum refined again with it
     refined = refine((0.0, 0.0))
-    kinks = _dry_level(refined[~clipped, 1], peak[~clipped])
+    kinks = _dry_level(refined[~clipped, 1], peak[~clipped], angle_unit)
     if max(kinks) > 0:
         refined = refine(kinks)
     tk, xk = refined[:, 0], refined[:, 1]
@@ -1103,7 +1134,7 @@ def extract_turning_points(
         c = np.median(_local_centres(xk[1:]))
         if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
-    meta = {"hysteresis": h, "kink": kinks}
+    meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
     if one_sided:
         # released at (or just after) the first sample: its extremum is located from one side,
         # biased towards the centre (by 0.020 of a0 = 1 noise sd on average, 20 synthetic
@@ -1173,6 +1204,7 @@ def read_record(
     rate: float | None = None,
     time_unit: str | None = None,
     max_rows: int | None = MAX_ROWS,
+    angle_unit: float | None = None,
 ) -> Record:
     """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
     turning points extracted from a raw signal (see [`fits.read_signal`][] for `time_col`,
@@ -1187,7 +1219,8 @@ def read_record(
                 rate=rate,
                 time_unit=time_unit,
                 max_rows=max_rows,
-            )
+            ),
+            angle_unit=angle_unit,
         )
     raw = (time_col, signal_col, rate, time_unit)
     if any(v is not None for v in raw) or clock != "auto":
