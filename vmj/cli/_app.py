@@ -25,11 +25,13 @@ __all__ = ["COMMANDS", "main", "build_parser", "cache_directory"]
 @dataclass(frozen=True)
 class Command:
     """A command: its name, one line of help, and the module that defines it, with
-    `add_arguments(parser)` and `run(args) -> int` (imported when the command is named)."""
+    `add_arguments(parser)` and `run(args) -> int` (imported when the command is named);
+    `synchronous`: JAX's CPU computations run in the calling thread (`_set_up_jax`)."""
 
     name: str
     help: str
     module: str
+    synchronous: bool = True
 
     def load(self):
         return importlib.import_module(self.module)
@@ -59,7 +61,9 @@ COMMANDS = (
         "linear one-degree-of-freedom oscillator: frequencies, decrement, responses",
         "vmj.cli._linear",
     ),
-    Command("fit", "identify friction and damping from a measured decay", "fits._cli"),
+    Command(
+        "fit", "identify friction and damping from a measured decay", "fits._cli", synchronous=False
+    ),
 )
 
 CACHE_ENV = "VMJ_CACHE_DIR"
@@ -107,7 +111,7 @@ class _Commands(argparse._SubParsersAction):
             module = command.load()
             module.add_arguments(sub)
             add_global_options(sub, nested=True)
-            sub.set_defaults(command_run=module.run)
+            sub.set_defaults(command_run=module.run, synchronous=command.synchronous)
         super().__call__(parser, namespace, values, option_string)
 
 
@@ -179,8 +183,9 @@ def _set_up_jax(args) -> None:
     jax.config.update("jax_enable_x64", True)
     # run each compiled call in the calling thread: handing it to JAX's dispatch thread costs
     # a single solve more than its arithmetic (docs/performance.md); sweeps run their chunks
-    # in threads of their own, so nothing waits on it
-    jax.config.update("jax_cpu_enable_async_dispatch", False)
+    # in threads of their own, so nothing waits on it. Not for `vmj fit`: its long batched
+    # solves ran 2.6 times slower per step in the calling thread
+    jax.config.update("jax_cpu_enable_async_dispatch", not getattr(args, "synchronous", True))
     path, source = cache_directory(args)
     if path is not None:
         try:
