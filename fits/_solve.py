@@ -191,7 +191,7 @@ class _LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
       (a law set that misfits the record) the solver otherwise crawls on to its step limit,
       each step lowering the loss by a few parts in 1e9, and holds up the whole batch it is
       solved in; at a kink of the loss (a mass that sticks or not) the trust region shrinks
-      until optimistix's own test ends it.
+      until this test or optimistix's own ends the solve.
 
     optimistix's own test (every slot and every residual changed by less than
     `atol + rtol |value|` in an accepted step) still ends fits without noise, whose offset
