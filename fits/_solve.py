@@ -32,7 +32,8 @@ __all__ = []
 _TUNING = {"huber": 1.345, "cauchy": 2.385}  #: 95 % efficiency constants of the robust losses
 _LM_RTOL, _LM_ATOL = 1e-10, 1e-12
 #: Bates and Watts' relative offset at which a Levenberg-Marquardt solve has converged, and
-#: the singular values (relative to the largest) that count as the Jacobian's rank there
+#: the part of a Jacobian column's norm that must remain, orthogonal to the columns before it,
+#: for it to count as one more dimension
 _OFFSET_RTOL, _RANK_RTOL = 1e-4, 1e-10
 #: no progress: accepted steps in a row that lowered the residual sum of squares by less than
 #: this many residual variances together
@@ -168,11 +169,27 @@ def _offset_and_scale(r, J):
     """Bates and Watts' relative offset at `(r, J)` (squared): the residuals' projection on
     the Jacobian's column space against their orthogonal part, `(|P r|^2 / p) / (|r - P
     r|^2 / (n - p))`, and the residual variance `|r - P r|^2 / (n - p)` (n, p: the rows and
-    the rank that count; padding rows and held slots are zero)."""
-    u, sv, _ = jnp.linalg.svd(J, full_matrices=False)
-    kept = sv > sv[0] * _RANK_RTOL
-    along = jnp.sum(jnp.where(kept, u.T @ r, 0.0) ** 2)
-    p = jnp.sum(kept)
+    the independent columns that count; padding rows and held slots are zero).
+
+    The projection by Gram-Schmidt, each column orthogonalised twice against those before it
+    and kept where more than `_RANK_RTOL` of its norm remains: matrix products only. With
+    LAPACK's factorisations inside the solve's loop (a singular-value decomposition, then a QR
+    factorisation) fits hung in XLA: two pendulum fits solved at once in threads, and then a
+    single oscillator fit of `tests/test_fits_coverage.py`, each waiting for its result."""
+    r, J = jnp.asarray(r), jnp.asarray(J)
+    norms = jnp.sqrt(jnp.sum(J * J, axis=0))
+
+    def column(j, basis):
+        v = J[:, j]
+        v = v - basis @ (basis.T @ v)
+        v = v - basis @ (basis.T @ v)
+        left = jnp.sqrt(jnp.sum(v * v))
+        keep = left > _RANK_RTOL * norms[j]
+        return basis.at[:, j].set(jnp.where(keep, v / jnp.where(keep, left, 1.0), 0.0))
+
+    basis = jax.lax.fori_loop(0, J.shape[1], column, jnp.zeros_like(J))
+    along = jnp.sum((basis.T @ r) ** 2)
+    p = jnp.sum(jnp.any(basis != 0, axis=0))
     dof = jnp.sum(jnp.any(J != 0, axis=1) | (r != 0)) - p
     s2 = (jnp.sum(r * r) - along) / jnp.maximum(dof, 1)
     return jnp.where(dof > 0, along / jnp.maximum(p, 1) / s2, jnp.inf), s2
