@@ -217,11 +217,6 @@ def run(args) -> int:
             signal_col=args.signal_col,
             time_unit=args.time_unit,
             rate=args.rate,
-            # (a pendulum's angle: the extraction measures its dry-friction level as the fit
-            # reads it, `fits._fit._extracted_for`)
-            **(
-                {"angle_unit": given["angle_unit"]} if args.series and "angle_unit" in given else {}
-            ),
         )
         for path in args.FILE
     ]

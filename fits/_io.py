@@ -933,8 +933,9 @@ def _pendulum_decrements(angle) -> tuple:
     relative to the linear oscillator's (1 at small swings), for weak damping (from the energy
     lost over a half-swing, `dA = dE / (omega^2 sin A)`): Coulomb `A / sin A`; viscous
     `2 I1 / (pi A sin A)` with `I1 = int sqrt(2 (cos t - cos A)) dt` over `(-A, A)`; quadratic
-    drag `3 (sin A - A cos A) / (A^2 sin A)`. `I1 = 4 k^2 int cos^2 p / sqrt(1 - k^2 sin^2 p) dp`
-    over `(-pi/2, pi/2)`, `k = sin(A/2)` (Gauss-Legendre, 24 nodes: within 1e-12 up to 120 deg, 1e-7 at 170)."""
+    drag `3 (sin A - A cos A) / (A^2 sin A)`. `I1 = 4 k^2 int cos^2 p / sqrt(1 - k^2 sin^2 p)
+    dp` over `(-pi/2, pi/2)`, `k = sin(A/2)` (Gauss-Legendre, 24 nodes: within 1e-12 up to 120
+    deg, 1e-7 at 170)."""
     A = np.clip(np.asarray(angle, dtype=float), 1e-6, 3.0)
     nodes, weights = np.polynomial.legendre.leggauss(24)
     phi = 0.5 * math.pi * nodes
