@@ -409,7 +409,10 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         if rec.times is not None and not series:
             res_t = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0)
             res_t[wt == 0] = np.nan  # not a datum (a release's time from a hold or one side)
-            z_t = res_t / _robust_scale(res_t[wt > 0], 1e-12)
+            # in units of the record's time noise (`tw`: an extremum of a small swing is timed
+            # worse), so that a small swing's time is not taken for an outlier
+            rt = res_t * prob.tw[i][:m]
+            z_t = rt / _robust_scale(rt[wt > 0], 1e-12)
             flagged |= np.abs(z_t) > outlier_sigma
         per_record.append(
             {

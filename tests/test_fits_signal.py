@@ -1,6 +1,7 @@
 """fits: readers and their errors, turning-point extraction from raw signals, the oscillator fit
 (synthetic and the measured pendulum record 80P.txt), Adam, batching, and `vmj fit`."""
 
+import dataclasses
 import json
 import math
 import os
@@ -225,6 +226,30 @@ def test_oscillator_fit_of_a_raw_signal(synthetic_signal):
     assert r.model_comparison["best_bic"] == "both"
     # the decrement method is the start and the comparison: close, but the fit is better
     assert abs(r.decrement["zeta"] / TRUE["zeta"] - 1) < 0.2
+
+
+def test_outliers_are_judged_in_units_of_each_times_precision():
+    """An extremum of a small swing is timed worse (`noise / (a omega^2)`): its time residual is
+    judged against its own precision, not the record's large swings'. Ten raw signals without
+    spikes: no turning point flagged (before, the robust scale of the unweighted time residuals
+    flagged 1-4 small swings' times in 5 of the 10). A time 5 ms off (about 25 of its standard
+    deviations) at a large swing still is."""
+    records = []
+    for seed in range(10):
+        t, y, _ = _oscillator_signal(**TRUE, t_end=6.0, seed=200 + seed, n_spikes=0)
+        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = fits.fit_batch(records, "oscillator", FREE, compare=False, intervals=False)
+    assert [r.outliers for r in results] == [[]] * 10
+    rec = records[0]
+    times = rec.times.copy()
+    times[3] += 0.005
+    bad = dataclasses.replace(rec, times=times)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(bad, "oscillator", FREE, compare=False, intervals=False)
+    assert r.outliers == [int(rec.k[3])]
 
 
 def test_a_clipped_signal_leaves_its_cut_off_extrema_out(synthetic_signal, tmp_path):
