@@ -324,13 +324,21 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     est, se_c, se_gn, corr = assessed.est, assessed.se_c, assessed.se_gn, assessed.corr
     vals = assessed.vals
     warn = []
+    # a slot held at a bound: its 95 % one-sided limit away from it, where it was profiled
+    limits = {s: v for s in range(q) if job.bound_hit[s] for v in (ends or {}).get(s, {}).values()}
     for s, nm in enumerate(names):
         if job.bound_hit[s]:
             if not _at_user_bound(job, s):
+                unit = space.unit(job.slots[s][0])
+                limit = (
+                    f"; its 95 % one-sided limit {nm} {'<=' if limits[s] > job.held[s] else '>='}"
+                    f" {limits[s]:.3g} [{unit}]"
+                    if s in limits
+                    else ""
+                )
                 warn.append(
-                    f"{nm} ran into its bound {job.held[s]:.6g} "
-                    f"[{space.unit(job.slots[s][0])}]: held there (a sub-model fits "
-                    f"as well; see model_comparison)"
+                    f"{nm} ran into its bound {job.held[s]:.6g} [{unit}]: held there (a sub-model "
+                    f"fits as well; see model_comparison){limit}"
                 )
         elif not np.isfinite(se_c[s]):
             warn.append(f"{nm} is not identified by these data: no standard error")
@@ -369,7 +377,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     intervals = {}
     for s, nm in enumerate(names):
         if not active[s]:
-            intervals[nm] = (math.nan, math.nan)
+            ends_s = (job.held[s], limits[s]) if s in limits else (math.nan, math.nan)
+            intervals[nm] = (float(min(ends_s)), float(max(ends_s)))
             continue
         got = {} if ends is None else ends.get(s, {})
         wald = 1.96 * se_c[s]

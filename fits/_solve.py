@@ -39,6 +39,10 @@ _OFFSET_RTOL, _RANK_RTOL = 1e-4, 1e-10
 #: this many residual variances together
 _STALL_STEPS, _STALL_DEVIANCE = 10, 1e-5
 _CHI2_95 = 3.841458820694124  #: 95 % quantile of chi-square with 1 degree of freedom
+#: 90 % quantile of chi-square with 1 degree of freedom: the deviance of a 95 % one-sided limit
+#: of a parameter whose estimate lies on its bound (the deviance is then 0 with probability 1/2,
+#: else chi-square with 1 degree of freedom: Self and Liang 1987)
+_CHI2_90 = 2.705543454095404
 _PROFILE_STEPS = 8  #: root-finding iterations of a profile-likelihood end
 _PROFILE_TOL = 0.02  #: relative tolerance on the deviance at an interval end
 
@@ -437,8 +441,10 @@ def _profiles(requests, shape):
     The profile deviance `(rss(v) - rss) / s2` is scaled by the residual-autocorrelation
     `inflation` through the target, `3.84 inflation`; each end, started at the Wald end, is
     bracketed and found by regula falsi (`_profile_step`). An end whose bound lies inside the
-    region is the bound. Returns per request `{slot: {-1: lo, +1: hi}}` for the ends found
-    (the others failed), None where none was wanted."""
+    region is the bound. A slot that the solver held at a bound (`job.bound_hit`) gets the one
+    end away from it, its 95 % one-sided limit (target `2.71 inflation`, `_CHI2_90`). Returns
+    per request `{slot: {-1: lo, +1: hi}}` for the ends found (the others failed), None where
+    none was wanted."""
     state = []  # one per interval end: its request, slot and side, and where it stands
     bases = {}  # per request: its job's solve arrays at the optimum
     for n, request in enumerate(requests):
@@ -447,18 +453,22 @@ def _profiles(requests, shape):
         job, prob, est, se, inflation, _ = request
         base = bases[n] = _job_arrays(job, prob, shape)
         for s in range(len(job.slots)):
-            if job.code[s] == HELD:
-                continue
             t = job.transforms[s]
+            if job.code[s] != HELD:
+                sides, target = (-1, 1), _CHI2_95
+            elif job.bound_hit[s]:
+                sides, target = (1 if job.held[s] == t.lo else -1,), _CHI2_90
+            else:
+                continue
             width = (
                 1.96 * se[s] * math.sqrt(max(inflation, 1.0))
                 if np.isfinite(se[s]) and se[s] > 0
                 else 0.1 * max(abs(est[s]), job.scale[s])
             )
-            for side in (-1, 1):
+            for side in sides:
                 bound = t.lo if side < 0 else t.hi
                 start = est[s] + side * width
-                state.append(_profile_end(n, s, side, est[s], start, bound, base["p"]))
+                state.append(_profile_end(n, s, side, est[s], start, bound, base["p"], target))
     for _ in range(_PROFILE_STEPS):
         by_space = {}
         for st in state:
@@ -488,14 +498,16 @@ def _profiles(requests, shape):
     return ends
 
 
-def _profile_end(request: int, slot: int, side: int, est: float, start: float, bound, p):
+def _profile_end(request: int, slot: int, side: int, est: float, start: float, bound, p, target):
     """The state of the interval end `side` (-1, +1) of `slot` of `_profiles`' request
     `request`: started at `start` (the Wald end) from the solution `p` at the estimate `est`,
-    towards `bound`."""
+    towards `bound`; the end is where the deviance reaches `target` (times the request's
+    inflation)."""
     return {
         "request": request,
         "slot": slot,
         "side": side,
+        "target": target,
         "v": start,
         "done": False,
         "ok": False,
@@ -527,7 +539,7 @@ def _profile_step(st, out, request):
     reported instead)."""
     job, _, est, _, inflation, s2 = request
     dev = (_rss(out) - job.rss) / s2
-    target = _CHI2_95 * max(inflation, 1.0)
+    target = st["target"] * max(inflation, 1.0)
     if not np.isfinite(dev):
         st["done"] = True
         return

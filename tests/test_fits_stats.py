@@ -263,12 +263,12 @@ def _drive_profile_end(deviance, est=0.0, wald=1.0, steps=8):
     deviance given as a function: returns (v, ok, the deviances visited)."""
     from types import SimpleNamespace
 
-    from fits._solve import _PROFILE_STEPS, _profile_end, _profile_step
+    from fits._solve import _CHI2_95, _PROFILE_STEPS, _profile_end, _profile_step
 
     assert steps == _PROFILE_STEPS
     job = SimpleNamespace(rss=10.0)
     request = (job, None, [est], None, 1.0, 1.0)  # (job, problem, est, se, inflation, s2)
-    st = _profile_end(0, 0, 1, est, est + wald, math.inf, "optimum")
+    st = _profile_end(0, 0, 1, est, est + wald, math.inf, "optimum", _CHI2_95)
     seen = []
     for _ in range(steps):
         dev = deviance(st["v"])
