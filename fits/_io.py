@@ -802,18 +802,40 @@ def _quantum(y) -> float:
     return float(np.min(steps)) if steps.size else 0.0
 
 
-def _despike(y, sigma, threshold):
-    """Replace samples far from the running median of 5 (isolated spikes)."""
+def _despike(t, y, sigma, threshold):
+    """Replace isolated spikes: a sample farther than `threshold` noise standard deviations
+    (`sigma`) from the cubic through its two neighbours on either side (at times `t`) is
+    replaced by that cubic's value. A smooth oscillation sampled `N` times per period departs
+    from the cubic by about `(2 pi / N)^4 / 6` of its amplitude (4e-3 at `N = 16`, 7e-4 at 25),
+    so this is for signals of at least 16 samples per period (`_SMOOTH_MIN`). (A running median
+    of 5 samples took a swing's peak for a spike below about 30 samples per period: on
+    synthetic records at 25, the extrema 4 times the noise off, against 0.6 times without it;
+    on the pendulum records 60, 70 and 90p.txt, 1-10 peak samples of swings of 30 deg.)"""
     if len(y) < 5:
         return y
-    pad = np.pad(y, 2, mode="edge")
-    windows = np.lib.stride_tricks.sliding_window_view(pad, 5)
-    med = np.median(windows, axis=1)
-    spread = np.max(windows, axis=1) - np.min(windows, axis=1)
-    dev = np.abs(y - med)
-    spike = dev > np.maximum(threshold * sigma, 0.5 * (spread - dev))
-    spike &= dev > threshold * sigma
-    return np.where(spike, med, y)
+    tc, others = t[2:-2], [t[:-4], t[1:-3], t[3:-1], t[4:]]
+    values = [y[:-4], y[1:-3], y[3:-1], y[4:]]
+    weights = []
+    for j, tj in enumerate(others):
+        w = np.ones_like(tc)
+        for m, tm in enumerate(others):
+            if m != j:
+                w = w * (tc - tm) / (tj - tm)
+        weights.append(w)
+    cubic = sum(w * v for w, v in zip(weights, values))
+    sd = sigma * np.sqrt(1.0 + sum(w * w for w in weights))
+    candidate = np.zeros(y.shape, dtype=bool)
+    candidate[2:-2] = np.abs(y[2:-2] - cubic) > threshold * sd
+    # a spike throws its neighbours' cubics off too (unevenly spaced samples: by more than
+    # itself): of the candidates within two samples the spike is the one farthest from the
+    # running median of 5
+    median = np.median(np.lib.stride_tricks.sliding_window_view(np.pad(y, 2, mode="edge"), 5), 1)
+    score = np.where(candidate, np.abs(y - median), -1.0)
+    nearby = np.max(np.lib.stride_tricks.sliding_window_view(np.pad(score, 2), 5), axis=1)
+    spike = candidate & (score >= nearby)
+    out = y.copy()
+    out[2:-2][spike[2:-2]] = cubic[spike[2:-2]]
+    return out
 
 
 def _zigzag(y, h):
@@ -836,13 +858,62 @@ def _zigzag(y, h):
     return np.asarray(idx, dtype=int)
 
 
+def _harmonic_noise(t, y, idx) -> float:
+    """Noise level [signal units] of a signal of few samples per period, from the residuals of
+    the arcs through the samples within the mean half-period of each extremum `idx` (`c0 +
+    c1 cos(w tau) + c2 sin(w tau) + c3 sign(tau) (1 - cos(w tau))`, the last the dry-friction
+    kink of `_refine`), each standardised by its leverage; 1.4826 times their median absolute
+    value (inf with fewer than 10). The differences of `_noise` see the swings' curvature
+    there: at 8 samples per period, a signal without a tail at rest, 0.04 for noise of 1e-4
+    (this: 6e-4, the damping within the arcs; 0.033 for noise of 0.02)."""
+    if len(idx) < 3:
+        return math.inf
+    hp = (t[idx[-1]] - t[idx[0]]) / (len(idx) - 1)  # (each interval is a sample period off)
+    rate = math.pi / hp
+    z = []
+    for i in idx:
+        lo, hi = np.searchsorted(t, [t[i] - hp, t[i] + hp])
+        tau = t[lo:hi] - t[i]
+        if tau.size < 6:
+            continue
+        cos, sin = np.cos(rate * tau), np.sin(rate * tau)
+        basis = np.column_stack([np.ones_like(tau), cos, sin, np.sign(tau) * (1.0 - cos)])
+        q, _ = np.linalg.qr(basis)
+        resid = y[lo:hi] - q @ (q.T @ y[lo:hi])
+        leverage = np.sum(q * q, axis=1)
+        keep = leverage < 1.0 - 1e-9
+        z.extend(resid[keep] / np.sqrt(1.0 - leverage[keep]))
+    return 1.4826 * float(np.median(np.abs(z))) if len(z) >= 10 else math.inf
+
+
+def _local_half_periods(times) -> np.ndarray:
+    """Each extremum's local half-period [s]: the median of the 4 nearest intervals between
+    the extrema at `times` (robust to a hold before the release)."""
+    gaps = np.diff(times)
+    return np.array([np.median(gaps[max(0, i - 2) : i + 2]) for i in range(len(times))])
+
+
+def _samples_per_half_period(y, h) -> float:
+    """Mean number of samples between successive extrema of `y` (hysteresis `h`); inf with
+    fewer than 3 extrema."""
+    idx = _zigzag(y, h)
+    return (idx[-1] - idx[0]) / (idx.size - 1) if idx.size >= 3 else math.inf
+
+
+#: the least samples per half-period of a signal whose turning points are extracted (a
+#: sinusoid through the samples near each, `_refine_harmonic`)
+_SAMPLES_MIN = 3
+#: the least samples per half-period at which the swings are smooth over a few samples: isolated
+#: spikes are removed (`_despike`) and the noise is measured from differences (`_noise`); below
+#: it from sinusoids through the samples near each extremum (`_harmonic_noise`)
+_SMOOTH_MIN = 8
 _WINDOW = 0.4  #: half-width of the local fit around an extremum, in local half-periods
 
 
 def _refine(t, y, i, half, peak, kink=0.0, degree=4):
     """Time and value of the extremum near sample `i`: a least-squares polynomial of `degree`
-    (a quartic by default; a parabola where fewer than `degree + 3` samples fall inside)
-    through the samples within `0.4 half` of it, less the dry-friction kink `kink sign(tau)
+    (a quartic by default; where fewer than `degree + 3` samples fall inside, a sinusoid:
+    `_refine_harmonic`) through the samples within `0.4 half` of it, less the dry-friction kink `kink sign(tau)
     (1 - cos(pi tau / half))` about its vertex, the vertex nearest the centre, the window
     re-centred on that vertex twice. `half` is the local
     half-period [s]; `peak` says a maximum is sought (else a minimum). The sample itself is
@@ -868,9 +939,8 @@ def _refine(t, y, i, half, peak, kink=0.0, degree=4):
         tau = (t[lo:hi] - centre) / width
         inside = np.abs(tau) <= 1.0
         tau, ys = tau[inside], y[lo:hi][inside]
-        degree = degree if tau.size >= degree + 3 else 2
-        if tau.size < degree + 1:
-            return t[i], y[i]
+        if tau.size < degree + 3:
+            return _refine_harmonic(t, y, i, half, peak, kink)
         bump = np.sign(tau) * (1.0 - np.cos(rate * width * tau))
         c = np.linalg.lstsq(np.vander(tau, degree + 1), ys - kink * bump, rcond=None)[0]
         slope = np.polyder(c)  # (coefficients highest power first)
@@ -883,6 +953,42 @@ def _refine(t, y, i, half, peak, kink=0.0, degree=4):
         u = roots[np.argmin(np.abs(roots))]
         value = float(np.polyval(c, u) + kink * np.sign(u) * (1.0 - math.cos(rate * width * u)))
         centre = centre + u * width
+    return float(centre), value
+
+
+def _refine_harmonic(t, y, i, half, peak, kink=0.0):
+    """`_refine` where too few samples fall in its window for a quartic (below about 16
+    samples per period): a sinusoid at the local rate `w = pi / half`, `c0 + c1 cos(w tau) +
+    c2 sin(w tau)`, through the samples within `half / 2` of the extremum (the motion between
+    two turning points is such an arc, about a centre shifted by the dry-friction `kink` on
+    either side of the vertex, subtracted as in `_refine`; with `0.75 half` neighbouring
+    windows shared samples, and zeta's errors over 24 fits at 12 samples per period were 1.35
+    of its standard errors), its
+    vertex the extremum, the window re-centred on it twice. The sample itself is kept where
+    fewer than 3 samples fall inside."""
+    rate = math.pi / half
+    width = 0.5 * half
+    centre, value = t[i], y[i]
+    for _ in range(3):
+        lo, hi = np.searchsorted(t, [centre - width, centre + width], side="left")
+        lo, hi = max(lo, 0), min(hi + 1, len(t))
+        tau = t[lo:hi] - centre
+        inside = np.abs(tau) <= width
+        tau, ys = tau[inside], y[lo:hi][inside]
+        if tau.size < 3:
+            return t[i], y[i]
+        bump = np.sign(tau) * (1.0 - np.cos(rate * tau))
+        basis = np.column_stack([np.ones_like(tau), np.cos(rate * tau), np.sin(rate * tau)])
+        c0, c1, c2 = np.linalg.lstsq(basis, ys - kink * bump, rcond=None)[0]
+        amplitude = math.hypot(c1, c2)
+        # c1 cos + c2 sin = amplitude cos(w tau - phi): a maximum at w tau = phi, a minimum at
+        # phi + pi, the one nearest the window's centre
+        phase = math.atan2(c2, c1) + (0.0 if peak else math.pi)
+        u = (phase + math.pi) % (2 * math.pi) - math.pi
+        if abs(u) > rate * width:
+            return t[i], y[i]
+        value = float(c0 + (amplitude if peak else -amplitude))
+        centre = centre + u / rate
     return float(centre), value
 
 
@@ -1032,13 +1138,16 @@ def extract_turning_points(
     quantisation, a constant offset and a few spurious extrema.
 
     1. the noise level `sigma` is estimated (MAD of differences that cancel the smooth signal,
-       at least the quantisation noise) and isolated spikes (far from the running median of 5
-       samples) are removed;
+       at least the quantisation noise) and isolated spikes (far from the cubic through their
+       neighbours, `_despike`) are removed; a signal of fewer than 16 samples per period is
+       not despiked and its noise is measured from sinusoids through the samples near each
+       extremum (`_harmonic_noise`), and one of fewer than 6 is refused;
     2. extrema are found with hysteresis `h` (default `max(6 sigma, 1e-3 range)`): a turning
        point counts only once the signal has moved back from it by more than `h`;
     3. pairs of extrema much closer in time than the median half-period (spurious wiggles) are
        dropped; each extremum is refined by a local quartic over +-0.4 local half-periods
-       (sub-sample time and value), bent by the dry-friction level that the extrema's decay
+       (sub-sample time and value; a sinusoid over +-0.5 where fewer than 7 samples fall
+       inside, `_refine_harmonic`), bent by the dry-friction level that the extrema's decay
        shows (at a turning point the friction force reverses: the curvature steps), less the
        quartic's bias where the record shows one (`_shape_bias`: a pendulum's large swings
        are not quartic over the window); leading
@@ -1069,11 +1178,24 @@ def extract_turning_points(
     t, y = np.asarray(signal.t, dtype=float), np.asarray(signal.y, dtype=float)
     source = signal.source
     sigma = _noise(t, y)
-    y_clean = _despike(y, sigma, 8.0)
-    span = float(np.max(y_clean) - np.min(y_clean))
+    span = float(np.max(y) - np.min(y))
     if span <= 0:
         _fail(source, "the signal is constant: no decay to fit")
     h = float(hysteresis) if hysteresis is not None else max(6 * sigma, 1e-3 * span)
+    per_half = _samples_per_half_period(y, h)
+    if per_half < _SAMPLES_MIN:
+        _fail(
+            source,
+            f"about {2 * per_half:.3g} samples per period: at least {2 * _SAMPLES_MIN} are needed "
+            f"to locate the turning points",
+        )
+    if per_half >= _SMOOTH_MIN:  # spikes are told from the swings (`_despike`)
+        y_clean = _despike(t, y, sigma, 8.0)
+    else:  # the differences of `_noise` see the swings: their residuals from sinusoids
+        y_clean = y
+        sigma = min(sigma, _harmonic_noise(t, y, _zigzag(y, h)))
+    if hysteresis is None:
+        h = max(6 * sigma, 1e-3 * float(np.max(y_clean) - np.min(y_clean)))
     idx = _zigzag(y_clean, h)
     starts_at_edge = bool(idx.size and idx[0] == 0)
     # spurious wiggles: remove the closest pair while an interval is far below the median
@@ -1090,8 +1212,7 @@ def extract_turning_points(
     small = np.nonzero(swings[int(np.argmax(swings)) :] < 1.5 * floor)[0] + int(np.argmax(swings))
     if small.size and small[0] + 3 < idx.size:  # the tail far below the floor: not refined
         idx = idx[: small[0] + 3]
-    gaps = np.diff(t[idx])  # local half-period: median of the 4 nearest (robust to a hold)
-    half = np.array([np.median(gaps[max(0, i - 2) : i + 2]) for i in range(idx.size)])
+    half = _local_half_periods(t[idx])
     peak = np.empty(idx.size, dtype=bool)
     peak[:-1] = y_clean[idx[:-1]] > y_clean[idx[1:]]
     peak[-1] = not peak[-2]
@@ -1110,6 +1231,12 @@ def extract_turning_points(
     refined = refine((0.0, 0.0))
     kinks = _dry_level(refined[~clipped, 1], peak[~clipped], angle_unit)
     if max(kinks) > 0:
+        refined = refine(kinks)
+    if per_half < _SMOOTH_MIN:
+        # the samples' intervals are up to a sample period off (15 % of a half-period at 7
+        # samples per period), and a sinusoid's vertex moves with its rate: once more with
+        # the half-periods of the refined extrema
+        half = _local_half_periods(refined[:, 0])
         refined = refine(kinks)
     tk, xk = refined[:, 0], refined[:, 1]
     xk = xk - _shape_bias(xk, refine(kinks, 6)[:, 1], y_clean[idx], ~clipped)
