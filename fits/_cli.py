@@ -105,10 +105,11 @@ def add_arguments(p):
         metavar="NAME=VALUE,...",
         default="",
         help="fixed parameter values (SI units: FT N, mu and delta kg/s, m0 kg, c N/m, "
-        "g m/s^2, omega rad/s; the signal's units for xF, a0, offset); for "
-        "fitted names, the starting value. A parameter neither fitted nor set "
-        "takes its physical default (friction terms 0, g 9.81, a0 the first "
-        "point, offset the record's centre) or is an error",
+        "g m/s^2, omega rad/s; the signal's units for xF, a0, offset, and per "
+        "second for drift, the sensor zero's drift); for fitted names, the starting "
+        "value. A parameter neither fitted nor set takes its physical default "
+        "(friction terms and drift 0, g 9.81, a0 the first point, offset the "
+        "record's centre) or is an error",
     )
     p.add_argument(
         "--bounds",

@@ -318,12 +318,17 @@ def _slot_start(job, s):
 
 def _scale(name, t: Transform, start: float, records) -> float:
     """The scale of a slot's transform: its starting distance from its bound (1 for an interval;
-    the records' largest amplitude for `offset`, at least 1 for other real parameters)."""
+    the records' largest amplitude for `offset`, that over their longest duration for `drift`,
+    at least 1 for other real parameters)."""
     if t.code == INTERVAL:
         return 1.0
     if t.code == REAL:
-        if name == "offset":
-            return max(float(np.max(np.concatenate([rec.amplitudes for rec in records]))), 1e-300)
+        if name in ("offset", "drift"):
+            scale = max(float(np.max(np.concatenate([rec.amplitudes for rec in records]))), 1e-300)
+            if name == "drift":
+                timed = [float(np.ptp(rec.times)) for rec in records if rec.times is not None]
+                scale /= max(max(timed, default=1.0), 1e-300)
+            return scale
         return max(abs(start), 1.0)
     ref = t.lo if t.code == LOWER else t.hi
     s = abs(start - ref)
@@ -681,8 +686,9 @@ def _problem(space, records, givens, free, shared):
                 f"for {per_record} free parameters (need at least "
                 f"{per_record + 1})"
             )
-        if "omega" in free and rec.times is None:
-            raise ValueError("omega can only be fitted from a record with times")
+        for name in ("omega", "drift"):
+            if name in free and rec.times is None:
+                raise ValueError(f"{name} can only be fitted from a record with times")
         centre = rec.centre if "offset" in space.names else 0.0
         decs.append(decrement(rec, centre))
     return _Problem(recs, [dict(g) for g in givens], tuple(free), tuple(shared), decs)

@@ -86,8 +86,9 @@ class Space:
     whatever the space's value).
 
     Sensor parameters, applied by the fit when present in `names`: `offset` (the reading's
-    zero) and `asym` (side-dependent gain): the reading is
-    `offset + o y (1 + asym sign(o y))`, `y` the model's position, `o` the record's orientation.
+    zero), `drift` (its change per second, on the record's clock) and `asym` (side-dependent
+    gain): the reading is `offset + drift t + o y (1 + asym sign(o y))`, `y` the model's
+    position, `o` the record's orientation.
     """
 
     name: str
@@ -230,9 +231,9 @@ def _oscillator(theta: dict):
 
 OSCILLATOR = Space(
     name="oscillator",
-    names=("omega", "zeta", "xF", "a0", "offset", "asym"),
-    kinds=("positive", "damping", "positive", "positive", "real", "real"),
-    units=("rad/s", "-", "signal", "signal", "signal", "-"),
+    names=("omega", "zeta", "xF", "a0", "offset", "asym", "drift"),
+    kinds=("positive", "damping", "positive", "positive", "real", "real", "real"),
+    units=("rad/s", "-", "signal", "signal", "signal", "-", "signal/s"),
     dry=("xF",),
     viscous=("zeta",),
     required=("omega",),
@@ -242,6 +243,7 @@ OSCILLATOR = Space(
         "zeta": 0.0,
         "xF": 0.0,
         "asym": 0.0,
+        "drift": 0.0,
         "a0": first_amplitude,
         "offset": record_centre,
         "omega": _omega_without_times,

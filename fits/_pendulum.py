@@ -53,7 +53,21 @@ __all__ = ["PENDULUM", "DEGREE", "DISSIPATION_SETS", "FREE"]
 
 DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: degrees
 
-NAMES = ("omega", "zeta", "xF", "xS", "cq", "b2", "b3", "w", "a0", "offset", "asym", "angle_unit")
+NAMES = (
+    "omega",
+    "zeta",
+    "xF",
+    "xS",
+    "cq",
+    "b2",
+    "b3",
+    "w",
+    "a0",
+    "offset",
+    "asym",
+    "drift",
+    "angle_unit",
+)
 KINDS = (
     "positive",
     "damping",
@@ -64,6 +78,7 @@ KINDS = (
     "real",
     "unit",
     "positive",
+    "real",
     "real",
     "real",
     "positive",
@@ -80,6 +95,7 @@ UNITS = (
     "signal",
     "signal",
     "-",
+    "signal/s",
     "rad/signal",
 )
 
@@ -209,6 +225,7 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
         "a0": a0,
         "offset": offset,
         "asym": asym,
+        "drift": float(given.get("drift", 0.0)),
         "angle_unit": u,
     }
 
@@ -232,6 +249,7 @@ def _space(variants: tuple = (), select: bool = False) -> Space:
             "b3": 0.0,
             "w": 1.0,
             "asym": 0.0,
+            "drift": 0.0,
             "angle_unit": DEGREE,
             "a0": first_amplitude,
             "offset": record_centre,

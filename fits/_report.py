@@ -56,8 +56,8 @@ def _field(result, name, default=None):
 
 def _unit(result, name: str) -> str:
     unit = _field(result, "units", {}).get(name)
-    if unit == "signal":
-        unit = "signal units"
+    if unit and unit.startswith("signal"):
+        unit = "signal units" + unit[len("signal") :]
     return f" [{unit}]" if unit and unit != "-" else ""
 
 

@@ -124,6 +124,8 @@ def _residual(space, forward, n, theta, d: _Data):
         oy = orient * y
         dev = oy * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else oy
         offset = th["offset"] if "offset" in th else 0.0
+        if "drift" in th:  # the sensor's zero drifting, on the record's clock
+            offset = offset + th["drift"] * t
         px = jnp.where(absval > 0, jnp.abs(dev), offset + dev)
         return jnp.concatenate([wx * (px - x), wt * dt])
 
