@@ -215,12 +215,9 @@ def test_coverage_oscillator_extracted_from_raw_signals():
     record's clock was aligned by a fitted shift (the extracted release's time taken as exact),
     the release's one-sided position weighed and the times weighed equally: omega 21 of 50,
     38 of the 50 true-model fits flagged as not explaining the data."""
-    from test_fits_signal import TRUE, _oscillator_signal
+    from test_fits_signal import TRUE, _extracted
 
-    records = []
-    for seed in SEEDS:
-        t, y, _ = _oscillator_signal(**TRUE, t_end=6.0, seed=100 + seed, n_spikes=0)
-        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    records = _extracted(TRUE, [100 + seed for seed in SEEDS], t_end=6.0)
     assert all(r.meta["release"] == fits.EDGE_RELEASE for r in records)
     results = _fit(records, "oscillator", tuple(TRUE))
     _check_coverage(results, TRUE, "oscillator, extracted")
@@ -236,13 +233,10 @@ def test_a_parameter_on_its_bound_gets_a_one_sided_limit():
     inflation, up to 1.5 here), for one pushed further below less (here 0.4-2.3 times the
     median `se` of the fits inside; measured over 100 seeds of a similar record: the median `U`
     1.18 se, 96 of 100 intervals holding the truth; theory 97.5 %)."""
-    from test_fits_signal import TRUE, _oscillator_signal
+    from test_fits_signal import TRUE, _extracted
 
     truth = {**TRUE, "xF": 0.0}
-    records = []
-    for seed in range(20):
-        t, y, _ = _oscillator_signal(**truth, t_end=6.0, seed=300 + seed, n_spikes=0)
-        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    records = _extracted(truth, range(300, 320), t_end=6.0)
     results = _fit(records, "oscillator", tuple(truth))
     at_bound = [r for r in results if r.params["xF"] == 0.0]
     inside = [r for r in results if r.params["xF"] > 0.0]

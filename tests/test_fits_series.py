@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 import pytest
-from test_fits_signal import _oscillator_signal
+from test_fits_signal import _extracted, _oscillator_signal
 
 import fits
 from vmj.cli import main
@@ -128,10 +128,7 @@ def test_a_signal_without_a_time_column_takes_its_rate_on_the_command_line(tmp_p
 def test_series_interval_coverage():
     """95 % intervals of the series fit contain the true values in at least 90 % of 50 seeded
     synthetic signals (one batched fit: `fits.fit_batch`)."""
-    records = []
-    for seed in range(50):
-        t, y, _ = _oscillator_signal(**TRUE, t_end=6.0, seed=100 + seed, n_spikes=0)
-        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    records = _extracted(TRUE, range(100, 150), t_end=6.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         results = fits.fit_batch(

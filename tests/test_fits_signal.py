@@ -67,6 +67,16 @@ def _oscillator_signal(
     return t, y, np.array(turning)
 
 
+def _extracted(truth, seeds, **signal):
+    """The turning points extracted from `_oscillator_signal(**truth, seed=s, **signal)`
+    (without spikes) for each seed `s`."""
+    records = []
+    for seed in seeds:
+        t, y, _ = _oscillator_signal(**truth, seed=seed, **{"n_spikes": 0, **signal})
+        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    return records
+
+
 TRUE = {"omega": 20.0, "zeta": 0.01, "xF": 0.05, "a0": 10.0, "offset": 2.0}
 
 
@@ -201,12 +211,7 @@ def test_signals_of_few_samples_per_period_fit_with_honest_intervals():
     extraction's errors made the fits' standard errors 3-7 times too large, at 10-16 xF was
     biased by half a standard error, and 4-8 fits of 24 did not converge)."""
     truth = {**TRUE, "zeta": 0.005}
-    records = []
-    for seed in range(10):
-        t, y, _ = _oscillator_signal(
-            **truth, t_end=6.0, seed=400 + seed, n_spikes=0, per_period=7.0
-        )
-        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    records = _extracted(truth, range(400, 410), t_end=6.0, per_period=7.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         results = fits.fit_batch(records, "oscillator", FREE, compare=False)
@@ -319,10 +324,7 @@ def test_outliers_are_judged_in_units_of_each_times_precision():
     spikes: no turning point flagged (before, the robust scale of the unweighted time residuals
     flagged 1-4 small swings' times in 5 of the 10). A time 5 ms off (about 25 of its standard
     deviations) at a large swing still is."""
-    records = []
-    for seed in range(10):
-        t, y, _ = _oscillator_signal(**TRUE, t_end=6.0, seed=200 + seed, n_spikes=0)
-        records.append(fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps")))
+    records = _extracted(TRUE, range(200, 210), t_end=6.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         results = fits.fit_batch(records, "oscillator", FREE, compare=False, intervals=False)
