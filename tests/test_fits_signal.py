@@ -225,7 +225,7 @@ def test_a_drifting_sensor_zero_is_fitted():
     """A sensor whose zero drifts by 3 % of a0 over the record (a strain gauge warming up):
     fitted without `drift` the model does not explain the data (flagged, its standard errors
     widened for it); with it the fit is clean and every parameter's interval holds the truth
-    (three seeds measured: the drift within 1.4 of its standard errors, 2-3.5 % of its value).
+    (three seeds measured: the drift within 1.4 of its standard errors, 1-3 % of its value).
     A record without times cannot have it fitted."""
     drift = 0.03 * TRUE["a0"] / 8.0  # [signal units / s]
     t, y, _ = _oscillator_signal(**TRUE, t_end=8.0, seed=11, n_spikes=0, per_period=40.0)
