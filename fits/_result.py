@@ -226,6 +226,15 @@ def _at_user_bound(job, s) -> bool:
     )
 
 
+def _pooled_rms(per_record, kind: str) -> float | None:
+    """RMS of the `kind` residuals ("position" or "time", in data units) of every record in
+    `per_record`, leaving out those that are no datum (NaN: a release located from one side);
+    None where no record has any. (A joint fit's figure is over all its records: it was NaN
+    where a record's release was no datum, and its time RMS the first record's alone.)"""
+    r = [p["residuals"][kind] for p in per_record if p["residuals"][kind] is not None]
+    return float(np.sqrt(np.nanmean(np.concatenate(r) ** 2))) if r else None
+
+
 @dataclass
 class _Assessed:
     """A solved job's covariance and estimates, before its intervals (`_assess`)."""
@@ -423,20 +432,18 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
             rt = res_t * prob.tw[i][:m]
             z_t = rt / _robust_scale(rt[wt > 0], 1e-12)
             flagged |= np.abs(z_t) > outlier_sigma
-        per_record.append(
-            {
-                "residuals": {
-                    **({"t": rec.times.tolist()} if series else {"k": rec.k.tolist()}),
-                    "position": res_x.tolist(),
-                    "time": None if res_t is None else res_t.tolist(),
-                    "standardized": z.tolist(),
-                    "outlier": flagged.tolist(),
-                },
-                "rms": float(np.sqrt(np.nanmean(res_x**2))),
-                "rms_time": None if res_t is None else float(np.sqrt(np.nanmean(res_t**2))),
-                "outliers": [int(kk) for kk in rec.k[flagged]],
-            }
-        )
+        one = {
+            "residuals": {
+                **({"t": rec.times.tolist()} if series else {"k": rec.k.tolist()}),
+                "position": res_x.tolist(),
+                "time": None if res_t is None else res_t.tolist(),
+                "standardized": z.tolist(),
+                "outlier": flagged.tolist(),
+            },
+            "outliers": [int(kk) for kk in rec.k[flagged]],
+        }
+        one["rms"], one["rms_time"] = (_pooled_rms([one], kind) for kind in ("position", "time"))
+        per_record.append(one)
     top = [s for s, (nm, rr) in enumerate(job.slots) if rr is None]
 
     def pick(arr, sel):
@@ -491,18 +498,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         correlation=np.where(np.isfinite(corr_top), corr_top, np.nan).tolist(),
         converged=converged,
         iterations=int(sum(j.iterations for j in mine)),
-        rms=per_record[0]["rms"]
-        if R == 1
-        else float(
-            np.sqrt(
-                np.mean(
-                    np.concatenate(
-                        [np.asarray(p["residuals"]["position"]) ** 2 for p in per_record]
-                    )
-                )
-            )
-        ),
-        rms_time=per_record[0]["rms_time"],
+        rms=_pooled_rms(per_record, "position"),
+        rms_time=_pooled_rms(per_record, "time"),
         model_comparison=comparison,
         residuals=per_record[0]["residuals"],
         outliers=per_record[0]["outliers"],

@@ -309,6 +309,24 @@ def test_joint_fit_narrows_the_shared_intervals(releases):
     assert len(joint.correlation) == 3
 
 
+def test_a_joint_fits_rms_is_over_all_its_records():
+    """A joint fit's position and time RMS pool every record's residuals, leaving out those
+    that are no datum (a release at the signal's first samples; before, the position RMS was
+    NaN then, and the time RMS the first record's alone)."""
+    from test_fits_signal import TRUE, _extracted
+
+    records = _extracted(TRUE, (5, 6), t_end=6.0)
+    assert all(r.meta["release"] == fits.EDGE_RELEASE for r in records)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        joint = fits.fit(
+            records, "oscillator", tuple(TRUE), shared=("omega", "zeta", "xF"), compare=False
+        )
+    for kind, rms in (("position", joint.rms), ("time", joint.rms_time)):
+        r = np.concatenate([rec["residuals"][kind] for rec in joint.records])
+        assert np.isnan(r).any() and rms == pytest.approx(np.sqrt(np.nanmean(r**2)), rel=1e-12)
+
+
 def test_joint_fit_from_the_command_line(tmp_path, capsys):
     paths = []
     for i, (a0, off, s) in enumerate(((10.0, 1.0, 1), (8.0, -0.5, 2), (6.0, 0.3, 3))):
