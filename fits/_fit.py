@@ -323,13 +323,13 @@ def _scale(name, t: Transform, start: float, records) -> float:
     if t.code == INTERVAL:
         return 1.0
     if t.code == REAL:
-        if name in ("offset", "drift"):
-            scale = max(float(np.max(np.concatenate([rec.amplitudes for rec in records]))), 1e-300)
-            if name == "drift":
-                timed = [float(np.ptp(rec.times)) for rec in records if rec.times is not None]
-                scale /= max(max(timed, default=1.0), 1e-300)
-            return scale
-        return max(abs(start), 1.0)
+        if name not in ("offset", "drift"):
+            return max(abs(start), 1.0)
+        amplitude = max(float(np.max(np.concatenate([rec.amplitudes for rec in records]))), 1e-300)
+        if name == "offset":
+            return amplitude
+        durations = [float(np.ptp(rec.times)) for rec in records if rec.times is not None]
+        return amplitude / max(max(durations, default=1.0), 1e-300)
     ref = t.lo if t.code == LOWER else t.hi
     s = abs(start - ref)
     return s if s > 0 else (abs(start) if start != 0 else 1.0)

@@ -893,10 +893,9 @@ def _local_half_periods(times) -> np.ndarray:
     return np.array([np.median(gaps[max(0, i - 2) : i + 2]) for i in range(len(times))])
 
 
-def _samples_per_half_period(y, h) -> float:
-    """Mean number of samples between successive extrema of `y` (hysteresis `h`); inf with
-    fewer than 3 extrema."""
-    idx = _zigzag(y, h)
+def _samples_per_half_period(idx) -> float:
+    """Mean number of samples between the successive extrema at the sample indices `idx`; inf
+    with fewer than 3 extrema."""
     return (idx[-1] - idx[0]) / (idx.size - 1) if idx.size >= 3 else math.inf
 
 
@@ -1182,7 +1181,8 @@ def extract_turning_points(
     if span <= 0:
         _fail(source, "the signal is constant: no decay to fit")
     h = float(hysteresis) if hysteresis is not None else max(6 * sigma, 1e-3 * span)
-    per_half = _samples_per_half_period(y, h)
+    first = _zigzag(y, h)  # (the raw signal's extrema: how many samples a swing spans)
+    per_half = _samples_per_half_period(first)
     if per_half < _SAMPLES_MIN:
         _fail(
             source,
@@ -1193,7 +1193,7 @@ def extract_turning_points(
         y_clean = _despike(t, y, sigma, 8.0)
     else:  # the differences of `_noise` see the swings: their residuals from sinusoids
         y_clean = y
-        sigma = min(sigma, _harmonic_noise(t, y, _zigzag(y, h)))
+        sigma = min(sigma, _harmonic_noise(t, y, first))
     if hysteresis is None:
         h = max(6 * sigma, 1e-3 * float(np.max(y_clean) - np.min(y_clean)))
     idx = _zigzag(y_clean, h)
