@@ -83,7 +83,7 @@ def add_arguments(p):
         "FILE",
         type=input_file,
         nargs="+",
-        help="peak-sequence CSV (k|time, amplitude|position[, crossed]) or, with "
+        help="peak-sequence CSV (k|cycle|time, amplitude|position[, crossed]) or, with "
         "--series, a raw signal; several files are fitted jointly "
         "(see --shared)",
     )

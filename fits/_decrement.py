@@ -31,7 +31,8 @@ def decrement(record: Record, centre: float | None = None) -> dict:
     record's units), `zeta`, `half_period` [s] and `omega` [rad/s] (when the record has times,
     else `None`), `slope`, `intercept`, `stderr_r`, `stderr_xF`, `pairs` (the regression data
     `A_k`, `A_{k+1}`, the second negative where the swing did not pass the centre), `pair_k`
-    (the swing index `k` of each pair's first point), `centre`.
+    (the swing index `k` of each pair's first point), `step` (1; 2 for a record of one side's
+    peaks, whose pairs are `A_k`, `A_{k+2}` and whose `slope` is `r^2`), `centre`.
 
     Raises `ValueError` when the amplitudes do not decay.
     """
@@ -56,14 +57,22 @@ def decrement(record: Record, centre: float | None = None) -> dict:
             f"{trend:.3g} +- {se_trend:.2g} per swing on average): nothing to "
             f"identify"
         )
-    consecutive = np.diff(k) == 1
-    a_now = amp[:-1][consecutive]
-    a_next = (-np.sign(x[:-1]) * x[1:])[consecutive]  # negative: did not pass the centre
-    moving = np.abs(x[1:] - x[:-1])[consecutive] > 0
+    gaps = np.diff(k)
+    # peaks of one side (a table of full periods, `k` even): pairs one period apart, for which
+    # the map is the half-swing's twice, A_{k+2} = r^2 A_k - (1 + r)^2 xF
+    step = 2 if np.count_nonzero(gaps == 1) < 2 and np.count_nonzero(gaps == 2) >= 2 else 1
+    paired = gaps == step
+    a_now = amp[:-1][paired]
+    # negative where the swing ended on the wrong side (did not pass the centre)
+    a_next = ((-1) ** step * np.sign(x[:-1]) * x[1:])[paired]
+    moving = np.abs(x[1:] - x[:-1])[paired] > 0
     a_now, a_next = a_now[moving], a_next[moving]
-    k_now = k[:-1][consecutive][moving]
+    k_now = k[:-1][paired][moving]
     if a_now.size < 2:
-        raise ValueError(f"{src}need at least 2 pairs of successive turning points")
+        raise ValueError(
+            f"{src}need at least 2 pairs of successive turning points (or of peaks one period "
+            f"apart)"
+        )
     A = np.stack([a_now, np.ones_like(a_now)], axis=1)
     coef, *_ = np.linalg.lstsq(A, a_next, rcond=None)
     slope, intercept = float(coef[0]), float(coef[1])
@@ -74,14 +83,16 @@ def decrement(record: Record, centre: float | None = None) -> dict:
         cov = s2 * np.linalg.inv(A.T @ A)
     except np.linalg.LinAlgError:
         cov = np.full((2, 2), np.nan)
-    r = min(max(slope, 1e-6), 1 - 1e-9)
-    xF = -intercept / (1 + r)
-    # d xF / d(slope, intercept) for the standard error
-    g = np.array([intercept / (1 + r) ** 2, -1 / (1 + r)])
+    power = min(max(slope, 1e-6), 1 - 1e-9)  # r^step
+    r = power ** (1 / step)
+    xF = -intercept / (1 + r) ** step
+    # d(r, xF) / d(slope, intercept) for the standard errors
+    dr = r / (step * power)
+    g = np.array([intercept * step * dr / (1 + r) ** (step + 1), -1 / (1 + r) ** step])
     log_r = math.log(r)
     zeta = -log_r / math.sqrt(math.pi**2 + log_r**2)
     half = omega = None
-    if record.times is not None and np.sum(consecutive) >= 1:
+    if record.times is not None:
         half = float(np.polyfit(k.astype(float), record.times, 1)[0])
         if half > 0:
             omega = math.pi / half / math.sqrt(1 - zeta * zeta)
@@ -93,10 +104,11 @@ def decrement(record: Record, centre: float | None = None) -> dict:
         "omega": omega,
         "slope": slope,
         "intercept": intercept,
-        "stderr_r": float(math.sqrt(max(cov[0, 0], 0.0))),
+        "stderr_r": dr * float(math.sqrt(max(cov[0, 0], 0.0))),
         "stderr_xF": float(math.sqrt(max(g @ cov @ g, 0.0))),
         "pairs": (a_now, a_next),
         "pair_k": k_now,
+        "step": step,
         "centre": c,
     }
 
@@ -148,7 +160,10 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
             b=given.get("b", 0.0),
             u=given.get("u", 0.0),
         )
-    if "asym" in names and record.sides_known and len(record) >= 3:
+    successive = np.diff(record.k) == 1
+    if "asym" in names and record.sides_known and np.any(successive[:-1] & successive[1:]):
+        # (the sensor's asymmetry from three successive turning points; one side's peaks
+        # alone cannot show it)
         from ._sensor import sensor_start
 
         start["asym"] = float(np.clip(sensor_start(record)["asym"], -0.4, 0.4))
@@ -171,6 +186,8 @@ def _energy_balance_start(dec: dict, m0, c, delta, g, given: dict):
     wrong stick count. Only the swings before the first that does not pass the centre are used
     (a mass may have stuck before that one). `None` when the pairs or the masses do not allow
     it."""
+    if dec.get("step", 1) != 1:  # pairs one period apart: not the recurrence's
+        return None
     k = np.asarray(dec.get("pair_k", ()), dtype=int)
     a_now, a_next = dec["pairs"]
     # the swings that pass the centre, up to the first that does not: a mass that stuck

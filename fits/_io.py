@@ -28,6 +28,7 @@ __all__ = [
     "MAX_ROWS",
     "EDGE_RELEASE",
     "HELD_RELEASE",
+    "ROWS_AS_HALF_SWINGS",
     "TIME_UNITS",
 ]
 
@@ -35,6 +36,10 @@ EDGE_RELEASE = "edge: at the signal's first samples, located from one side (not 
 """`Record.meta["release"]` of a record whose signal starts at its release."""
 HELD_RELEASE = "held: time extrapolated from the first half-swing (not weighed)"
 """`Record.meta["release"]` of a record released from a hold."""
+ROWS_AS_HALF_SWINGS = "half-swings"
+"""`Record.meta["rows"]` of a peak table of amplitudes without `k`, `cycle` or `crossed`: its
+rows were taken as successive half-swings (both sides' peaks in turn), which its numbers cannot
+tell from one side's peaks; the fits say so in their warnings."""
 
 MAX_ROWS = 2_000_000
 """Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
@@ -442,12 +447,16 @@ def _strictly_increasing(values, tab: _Table, name: str):
 def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> Record:
     """Read a peak sequence from a CSV file with a header line.
 
-    Columns (names case-insensitive): `k` (swing index, `0` is the initial deflection) and/or
-    `time` [s]; `amplitude` (`|x| >= 0`) or `position` (signed `x`); optional `crossed`
-    (`0` where the swing did not pass `x = 0`, the tables' `*`). Signed positions and
+    Columns (names case-insensitive): `k` (half-swing index, `0` is the initial deflection:
+    successive rows of a record of both sides' peaks are `k`, `k + 1`), or `cycle` (full
+    periods: peaks of one side only, as a logarithmic-decrement table lists them; `k = 2
+    cycle`), and/or `time` [s]; `amplitude` (`|x| >= 0`) or `position` (signed `x`); optional
+    `crossed` (`0` where the swing did not pass `x = 0`, the tables' `*`). Signed positions and
     amplitudes with `crossed` fix the sides; amplitudes alone give a record whose sides are
-    unknown (`sides_known` False). Without `k`, rows are swings `0, 1, 2, ...`; times are then
-    measured from the first row.
+    unknown (`sides_known` False). Without `k` or `cycle`, rows are half-swings `0, 1, 2,
+    ...` (peaks of both sides, alternately); times are then measured from the first row. Peaks
+    of one side read as successive half-swings would give half the frequency and twice the
+    damping: nothing in the numbers tells the two apart, so such a table needs its `cycle`.
 
     Raises `ValueError` naming the file (and the line and column where there is one) for a
     missing, unreadable, binary or empty file, a directory, a header without data, a single
@@ -460,9 +469,11 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     names = {h: i for i, h in enumerate(header)}
     if "amplitude" not in names and "position" not in names:
         _fail(source, f"missing column: need 'amplitude' or 'position' (found {tab.header})")
-    if "k" not in names and "time" not in names:
-        _fail(source, f"missing column: need 'k' or 'time' (found {tab.header})")
-    wanted = [c for c in ("k", "time", "amplitude", "position", "crossed") if c in names]
+    if "k" in names and "cycle" in names:
+        _fail(source, "give 'k' (half-swings) or 'cycle' (full periods), not both")
+    if "k" not in names and "cycle" not in names and "time" not in names:
+        _fail(source, f"missing column: need 'k', 'cycle' or 'time' (found {tab.header})")
+    wanted = [c for c in ("k", "cycle", "time", "amplitude", "position", "crossed") if c in names]
     values = dict(zip(wanted, _columns(tab, [names[c] for c in wanted])))
     n = len(values[wanted[0]])
     _rows_ok(n, source, max_rows, 2, "a decay")
@@ -477,11 +488,12 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
                 f"{values[column][rows[0]]:g}: {what}",
             )
 
-    if "k" in values:
-        k = values["k"]
-        check("k", (k != np.round(k)) | (k < 0), "k must hold integers >= 0")
-        k = k.astype(int)
-        _strictly_increasing(k, tab, label["k"])
+    index = "k" if "k" in values else "cycle" if "cycle" in values else None
+    if index is not None:
+        k = values[index]
+        check(index, (k != np.round(k)) | (k < 0), f"{index} must hold integers >= 0")
+        _strictly_increasing(k, tab, label[index])
+        k = k.astype(int) * (2 if index == "cycle" else 1)
     else:
         k = np.arange(n)
     times = values.get("time")
@@ -498,9 +510,12 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
         amplitudes < 0,
         "an amplitude must be >= 0 (use a 'position' column for signed values)",
     )
-    return record_from_sequence(
+    record = record_from_sequence(
         amplitudes=amplitudes, crossed=crossed, k=k, times=times, source=source
     )
+    if index is None and crossed is None:  # nothing says the rows are half-swings
+        record.meta["rows"] = ROWS_AS_HALF_SWINGS
+    return record
 
 
 def record_from_sequence(
@@ -802,10 +817,10 @@ def _quantum(y) -> float:
     return float(np.min(steps)) if steps.size else 0.0
 
 
-def _despike(t, y, sigma, threshold):
+def _despike(t, y, sigma, threshold, keep=None):
     """Replace isolated spikes: a sample farther than `threshold` noise standard deviations
     (`sigma`) from the cubic through its two neighbours on either side (at times `t`) is
-    replaced by that cubic's value. A smooth oscillation sampled `N` times per period departs
+    replaced by that cubic's value, unless `keep` (a mask) holds it. A smooth oscillation sampled `N` times per period departs
     from the cubic by about `(2 pi / N)^4 / 6` of its amplitude (4e-3 at `N = 16`, 7e-4 at 25),
     so this is for signals of at least 16 samples per period (`_SMOOTH_MIN`). (A running median
     of 5 samples took a swing's peak for a spike below about 30 samples per period: on
@@ -826,6 +841,8 @@ def _despike(t, y, sigma, threshold):
     sd = sigma * np.sqrt(1.0 + sum(w * w for w in weights))
     candidate = np.zeros(y.shape, dtype=bool)
     candidate[2:-2] = np.abs(y[2:-2] - cubic) > threshold * sd
+    if keep is not None:
+        candidate &= ~keep
     # a spike throws its neighbours' cubics off too (unevenly spaced samples: by more than
     # itself): of the candidates within two samples the spike is the one farthest from the
     # running median of 5
@@ -1126,6 +1143,25 @@ def _clipped(t, y, idx, peak, half):
     return mask, levels
 
 
+def _near_clipping(t, y, idx):
+    """The samples at a saturated sensor's levels (`_clipped`, judged at the raw signal's
+    extrema `idx`) and the two on either side of each: the corners of a flat run depart from
+    the cubic through their neighbours like spikes, and replaced they would hide the run."""
+    near = np.zeros(y.shape, dtype=bool)
+    if idx.size < 3:
+        return near
+    peak = np.append(y[idx[:-1]] > y[idx[1:]], y[idx[-2]] <= y[idx[-1]])
+    _, levels = _clipped(t, y, idx, peak, _local_half_periods(t[idx]))
+    for level in levels.values():
+        if level is not None:
+            near |= y == level
+    at = near.copy()
+    for shift in (1, 2):
+        near[shift:] |= at[:-shift]
+        near[:-shift] |= at[shift:]
+    return near
+
+
 def extract_turning_points(
     signal: Signal,
     *,
@@ -1190,7 +1226,7 @@ def extract_turning_points(
             f"to locate the turning points",
         )
     if per_half >= _SMOOTH_MIN:  # spikes are told from the swings (`_despike`)
-        y_clean = _despike(t, y, sigma, 8.0)
+        y_clean = _despike(t, y, sigma, 8.0, keep=_near_clipping(t, y, first))
     else:  # the differences of `_noise` see the swings: their residuals from sinusoids
         y_clean = y
         sigma = min(sigma, _harmonic_noise(t, y, first))
@@ -1281,6 +1317,15 @@ def extract_turning_points(
     if small.size:
         tk, xk, clipped = tk[: small[0] + 1], xk[: small[0] + 1], clipped[: small[0] + 1]
     if xk.size < 3:
+        early = float(np.median(swings[: max(3, swings.size // 4)]))
+        if int(np.argmax(swings)) >= swings.size - 3 and swings.max() > 2 * early:
+            # the largest swing at the end: the swings below the floor are the record's start
+            _fail(
+                source,
+                f"the swings grow (peak to peak about {early:.3g} over the record's first quarter, "
+                f"{swings.max():.3g} at its end): not a free decay (a driven or self-excited "
+                f"motion?)",
+            )
         _fail(source, "fewer than 3 turning points above the amplitude floor: no decay to fit")
     centres = _local_centres(xk)
     whole = ~(clipped[:-2] | clipped[1:-1] | clipped[2:])

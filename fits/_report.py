@@ -420,7 +420,7 @@ def plot_fit(
         )
     ax_dec.plot(grid_a, grid_a, ":", color="0.5", lw=0.8, label="no loss")
     ax_dec.set_xlabel("amplitude A_k [signal units]")
-    ax_dec.set_ylabel("next amplitude A_{k+1}")
+    ax_dec.set_ylabel(f"next amplitude A_{{k+{dec.get('step', 1) if dec else 1}}}")
     ax_dec.set_title("decrement diagram", fontsize=9)
     ax_dec.legend(fontsize=7)
     fig.tight_layout()

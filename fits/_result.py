@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._io import Record
+from ._io import ROWS_AS_HALF_SWINGS, Record
 from ._params import HELD
 from ._stats import RANK_RTOL, covariance, diagnostics
 
@@ -402,6 +402,13 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
             )
         intervals[nm] = (float(lo), float(hi))
     for rec in prob.records:
+        if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:
+            warn.append(
+                f"{rec.source}: its rows are read as successive half-swings (both sides' peaks "
+                f"in turn); a table of one side's peaks (one per period) needs a 'cycle' "
+                f"column: read as half-swings, it gives half the frequency and twice the "
+                f"damping"
+            )
         levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
         if levels:
             warn.append(

@@ -147,11 +147,59 @@ def test_too_few_points_and_no_decay(tmp_path):
         fits.fit(grows, "variable-mass", ("FT",), {"m0": 5, "c": 4900, "mu": -1})
 
 
+@pytest.mark.parametrize("rate", [0.02, 0.002])
+def test_a_growing_signal_is_refused_as_no_free_decay(tmp_path, rate):
+    """A self-excited oscillation (swings growing by `rate` of a period's radians, 10 s at
+    5 Hz): strong growth leaves its first swings below the amplitude floor, and is named as
+    growth, not as too few turning points; weak growth reaches the decay check."""
+    t = np.arange(0, 10, 1e-3)
+    w = 2 * np.pi * 5
+    y = -np.exp(rate * w * t) * np.cos(w * t)
+    y += np.random.default_rng(0).normal(0, 0.002, t.size)
+    path = _write(tmp_path, "t,x\n" + "\n".join(f"{a:.4f},{b:.6f}" for a, b in zip(t, y)))
+    with pytest.raises(ValueError, match="(swings|amplitudes) grow"):  # (the path says growing)
+        fits.fit(fits.read_record(path, series=True), "oscillator", ("omega", "zeta", "a0"))
+
+
 def test_crossed_column_sets_the_sides(tmp_path):
     rec = fits.read_peaks(_write(tmp_path, "k,amplitude,crossed\n0,6,1\n1,5,1\n2,4,1\n3,1,0\n"))
     assert rec.positions.tolist() == [-6, 5, -4, -1]
     rec = fits.read_peaks(_write(tmp_path, "time,position\n0.1,-6\n0.2,5\n0.3,-4\n"))
     assert rec.k.tolist() == [0, 1, 2] and np.allclose(rec.times, [0, 0.1, 0.2])
+
+
+def test_one_sides_peaks_by_cycle(tmp_path):
+    """A logarithmic-decrement table: the negative peaks of the exact oscillator (omega 20,
+    zeta 0.01, xF 0.05, released from 10) one per period, amplitudes to 0.002 and times to
+    0.2 ms. With its `cycle` column (`k = 2 cycle`) the fit recovers the parameters; read as
+    successive half-swings the same numbers would give omega 10 and twice zeta and xF, and a
+    record whose rows nothing numbers says so in its warnings."""
+    omega, zeta, xF, a0 = 20.0, 0.01, 0.05, 10.0
+    half = np.pi / (omega * np.sqrt(1 - zeta**2))
+    r = np.exp(-zeta * omega * half)
+    x, rows = -a0, []
+    for k in range(40):  # the exact half-swing map
+        if k % 2 == 0:
+            rows.append((k // 2, k * half, -x))
+        x = np.sign(x) * xF * (1 + r) - r * x
+    rng = np.random.default_rng(0)
+    table = "".join(
+        f"{c},{t + rng.normal(0, 2e-4):.6f},{a + rng.normal(0, 2e-3):.5f}\n" for c, t, a in rows
+    )
+    rec = fits.read_peaks(_write(tmp_path, "cycle,time,amplitude\n" + table))
+    assert rec.k.tolist() == list(range(0, 40, 2)) and "rows" not in rec.meta
+    dec = fits.decrement(rec)
+    assert dec["step"] == 2 and abs(dec["r"] / r - 1) < 1e-3 and abs(dec["xF"] / xF - 1) < 0.05
+    got = fits.fit(rec, "oscillator", ("omega", "zeta", "xF", "a0"), compare=False)
+    assert got.converged
+    assert abs(got.params["omega"] / omega - 1) < 1e-4
+    assert abs(got.params["zeta"] / zeta - 1) < 0.01
+    assert abs(got.params["xF"] / xF - 1) < 0.01
+    plain = "\n".join(line.split(",", 1)[1] for line in table.splitlines())
+    rows_only = fits.read_peaks(_write(tmp_path, "time,amplitude\n" + plain + "\n"))
+    assert rows_only.meta["rows"] == fits.ROWS_AS_HALF_SWINGS
+    with pytest.raises(ValueError, match="not both"):
+        fits.read_peaks(_write(tmp_path, "k,cycle,amplitude\n0,0,1\n2,1,0.9\n"))
 
 
 def test_pendulum_format_and_clock(tmp_path):
@@ -386,6 +434,35 @@ def test_a_clipped_signal_leaves_its_cut_off_extrema_out(synthetic_signal, tmp_p
         comments="",
     )
     assert "clipped" not in fits.read_record(str(held), series=True).meta
+
+
+def test_a_clipped_record_with_quantisation_noise_is_seen_as_clipped(tmp_path):
+    """80P.txt clipped at +18 and -12 deg (its swings reach +32 and -22): its noise is the
+    encoder's step (0.023 deg), so the corners of each flat run depart from the cubic through
+    their neighbours by hundreds of noise levels, and the despiking replaced them as spikes,
+    which hid the runs (the fit then took the flat tops for turning points: position residuals'
+    lag-1 autocorrelation -0.70, 11 outliers). The runs are now kept: the cut-off extrema are
+    left out, and the others are the unclipped record's (same turning points, same swing
+    numbers to within one fixed shift)."""
+    lines = open(P80).read().splitlines()
+    rows = [line.split(", ") for line in lines[2:]]
+    clipped = tmp_path / "clipped.txt"
+    clipped.write_text(
+        "\n".join(
+            lines[:2] + [f"{a}, {b}, {min(max(float(c), -12.0), 18.0):.2f}" for a, b, c in rows]
+        )
+        + "\n"
+    )
+    rec = fits.read_record(str(clipped), series=True)
+    plain = fits.read_record(P80, series=True)
+    assert rec.meta["clipped"] == {"max": 18.0, "min": -12.0}
+    assert np.all((rec.positions > -12.0) & (rec.positions < 18.0))
+    t_rec, t_plain = rec.times + rec.time_origin, plain.times + plain.time_origin
+    j = np.array([np.argmin(np.abs(t_plain - x)) for x in t_rec])
+    same = np.abs(t_rec - t_plain[j]) < 1e-3  # the clipped record goes on longer: lower floor
+    assert same.sum() >= 80
+    assert np.max(np.abs(rec.positions - plain.positions[j])[same]) < 0.01
+    assert np.unique((rec.k - j)[same]).size == 1
 
 
 def test_the_quartics_bias_at_a_pendulums_large_swings_is_removed(synthetic_signal, monkeypatch):
