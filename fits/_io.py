@@ -444,29 +444,64 @@ def _strictly_increasing(values, tab: _Table, name: str):
 
 
 # -- peak sequences ----------------------------------------------------------------------------
+#: the columns of a peak table by their names' first word (case-insensitive)
+_PEAK_ROLES = {
+    "k": "k",
+    "cycle": "cycle",
+    "time": "time",
+    "t": "time",
+    "amplitude": "amplitude",
+    "peak": "amplitude",
+    "position": "position",
+    "crossed": "crossed",
+}
+
+
+def _peak_role(name: str) -> str | None:
+    """What a peak table's column holds, from its name: its first word, less a unit (`Time
+    (s)`, `time_ms`, `Amplitude [mm]`); `None` for another column."""
+    base = re.split(r"[\s(\[]", name.strip().lower(), maxsplit=1)[0]
+    if base not in _PEAK_ROLES and _TIME_UNIT.search(base):
+        base = base[: _TIME_UNIT.search(base).start()]
+    return _PEAK_ROLES.get(base)
+
+
 def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> Record:
     """Read a peak sequence from a CSV file with a header line.
 
-    Columns (names case-insensitive): `k` (half-swing index, `0` is the initial deflection:
-    successive rows of a record of both sides' peaks are `k`, `k + 1`), or `cycle` (full
-    periods: peaks of one side only, as a logarithmic-decrement table lists them; `k = 2
-    cycle`), and/or `time` [s]; `amplitude` (`|x| >= 0`) or `position` (signed `x`); optional
-    `crossed` (`0` where the swing did not pass `x = 0`, the tables' `*`). Signed positions and
-    amplitudes with `crossed` fix the sides; amplitudes alone give a record whose sides are
-    unknown (`sides_known` False). Without `k` or `cycle`, rows are half-swings `0, 1, 2,
-    ...` (peaks of both sides, alternately); times are then measured from the first row. Peaks
-    of one side read as successive half-swings would give half the frequency and twice the
-    damping: nothing in the numbers tells the two apart, so such a table needs its `cycle`.
+    Columns, by the first word of their names (case-insensitive; a unit after it, as in
+    `Time (ms)` or `time_ms`, is read, and times are converted to seconds): `k` (the
+    half-swing index, `0` the initial deflection: successive rows of a table of both sides'
+    peaks are `k`, `k + 1`) or `cycle` (full periods, for a table of one side's peaks as a
+    logarithmic-decrement table lists them: `k = 2 cycle`), and/or `time` (or `t`);
+    `amplitude` (or `peak`: `|x| >= 0`) or `position` (signed `x`); optional `crossed` (`0`
+    where the swing did not pass `x = 0`, the tables' `*`). Other columns are ignored. Signed
+    positions and amplitudes with `crossed` fix the sides; amplitudes alone give a record
+    whose sides are unknown (`sides_known` False). Without `k` or `cycle`, rows are
+    half-swings `0, 1, 2, ...` (both sides' peaks in turn); times are then measured from the
+    first row. One side's peaks read as successive half-swings would give half the frequency
+    and twice the damping, and nothing in the numbers tells the two apart: such a table needs
+    its `cycle` (an amplitude table without `k`, `cycle` or `crossed` is marked,
+    [`fits.ROWS_AS_HALF_SWINGS`][], and its fits warn).
 
     Raises `ValueError` naming the file (and the line and column where there is one) for a
     missing, unreadable, binary or empty file, a directory, a header without data, a single
-    row, missing columns, non-numeric, empty or non-finite cells, non-increasing `k` or `time`,
-    negative amplitudes, and more than `max_rows` rows.
+    row, missing columns, two columns of one kind, non-numeric, empty or non-finite cells,
+    non-increasing `k` or `time`, negative amplitudes, and more than `max_rows` rows.
     """
     text, source = _text(path, max_rows)
     tab = _table(text, source, need_header=True)
-    header = [h.strip().lower() for h in tab.header]
-    names = {h: i for i, h in enumerate(header)}
+    names = {}
+    for i, h in enumerate(tab.header):
+        role = _peak_role(h)
+        if role in names:
+            _fail(
+                source,
+                f"columns {tab.header[names[role]]!r} and {h!r} both name the {role} "
+                f"(found {tab.header})",
+            )
+        if role is not None:
+            names[role] = i
     if "amplitude" not in names and "position" not in names:
         _fail(source, f"missing column: need 'amplitude' or 'position' (found {tab.header})")
     if "k" in names and "cycle" in names:
@@ -499,6 +534,7 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     times = values.get("time")
     if times is not None:
         _strictly_increasing(times, tab, label["time"])
+        times = times * TIME_UNITS[_time_unit(label["time"])]
     crossed = values.get("crossed")
     if crossed is not None:
         check("crossed", ~np.isin(crossed, (0.0, 1.0)), "crossed must hold 0 or 1")

@@ -168,6 +168,21 @@ def test_crossed_column_sets_the_sides(tmp_path):
     assert rec.k.tolist() == [0, 1, 2] and np.allclose(rec.times, [0, 0.1, 0.2])
 
 
+def test_peak_columns_by_their_names_first_word(tmp_path):
+    """A peak table's columns by the first word of their names, a unit read from the name."""
+    rows = "\n0,10\n150,9\n300,8.1\n"
+    rec = fits.read_peaks(_write(tmp_path, "Time (ms),Amplitude [mm],Note" + rows))
+    assert np.allclose(rec.times, [0, 0.15, 0.3]) and rec.amplitudes.tolist() == [10, 9, 8.1]
+    rec = fits.read_peaks(_write(tmp_path, "time_us,peak" + rows))
+    assert np.allclose(rec.times, [0, 1.5e-4, 3e-4])
+    rec = fits.read_peaks(_write(tmp_path, "t,Position (deg)" + rows))
+    assert np.allclose(rec.times, [0, 150, 300]) and rec.positions.tolist() == [10, 9, 8.1]
+    with pytest.raises(ValueError, match="both name the amplitude"):
+        fits.read_peaks(_write(tmp_path, "k,amplitude,peak\n0,1,1\n1,0.9,0.9\n"))
+    with pytest.raises(ValueError, match="missing column: need 'amplitude'"):
+        fits.read_peaks(_write(tmp_path, "k,height\n0,1\n1,0.9\n"))
+
+
 def test_one_sides_peaks_by_cycle(tmp_path):
     """A logarithmic-decrement table: the negative peaks of the exact oscillator (omega 20,
     zeta 0.01, xF 0.05, released from 10) one per period, amplitudes to 0.002 and times to
