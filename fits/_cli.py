@@ -14,7 +14,7 @@ import sys
 
 from vmj.cli import figure_path, input_file, number, parse_set
 
-__all__ = ["add_arguments", "run", "MODELS", "TIME_UNITS"]
+__all__ = ["add_arguments", "run", "MODELS", "TIME_UNITS", "MAX_ROWS"]
 
 #: the model families (kept equal to `fits._models.SPACES` by a test)
 MODELS = ("variable-mass", "rope", "oscillator", "pendulum")
@@ -28,6 +28,8 @@ _DEFAULT_FREE = {
 _ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180}
 #: a raw signal's time units (kept equal to `fits.TIME_UNITS`' keys by a test)
 TIME_UNITS = ("s", "ms", "us", "ns", "min")
+#: the default limit on a file's data rows (kept equal to `fits.MAX_ROWS` by a test)
+MAX_ROWS = 2_000_000
 
 
 def _settings(text: str) -> dict:
@@ -68,6 +70,19 @@ def _rate(text: str) -> float:
     value = number(text)
     if not value > 0:
         raise argparse.ArgumentTypeError(f"must be a sampling rate > 0 [Hz] (got {text!r})")
+    return value
+
+
+def _max_rows(text: str) -> int | None:
+    """`--max-rows`: an integer >= 1, or `none` (argparse type)."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1 or 'none' (got {text!r})")
     return value
 
 
@@ -152,6 +167,14 @@ def add_arguments(p):
         "time_ms or 't [ms]', else s)",
     )
     p.add_argument(
+        "--max-rows",
+        metavar="N",
+        type=_max_rows,
+        default=MAX_ROWS,
+        help=f"refuse files of more data rows than N, or 'none' for no limit (default: "
+        f"{MAX_ROWS:,}, about 2 hours at 259 Hz)",
+    )
+    p.add_argument(
         "--angle-unit",
         choices=tuple(_ANGLE_UNITS),
         help="unit of an angle signal, for models with an angle_unit parameter (default: deg)",
@@ -218,6 +241,7 @@ def run(args) -> int:
             signal_col=args.signal_col,
             time_unit=args.time_unit,
             rate=args.rate,
+            max_rows=args.max_rows,
         )
         for path in args.FILE
     ]

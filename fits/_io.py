@@ -188,6 +188,12 @@ def _decode(data: bytes, source: str) -> str:
         return data.decode("cp1252", errors="replace")
 
 
+_RAISE_LIMIT = (
+    "to read it, raise the limit (max_rows=N, or max_rows=None for none; on the command line "
+    "--max-rows N or --max-rows none)"
+)
+
+
 def _text(path_or_text, max_rows: int | None = None) -> tuple[str, str]:
     """(contents with `\\n` line ends, source name) of a path, or of literal text given as
     `io.StringIO`. Refuses a file estimated to hold more than `max_rows` lines."""
@@ -212,8 +218,7 @@ def _text(path_or_text, max_rows: int | None = None) -> tuple[str, str]:
                         _fail(
                             path,
                             f"about {estimate:,.0f} rows ({size / 2**20:.0f} MiB), more "
-                            f"than the limit of {max_rows:,} rows: pass a larger "
-                            f"max_rows, or max_rows=None, to read it",
+                            f"than the limit of {max_rows:,} rows: {_RAISE_LIMIT}",
                         )
                 data = head + fh.read()
         except OSError as err:
@@ -415,8 +420,7 @@ def _rows_ok(n: int, source: str, max_rows: int | None, need: int, what: str):
     if max_rows is not None and n > max_rows:
         _fail(
             source,
-            f"{n:,} rows, more than the limit of {max_rows:,} rows: pass a larger "
-            "max_rows, or max_rows=None, to read it",
+            f"{n:,} rows, more than the limit of {max_rows:,} rows: {_RAISE_LIMIT}",
         )
     if n < need:
         _fail(source, f"only {n} data row{'s' if n != 1 else ''}: {what} needs at least {need}")

@@ -527,13 +527,31 @@ def test_row_limit(tmp_path):
     with pytest.raises(
         ValueError,
         match=r"about 3\d,\d{3} rows .*more than the limit of "
-        r"10,000 rows: pass a larger max_rows",
+        r"10,000 rows: to read it, raise the limit \(max_rows=N",
     ):
         fits.read_signal(str(path), max_rows=10_000)  # estimated from the size, not read
     with pytest.raises(ValueError, match=r"30,000 rows, more than the limit of 29,000"):
         fits.read_signal(str(path), max_rows=29_000)  # within the estimate's margin: counted
     assert fits.read_signal(str(path), max_rows=None).t.size == rows
-    assert fits.MAX_ROWS == 2_000_000
+    from fits._cli import MAX_ROWS
+
+    assert fits.MAX_ROWS == MAX_ROWS == 2_000_000  # the command line's default
+
+
+def test_row_limit_on_the_command_line(tmp_path, capsys):
+    """`vmj fit --max-rows`: the limit named in the command line's spelling, and checked."""
+    from vmj.cli import main
+
+    path = tmp_path / "long.csv"
+    t = np.arange(3000) / 1000.0
+    np.savetxt(path, np.column_stack([t, np.sin(20 * t)]), delimiter=",", header="t,y", comments="")
+    args = ["fit", str(path), "--series", "--model", "oscillator"]
+    assert main([*args, "--max-rows", "1000"]) == 2
+    assert "--max-rows N or --max-rows none" in capsys.readouterr().err
+    for bad in ("0", "-5", "many"):
+        with pytest.raises(SystemExit):
+            main([*args, "--max-rows", bad])
+        assert "--max-rows: must be an integer >= 1 or 'none'" in capsys.readouterr().err
 
 
 @pytest.mark.long  # 12 s of writing and reading, with the long runs for CI's time
