@@ -1137,6 +1137,30 @@ def _dry_level(x, peak, angle_unit=None) -> list:
     return out
 
 
+def _decays(y, idx, h, starts_at_edge: bool) -> list:
+    """The free decays among a signal's extrema `idx` (hysteresis `h`): a swing more than 1.5
+    times the one before it (and 2 h) was excited anew, by a tap, a pluck or a release (the
+    first swing of a decay started at rest from the centre is half the next one: its start is
+    no turning point). Returns `(a, b, largest swing)` per decay, its extrema `idx[a:b]`; a
+    decay's first extremum much nearer the centre than the next (where the excitation found
+    the mass at rest) is left out. A partial first swing at the signal's first sample
+    (`starts_at_edge`) is left to the extraction's own edge rule."""
+    s = np.abs(np.diff(y[idx]))
+    starts = [0] + [
+        j
+        for j in range(1, s.size)
+        if s[j] > 1.5 * s[j - 1] + 2 * h and not (starts_at_edge and j == 1)
+    ]
+    out = []
+    for a, b in zip(starts, starts[1:] + [idx.size]):
+        if 0 < a and b - a >= 4:
+            centre = float(np.median(_local_centres(y[idx[a + 1 : b]])))
+            if abs(y[idx[a]] - centre) < 0.5 * abs(y[idx[a + 1]] - centre):
+                a += 1
+        out.append((a, b, float(np.max(s[a : b - 1])) if b - a >= 2 else 0.0))
+    return out
+
+
 def _local_centres(x):
     """Local centre of each interior extremum: `(x[k-1] + 2 x[k] + x[k+1]) / 4`, which cancels
     the alternation and, to first order, the decay."""
@@ -1218,7 +1242,11 @@ def extract_turning_points(
        not despiked and its noise is measured from sinusoids through the samples near each
        extremum (`_harmonic_noise`), and one of fewer than 6 is refused;
     2. extrema are found with hysteresis `h` (default `max(6 sigma, 1e-3 range)`): a turning
-       point counts only once the signal has moved back from it by more than `h`;
+       point counts only once the signal has moved back from it by more than `h`; a swing
+       more than 1.5 times the one before it starts a new free decay (`_decays`: a tap, a
+       pluck or a release, after a quiet lead-in or during another decay), and the decay of
+       the largest swing is kept (`meta["decays"]`: where each starts, and the one taken,
+       where there are several);
     3. pairs of extrema much closer in time than the median half-period (spurious wiggles) are
        dropped; each extremum is refined by a local quartic over +-0.4 local half-periods
        (sub-sample time and value; a sinusoid over +-0.5 where fewer than 7 samples fall
@@ -1284,6 +1312,14 @@ def extract_turning_points(
     if idx.size < 3:
         _fail(source, f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})")
     floor = float(min_amplitude) if min_amplitude is not None else 10 * h
+    decays = _decays(y_clean, idx, h, starts_at_edge)
+    a, b = max(decays, key=lambda d: d[2])[:2]  # the decay of the largest swing
+    others = [float(t[idx[d[0]]]) for d in decays if d[2] >= 2 * floor]
+    if a > 0:
+        starts_at_edge = False
+    idx = idx[a:b]
+    if idx.size < 3:
+        _fail(source, f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})")
     swings = np.abs(np.diff(y_clean[idx]))
     small = np.nonzero(swings[int(np.argmax(swings)) :] < 1.5 * floor)[0] + int(np.argmax(swings))
     if small.size and small[0] + 3 < idx.size:  # the tail far below the floor: not refined
@@ -1339,6 +1375,8 @@ def extract_turning_points(
         if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
     meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
+    if len(others) > 1:  # several free decays: where each starts, and the one taken
+        meta["decays"] = {"starts": others, "taken": float(t[idx[0]])}
     if one_sided:
         # released at (or just after) the first sample: its extremum is located from one side,
         # biased towards the centre (by 0.020 of a0 = 1 noise sd on average, 20 synthetic

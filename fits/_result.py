@@ -409,6 +409,14 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                 f"column: read as half-swings, it gives half the frequency and twice the "
                 f"damping"
             )
+        decays = rec.meta.get("decays")
+        if decays:
+            starts = ", ".join(f"{v:.6g}" for v in decays["starts"])
+            warn.append(
+                f"{rec.source}: the signal holds {len(decays['starts'])} free decays (starting "
+                f"at {starts} s of its clock): the one with the largest swing, from "
+                f"{decays['taken']:.6g} s, is fitted; cut the file to fit another"
+            )
         levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
         if levels:
             warn.append(

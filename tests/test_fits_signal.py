@@ -402,6 +402,47 @@ def test_outliers_are_judged_in_units_of_each_times_precision():
     assert r.outliers == [int(rec.k[3])]
 
 
+def _taps(path, taps, t_end=10.0, seed=5):
+    """Viscous free decays (5 Hz, zeta 0.01) excited from the centre by taps `(time [s],
+    amplitude)` after a quiet lead-in, offset 0.1, noise 0.002, sampled at 1 kHz."""
+    rng = np.random.default_rng(seed)
+    w, zeta = 2 * np.pi * 5.0, 0.01
+    t = np.arange(0, t_end, 1e-3)
+    y = 0.1 + rng.normal(0, 0.002, t.size)
+    for t0, amplitude in taps:
+        tau = np.maximum(t - t0, 0.0)
+        y += (
+            (t >= t0) * amplitude * np.exp(-zeta * w * tau) * np.sin(w * np.sqrt(1 - zeta**2) * tau)
+        )
+    np.savetxt(path, np.column_stack([t, y]), delimiter=",", header="time,x", comments="")
+    return w, zeta
+
+
+def test_a_decay_excited_from_rest_after_a_quiet_lead_in(tmp_path):
+    """A tap or pluck from the centre recorded with a quiet pre-trigger: the first swing, from
+    the centre, is half the next and no turning point; the record starts at the first peak
+    (before 2026-11-27: refused, "fewer than 3 turning points above the amplitude floor", the
+    quiet samples' extrema taken for the decay's end). Several taps in one file: the decay of
+    the largest swing is fitted and the fit says where the others start."""
+    w, zeta = _taps(tmp_path / "tap.csv", [(1.0, 1.0)])
+    rec = fits.read_record(str(tmp_path / "tap.csv"), series=True)
+    quarter = np.pi / 2 / w
+    assert abs(rec.time_origin - (1.0 + quarter)) < 2e-3 and "decays" not in rec.meta
+    assert abs(rec.positions[0] - 0.1 - np.exp(-zeta * w * quarter)) < 0.01
+    r = fits.fit(rec, "oscillator", ("omega", "zeta", "a0", "offset"), compare=False)
+    assert r.converged and abs(r.params["omega"] / w - 1) < 1e-4
+    assert abs(r.params["zeta"] / zeta - 1) < 0.01
+    _taps(tmp_path / "taps.csv", [(1.0, 1.0), (11.0, 1.5), (21.0, 0.8)], t_end=30.0)
+    rec = fits.read_record(str(tmp_path / "taps.csv"), series=True)
+    starts = rec.meta["decays"]["starts"]
+    assert np.allclose(starts, [1.05, 11.05, 21.05], atol=3e-3)
+    assert rec.meta["decays"]["taken"] == starts[1]  # (a sample's time; the origin refined)
+    assert abs(rec.time_origin - starts[1]) < 2e-3
+    r = fits.fit(rec, "oscillator", ("omega", "zeta", "a0", "offset"), compare=False)
+    assert any("holds 3 free decays" in msg for msg in r.warnings)
+    assert abs(r.params["zeta"] / zeta - 1) < 0.01
+
+
 def test_a_clipped_signal_leaves_its_cut_off_extrema_out(synthetic_signal, tmp_path):
     """A saturated sensor: the synthetic record clipped at 70 % of its release amplitude above
     the centre and 60 % below. The extrema on the flat tops are no turning points (read, they
