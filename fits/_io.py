@@ -337,8 +337,13 @@ def _column_names(tab: _Table) -> list:
     return list(tab.header) if tab.header else [f"column {i}" for i in range(tab.ncols)]
 
 
-def _slow_columns(tab: _Table, cols: list, clock_cols: set) -> list:
-    """Parse the columns `cols` line by line; raises the first problem with its line number."""
+#: how a logger writes a sample it did not get (with `missing=True`, NaN in the columns)
+_MISSING = {"", "nan", "na", "n/a", "null", "none"}
+
+
+def _slow_columns(tab: _Table, cols: list, clock_cols: set, missing: bool = False) -> list:
+    """Parse the columns `cols` line by line; raises the first problem with its line number
+    (with `missing`, a cell of `_MISSING` is NaN)."""
     names = _column_names(tab)
     split = _splitter(tab.sep)
     need = max(cols) + 1
@@ -354,6 +359,9 @@ def _slow_columns(tab: _Table, cols: list, clock_cols: set) -> list:
             _fail(tab.source, f"line {no}: expected {tab.ncols} cells, found {len(cells)}")
         for j, c in enumerate(cols):
             cell = cells[c]
+            if missing and cell.strip().lower() in _MISSING:
+                out[j].append(math.nan)
+                continue
             value = _parse_time(cell) if c in clock_cols else None
             if value is None:
                 try:
@@ -371,10 +379,11 @@ def _slow_columns(tab: _Table, cols: list, clock_cols: set) -> list:
     return [np.asarray(v, dtype=float) for v in out]
 
 
-def _columns(tab: _Table, cols: list) -> list:
-    """Float arrays of the columns `cols` (clock times `HH:MM:SS.mmm` in seconds). Fast path:
-    NumPy's parser, the clock's colons turned into separators; any problem is located and
-    reported by the line-by-line parser."""
+def _columns(tab: _Table, cols: list, missing: bool = False) -> list:
+    """Float arrays of the columns `cols` (clock times `HH:MM:SS.mmm` in seconds; with
+    `missing`, NaN where a cell is empty or says NaN, `_MISSING`). Fast path: NumPy's parser,
+    the clock's colons turned into separators; any problem is located and reported by the
+    line-by-line parser."""
     clock_cols = {c for c in cols if c < len(tab.first) and _CLOCK.match(tab.first[c].strip())}
     body = tab.text[tab.body :]
     parts = [tab.first[c].count(":") for c in range(len(tab.first))]
@@ -413,7 +422,7 @@ def _columns(tab: _Table, cols: list) -> list:
             raise ValueError("not finite")
         return out
     except ValueError:
-        return _slow_columns(tab, cols, clock_cols)
+        return _slow_columns(tab, cols, clock_cols, missing)
 
 
 def _rows_ok(n: int, source: str, max_rows: int | None, need: int, what: str):
@@ -680,40 +689,46 @@ def _stamps(
     """The time stamps [s] from the finest of the candidate columns (the most distinct values
     among those that parse and never decrease), its name, and a note on the others and on the
     unit: `unit` (`TIME_UNITS`), else the one the column's name ends with, else seconds (clock
-    times `HH:MM:SS` are always read as such)."""
+    times `HH:MM:SS` are always read as such). Missing stamps are NaN (`_MISSING`)."""
     parsed, first_error = [], None
     for c in candidates:
         try:
-            values = _columns(tab, [c])[0]
+            values = _columns(tab, [c], missing=True)[0]
         except ValueError as err:
             if len(candidates) == 1:
                 raise
             first_error = first_error or err
             continue
+        there = np.isfinite(values)
+        if not np.any(there):
+            continue
         if _CLOCK.match(tab.first[c].strip()):  # clock stamps through midnight
-            values = values + 86400.0 * np.cumsum(
-                np.concatenate([[0.0], np.diff(values) < -43200.0])
+            values[there] += 86400.0 * np.cumsum(
+                np.concatenate([[0.0], np.diff(values[there]) < -43200.0])
             )
-        parsed.append((c, values, bool(np.all(np.diff(values) >= 0))))
+        parsed.append((c, values, bool(np.all(np.diff(values[there]) >= 0))))
     if not parsed:
+        if first_error is None:
+            _fail(tab.source, f"the time column {names[candidates[0]]!r} holds no values")
         raise first_error
     usable = [p for p in parsed if p[2]] or parsed[:1]
-    distinct = [np.unique(v).size for _, v, _ in usable]
+    distinct = [np.unique(v[np.isfinite(v)]).size for _, v, _ in usable]
     ti, stamps, _ = usable[int(np.argmax(distinct))]  # the first of the finest
-    dt = np.diff(stamps)
+    rows = np.flatnonzero(np.isfinite(stamps))
+    dt = np.diff(stamps[rows])
     if np.any(dt < 0):
-        i = int(np.nonzero(dt < 0)[0][0])
+        k = int(np.nonzero(dt < 0)[0][0])
+        i, j = int(rows[k]), int(rows[k + 1])
         _fail(
             tab.source,
-            f"line {_line_of(tab, i + 1)}, column {names[ti]!r}: time must be "
-            f"non-decreasing (goes back from {stamps[i]:.6g} to "
-            f"{stamps[i + 1]:.6g})",
+            f"line {_line_of(tab, j)}, column {names[ti]!r}: time must be "
+            f"non-decreasing (goes back from {stamps[i]:.6g} to {stamps[j]:.6g})",
         )
-    if stamps[-1] <= stamps[0]:
+    if stamps[rows[-1]] <= stamps[rows[0]]:
         _fail(tab.source, f"time must increase (column {names[ti]!r} is constant)")
     others = [
         f"{names[c]!r}" + (f" ({d} distinct values)" if ok else " (not monotone)")
-        for (c, _, ok), d in zip(parsed, [np.unique(v).size for _, v, _ in parsed])
+        for (c, _, ok), d in zip(parsed, [np.unique(v[np.isfinite(v)]).size for _, v, _ in parsed])
         if c != ti
     ]
     note = (
@@ -765,13 +780,15 @@ def read_signal(
     - `max_rows`: refuse files with more data rows than this (estimated from the file size
       before reading; default [`fits.MAX_ROWS`][]); `None` for no limit.
 
-    Rows sharing a stamp are averaged where the stamps are kept. The result's `clock_report`
-    says what was done.
+    Rows sharing a stamp are averaged where the stamps are kept. A row whose time or signal
+    is missing (an empty cell, `NaN`, `NA`, `N/A`, `null` or `none`: a logger's dropped sample)
+    is left out; on a clock made from `rate` the other rows keep their places. The result's
+    `clock_report` says what was done.
 
     Raises `ValueError` naming the file, and the line and column where there is one, for a
     missing, unreadable or binary file, a directory, an empty or header-only file, fewer than
-    3 rows, a missing column, a non-numeric, empty or non-finite cell, time that decreases,
-    an unknown `clock` or `time_unit`, a bad `rate`, and too many rows.
+    3 rows with values, a missing column, a non-numeric or infinite cell, time that
+    decreases, an unknown `clock` or `time_unit`, a bad `rate`, and too many rows.
     """
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {', '.join(map(repr, CLOCKS))} (got {clock!r})")
@@ -792,15 +809,28 @@ def read_signal(
         candidates = []
     else:
         candidates = _time_candidates(tab, yi) or [0 if yi != 0 else 1]
-    y = _columns(tab, [yi])[0]
+    y = _columns(tab, [yi], missing=True)[0]
     _rows_ok(len(y), source, max_rows, 3, "a raw signal")
     stamps, tname, ignored = (
         _stamps(tab, candidates, names, time_unit) if candidates else (None, None, "")
     )
+    # rows without a value (a logger's dropped samples, `_MISSING`) are left out; by row
+    # number they keep their place on a clock made from the rate
+    there = np.isfinite(y) if stamps is None else np.isfinite(y) & np.isfinite(stamps)
+    gaps = int(np.count_nonzero(~there))
+    if gaps:
+        _rows_ok(int(np.count_nonzero(there)), source, None, 3, "a raw signal with values")
+        if stamps is not None:
+            y, stamps = y[there], stamps[there]
     try:
-        t, report = recover_clock(stamps, clock=clock, rate=rate, column=tname, rows=len(y))
+        t, report = recover_clock(stamps, clock=clock, rate=rate, column=tname, rows=there.size)
     except ValueError as err:
         _fail(source, str(err))
+    if gaps and stamps is None:
+        t, y = t[there], y[there]
+    if gaps:
+        first = _line_of(tab, int(np.flatnonzero(~there)[0]))
+        ignored += f"; {gaps} row{'s' if gaps > 1 else ''} without a value left out (the first: line {first})"
     report["message"] += ignored
     if t is None:  # stamps kept
         t, inverse = np.unique(stamps, return_inverse=True)

@@ -217,6 +217,39 @@ def test_one_sides_peaks_by_cycle(tmp_path):
         fits.read_peaks(_write(tmp_path, "k,cycle,amplitude\n0,0,1\n2,1,0.9\n"))
 
 
+def test_rows_without_a_value_are_left_out(tmp_path):
+    """A logger's dropped samples (an empty cell, NaN, NA, null): the rows are left out and
+    said so; the record is the one of the same file without those rows. On a clock made from
+    the rate, each row keeps its place."""
+    lines = open(P80).read().splitlines()
+    rng = np.random.default_rng(0)
+    gone = set(rng.choice(np.arange(2, len(lines)), 30, replace=False).tolist())
+    spellings = ["", "NaN", "nan", "NA", "null"]
+    holed = [
+        line if i not in gone else line.rsplit(", ", 1)[0] + ", " + spellings[i % 5]
+        for i, line in enumerate(lines)
+    ]
+    (tmp_path / "holed.txt").write_text("\n".join(holed) + "\n")
+    (tmp_path / "cut.txt").write_text(
+        "\n".join(line for i, line in enumerate(lines) if i not in gone) + "\n"
+    )
+    a, b = (fits.read_signal(str(tmp_path / f)) for f in ("holed.txt", "cut.txt"))
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.y, b.y)
+    first = min(gone) + 1
+    assert (
+        f"30 rows without a value left out (the first: line {first})" in a.clock_report["message"]
+    )
+    y = np.sin(np.arange(400) / 10.0)
+    cells = [f"{v:.6f}" if i % 37 else "NaN" for i, v in enumerate(y)]  # (a blank: no row)
+    (tmp_path / "one.csv").write_text("x\n" + "\n".join(cells) + "\n")
+    sig = fits.read_signal(str(tmp_path / "one.csv"), rate=100.0)
+    kept = np.arange(400) % 37 != 0
+    np.testing.assert_allclose(sig.t, (np.arange(400)[kept] - 1) / 100.0)  # from the first
+    np.testing.assert_allclose(sig.y, np.round(y[kept], 6))
+    with pytest.raises(ValueError, match="not a number"):  # other words stay errors
+        fits.read_signal(_write(tmp_path, "t,y\n0,1\n1,missing\n2,3\n3,4\n"))
+
+
 def test_pendulum_format_and_clock(tmp_path):
     sig = fits.read_signal(P80)
     assert sig.time_name == "Timestamp" and sig.signal_name == "Angle(deg)"

@@ -374,8 +374,14 @@ BAD_SIGNALS = [
     ("t,angle\n", "a header but no data rows"),
     ("t,angle\n0,1\n", "only 1 data row: a raw signal needs at least 3"),
     ("t,angle\n0,1\n0.1,2\n0.2,abc\n", r"line 4, column 'angle': not a number: 'abc'"),
-    ("t,angle\n0,1\n0.1,nan\n0.2,3\n", r"line 3, column 'angle': 'nan' is not a finite number"),
-    ("t,angle\n0,1\n0.1,\n0.2,3\n", r"line 3, column 'angle': empty cell"),
+    # a missing value leaves its row out (a logger's dropped sample); infinity is an error
+    (
+        "t,angle\n0,1\n0.1,nan\n0.2,3\n",
+        "only 2 data rows: a raw signal with values needs at least 3",
+    ),
+    ("t,angle\n0,1\n0.1,\n0.2,3\n", "only 2 data rows: a raw signal with values needs at least 3"),
+    ("t,angle\n0,1\n0.1,inf\n0.2,3\n", r"line 3, column 'angle': 'inf' is not a finite number"),
+    ("t,angle\n0,1\n,2\n0.2,3\n", "only 2 data rows: a raw signal with values needs at least 3"),
     ("t,angle\n0,1\n0.1\n0.2,3\n", r"line 3: expected 2 cells, found 1"),
     ("t,angle\n0,1\n0.2,2\n0.1,3\n", r"line 4, column 't': time must be non-decreasing"),
     ("t,angle\n# note\n0,1\n\n0.2,2\n0.1,3\n", r"line 6, column 't': time must be"),
