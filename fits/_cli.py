@@ -73,6 +73,24 @@ def _rate(text: str) -> float:
     return value
 
 
+def _window(text: str) -> tuple:
+    """`--window START:END` [s] (argparse type; an empty end is open)."""
+    lo_t, colon, hi_t = text.partition(":")
+    try:
+        if not colon:
+            raise ValueError
+        lo = None if not lo_t.strip() else float(lo_t)
+        hi = None if not hi_t.strip() else float(hi_t)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be START:END in seconds from the first sample, an end may be empty "
+            f"(got {text!r})"
+        ) from None
+    if lo is not None and hi is not None and not lo < hi:
+        raise argparse.ArgumentTypeError(f"needs START < END (got {text!r})")
+    return lo, hi
+
+
 def _max_rows(text: str) -> int | None:
     """`--max-rows`: an integer >= 1, or `none` (argparse type)."""
     if text.strip().lower() == "none":
@@ -167,6 +185,13 @@ def add_arguments(p):
         "time_ms or 't [ms]', else s)",
     )
     p.add_argument(
+        "--window",
+        metavar="START:END",
+        type=_window,
+        help="raw signal: keep the samples from START to END [s from the first sample; an "
+        "empty end is open], e.g. one decay of several in a file",
+    )
+    p.add_argument(
         "--max-rows",
         metavar="N",
         type=_max_rows,
@@ -229,6 +254,7 @@ def run(args) -> int:
         "--signal-col": args.signal_col,
         "--time-unit": args.time_unit,
         "--rate": args.rate,
+        "--window": args.window,
     }
     asked = [name for name, value in raw.items() if value is not None]
     if asked and not args.series:
@@ -241,6 +267,7 @@ def run(args) -> int:
             signal_col=args.signal_col,
             time_unit=args.time_unit,
             rate=args.rate,
+            window=args.window,
             max_rows=args.max_rows,
         )
         for path in args.FILE

@@ -753,6 +753,7 @@ def read_signal(
     rate: float | None = None,
     time_unit: str | None = None,
     max_rows: int | None = MAX_ROWS,
+    window: tuple | None = None,
 ) -> Signal:
     """Read a raw signal from a CSV (`,`, or `;` with decimal points or commas), tab- or
     whitespace-separated text file (decimal commas there too).
@@ -779,6 +780,9 @@ def read_signal(
       `Time (us)`), else seconds. Clock times `HH:MM:SS.mmm` are read as such.
     - `max_rows`: refuse files with more data rows than this (estimated from the file size
       before reading; default [`fits.MAX_ROWS`][]); `None` for no limit.
+    - `window`: `(start, end)` [s from the file's first sample; `None` for an open end]: only
+      the samples within it are kept (one decay of several in a file, a part without a
+      disturbance); their times stay on the whole file's clock.
 
     Rows sharing a stamp are averaged where the stamps are kept. A row whose time or signal
     is missing (an empty cell, `NaN`, `NA`, `N/A`, `null` or `none`: a logger's dropped sample)
@@ -787,11 +791,13 @@ def read_signal(
 
     Raises `ValueError` naming the file, and the line and column where there is one, for a
     missing, unreadable or binary file, a directory, an empty or header-only file, fewer than
-    3 rows with values, a missing column, a non-numeric or infinite cell, time that
-    decreases, an unknown `clock` or `time_unit`, a bad `rate`, and too many rows.
+    3 rows with values (in the `window`), a missing column, a non-numeric or infinite cell,
+    time that decreases, an unknown `clock` or `time_unit`, a bad `rate` or `window`, and too
+    many rows.
     """
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {', '.join(map(repr, CLOCKS))} (got {clock!r})")
+    lo, hi = _window(window)
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise ValueError(
             f"time_unit must be one of {', '.join(map(repr, TIME_UNITS))} (got {time_unit!r})"
@@ -838,8 +844,19 @@ def read_signal(
         kind = "stamps"
     else:
         kind = "uniform"
+    t = t - t[0]
+    if window is not None:
+        inside = (t >= lo) & (t <= hi)
+        if np.count_nonzero(inside) < 3:
+            _fail(
+                source,
+                f"window [{lo:g}, {hi:g}] s holds {np.count_nonzero(inside)} samples (the signal "
+                f"spans 0 to {t[-1]:.6g} s from its first sample): at least 3 are needed",
+            )
+        t, y = t[inside], y[inside]
+        report["message"] += f"; the samples from {t[0]:.6g} to {t[-1]:.6g} s kept (window)"
     return Signal(
-        t=t - t[0],
+        t=t,
         y=y,
         source=source,
         time_name=tname or "sample index",
@@ -847,6 +864,23 @@ def read_signal(
         clock=kind,
         clock_report=report,
     )
+
+
+def _window(window) -> tuple:
+    """`(start, end)` of `read_signal`'s `window` [s], open ends as infinities."""
+    if window is None:
+        return -math.inf, math.inf
+    try:
+        lo, hi = window
+        lo = -math.inf if lo is None else float(lo)
+        hi = math.inf if hi is None else float(hi)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"window must be (start, end) in seconds from the first sample (got {window!r})"
+        ) from None
+    if math.isnan(lo) or math.isnan(hi) or not lo < hi:
+        raise ValueError(f"window needs start < end [s] (got {window!r})")
+    return lo, hi
 
 
 # -- turning points of a raw signal ------------------------------------------------------------
@@ -1486,10 +1520,12 @@ def read_record(
     time_unit: str | None = None,
     max_rows: int | None = MAX_ROWS,
     angle_unit: float | None = None,
+    window: tuple | None = None,
 ) -> Record:
     """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
     turning points extracted from a raw signal (see [`fits.read_signal`][] for `time_col`,
-    `signal_col`, `clock`, `rate`, `time_unit` and [`fits.extract_turning_points`][])."""
+    `signal_col`, `clock`, `rate`, `time_unit`, `window` and
+    [`fits.extract_turning_points`][])."""
     if series:
         return extract_turning_points(
             read_signal(
@@ -1500,12 +1536,14 @@ def read_record(
                 rate=rate,
                 time_unit=time_unit,
                 max_rows=max_rows,
+                window=window,
             ),
             angle_unit=angle_unit,
         )
-    raw = (time_col, signal_col, rate, time_unit)
+    raw = (time_col, signal_col, rate, time_unit, window)
     if any(v is not None for v in raw) or clock != "auto":
         raise ValueError(
-            "time_col, signal_col, clock, rate and time_unit apply to raw signals (series=True)"
+            "time_col, signal_col, clock, rate, time_unit and window apply to raw signals "
+            "(series=True)"
         )
     return read_peaks(path, max_rows=max_rows)

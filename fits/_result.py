@@ -415,7 +415,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
             warn.append(
                 f"{rec.source}: the signal holds {len(decays['starts'])} free decays (starting "
                 f"at {starts} s of its clock): the one with the largest swing, from "
-                f"{decays['taken']:.6g} s, is fitted; cut the file to fit another"
+                f"{decays['taken']:.6g} s, is fitted; another with a window (--window "
+                f"START:END [s], window=)"
             )
         levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
         if levels:

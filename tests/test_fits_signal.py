@@ -474,6 +474,15 @@ def test_a_decay_excited_from_rest_after_a_quiet_lead_in(tmp_path):
     r = fits.fit(rec, "oscillator", ("omega", "zeta", "a0", "offset"), compare=False)
     assert any("holds 3 free decays" in msg for msg in r.warnings)
     assert abs(r.params["zeta"] / zeta - 1) < 0.01
+    # another decay by a window [s from the first sample]; its times stay on the file's clock
+    rec = fits.read_record(str(tmp_path / "taps.csv"), series=True, window=(20.0, None))
+    assert "decays" not in rec.meta and abs(rec.time_origin - starts[2]) < 2e-3
+    with pytest.raises(ValueError, match=r"window \[40, inf\] s holds 0 samples"):
+        fits.read_record(str(tmp_path / "taps.csv"), series=True, window=(40.0, None))
+    with pytest.raises(ValueError, match="start < end"):
+        fits.read_signal(str(tmp_path / "taps.csv"), window=(5.0, 3.0))
+    with pytest.raises(ValueError, match="apply to raw signals"):
+        fits.read_record(str(tmp_path / "taps.csv"), window=(5.0, 9.0))
 
 
 def test_a_clipped_signal_leaves_its_cut_off_extrema_out(synthetic_signal, tmp_path):

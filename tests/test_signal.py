@@ -560,6 +560,28 @@ def test_row_limit_on_the_command_line(tmp_path, capsys):
         assert "--max-rows: must be an integer >= 1 or 'none'" in capsys.readouterr().err
 
 
+def test_window_on_the_command_line(tmp_path, capsys):
+    """`vmj fit --window START:END`: checked by the parser, for raw signals only."""
+    from vmj.cli import main
+
+    path = tmp_path / "x.csv"
+    t = np.arange(3000) / 1000.0
+    np.savetxt(path, np.column_stack([t, np.sin(20 * t)]), delimiter=",", header="t,y", comments="")
+    args = ["fit", str(path), "--model", "oscillator"]
+    for bad, message in (
+        ("5", "must be START:END"),
+        ("a:b", "must be START:END"),
+        ("5:3", "START < END"),
+    ):
+        with pytest.raises(SystemExit):
+            main([*args, "--series", "--window", bad])
+        assert message in capsys.readouterr().err
+    assert main([*args, "--window", "1:2"]) == 2
+    assert "--window: for a raw signal, read with --series" in capsys.readouterr().err
+    assert main([*args, "--series", "--window", "9:"]) == 2
+    assert "window [9, inf] s holds 0 samples" in capsys.readouterr().err
+
+
 @pytest.mark.long  # 12 s of writing and reading, with the long runs for CI's time
 def test_a_million_rows(tmp_path):
     """A million rows of clock-stamped arrival data: read and put on the recovered clock in a
