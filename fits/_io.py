@@ -74,8 +74,9 @@ class Signal:
 
     **Fields:**
 
-    - `t`: sample times [s] from the first sample (non-decreasing; strictly increasing where
-      the stamps were kept, rows sharing a stamp averaged).
+    - `t`: sample times [s] from the file's first sample (non-decreasing; strictly increasing
+      where the stamps were kept, rows sharing a stamp averaged; a `window` of
+      [`fits.read_signal`][] keeps its samples' times).
     - `y`: the samples [signal units].
     - `source`, `time_name`, `signal_name`: the file and the columns read.
     - `clock`: `"uniform"` if `t` is a uniform clock (recovered or given), `"stamps"` if `t`
@@ -472,11 +473,8 @@ _PEAK_ROLES = {
 
 def _peak_role(name: str) -> str | None:
     """What a peak table's column holds, from its name: its first word, less a unit (`Time
-    (s)`, `time_ms`, `Amplitude [mm]`); `None` for another column."""
-    base = re.split(r"[\s(\[]", name.strip().lower(), maxsplit=1)[0]
-    if base not in _PEAK_ROLES and _TIME_UNIT.search(base):
-        base = base[: _TIME_UNIT.search(base).start()]
-    return _PEAK_ROLES.get(base)
+    (s)`, `time_ms`, `t/min`, `Amplitude [mm]`, `amplitude_mm`); `None` for another column."""
+    return _PEAK_ROLES.get(re.split(r"[\s(\[_/]", name.strip().lower(), maxsplit=1)[0])
 
 
 def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> Record:
@@ -737,10 +735,18 @@ def _stamps(
         else ""
     )
     if not _CLOCK.match(tab.first[ti].strip()):
-        unit = unit or _time_unit(names[ti])
-        if unit != "s":
-            stamps = stamps * TIME_UNITS[unit]
-            note += f"; {names[ti]!r} read in {unit}"
+        named = unit or (_time_unit(names[ti]) if _TIME_UNIT.search(names[ti].strip()) else None)
+        if named not in (None, "s"):
+            stamps = stamps * TIME_UNITS[named]
+            note += f"; {names[ti]!r} read in {named}"
+        there = stamps[np.isfinite(stamps)]
+        step = float(np.median(np.diff(there))) if there.size > 1 else 0.0
+        if named is None and step >= 1 and np.all(there == np.round(there)):
+            # a counter of milliseconds, read as seconds, makes every time 1000 x too long
+            note += (
+                f"; {names[ti]!r} holds whole numbers {step:g} apart, read as seconds (if "
+                f"they are milliseconds, say so: --time-unit ms, time_unit='ms')"
+            )
     return stamps, names[ti], note
 
 
@@ -836,7 +842,8 @@ def read_signal(
         t, y = t[there], y[there]
     if gaps:
         first = _line_of(tab, int(np.flatnonzero(~there)[0]))
-        ignored += f"; {gaps} row{'s' if gaps > 1 else ''} without a value left out (the first: line {first})"
+        rows = f"{gaps} row{'s' if gaps > 1 else ''}"
+        ignored += f"; {rows} without a value left out (the first: line {first})"
     report["message"] += ignored
     if t is None:  # stamps kept
         t, inverse = np.unique(stamps, return_inverse=True)

@@ -492,8 +492,12 @@ def test_time_unit_from_the_header_or_given(tmp_path):
         sig = fits.read_signal(_write(tmp_path, text, "unit.csv"))
         np.testing.assert_allclose(sig.t, np.array([0.0, 5.0, 10.0]) * scale)
         assert ("read in" in sig.clock_report["message"]) == (scale != 1.0), name
+        # whole numbers a second or more apart in a column that names no unit: said
+        hint = "holds whole numbers 5 apart, read as seconds (if they are milliseconds"
+        assert (hint in sig.clock_report["message"]) == (name == "time"), name
     sig = fits.read_signal(_write(tmp_path, "t,x\n0,1\n5,2\n10,-1\n"), time_unit="ms")
     np.testing.assert_allclose(sig.t, [0.0, 0.005, 0.01])
+    assert "whole numbers" not in sig.clock_report["message"]
     with pytest.raises(ValueError, match="time_unit must be one of 's', 'ms'"):
         fits.read_signal(_write(tmp_path, "t,x\n0,1\n5,2\n10,-1\n"), time_unit="hours")
 
