@@ -91,12 +91,25 @@ def ratio(label: str, numerator: Timing, denominator: Timing, goal: str = "") ->
     return r
 
 
+def _processor() -> str:
+    """The processor's model name (`/proc/cpuinfo` on Linux), else the architecture: figures
+    taken on different processors are not compared."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def machine() -> str:
     import jax
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return (
-        f"{platform.processor() or platform.machine()}, {cores} cores, load average "
+        f"{_processor()}, {cores} cores, load average "
         f"{os.getloadavg()[0]:.1f}; python {sys.version.split()[0]}, jax {jax.__version__}, "
         f"{jax.devices()[0].platform}; medians of {REPEAT} or more runs (min, max)"
     )
