@@ -455,8 +455,9 @@ def test_a_decay_excited_from_rest_after_a_quiet_lead_in(tmp_path):
     """A tap or pluck from the centre recorded with a quiet pre-trigger: the first swing, from
     the centre, is half the next and no turning point; the record starts at the first peak
     (before 2026-11-27: refused, "fewer than 3 turning points above the amplitude floor", the
-    quiet samples' extrema taken for the decay's end). Several taps in one file: the decay of
-    the largest swing is fitted and the fit says where the others start."""
+    quiet samples' extrema taken for the decay's end), as was a mass pulled aside and held
+    after such a lead-in. Several taps in one file: the decay of the largest swing is fitted
+    and the fit says where the others start."""
     w, zeta = _taps(tmp_path / "tap.csv", [(1.0, 1.0)])
     rec = fits.read_record(str(tmp_path / "tap.csv"), series=True)
     quarter = np.pi / 2 / w
@@ -474,6 +475,18 @@ def test_a_decay_excited_from_rest_after_a_quiet_lead_in(tmp_path):
     r = fits.fit(rec, "oscillator", ("omega", "zeta", "a0", "offset"), compare=False)
     assert any("holds 3 free decays" in msg for msg in r.warnings)
     assert abs(r.params["zeta"] / zeta - 1) < 0.01
+    # quiet, then pulled aside over 1 s, held for 1 s and released at 3 s: the release is
+    # the hold (refused before, as the tap was)
+    t = np.arange(0, 12, 1e-3)
+    held = np.where(t < 3, np.clip(t - 1, 0, 1), 0.0)
+    tau = np.maximum(t - 3, 0)
+    wd = w * np.sqrt(1 - zeta**2)
+    decay = np.exp(-zeta * w * tau) * (np.cos(wd * tau) + zeta * w / wd * np.sin(wd * tau))
+    y = np.where(t < 3, held, decay) + 0.2 + np.random.default_rng(2).normal(0, 0.002, t.size)
+    np.savetxt(tmp_path / "hold.csv", np.column_stack([t, y]), delimiter=",", header="t,x")
+    rec = fits.read_record(str(tmp_path / "hold.csv"), series=True)
+    assert rec.meta["release"] == fits.HELD_RELEASE and abs(rec.time_origin - 3.0) < 2e-3
+    assert abs(rec.positions[0] - 1.2) < 0.01 and "decays" not in rec.meta
     # another decay by a window [s from the first sample]; its times stay on the file's clock
     rec = fits.read_record(str(tmp_path / "taps.csv"), series=True, window=(20.0, None))
     assert "decays" not in rec.meta and abs(rec.time_origin - starts[2]) < 2e-3
