@@ -91,6 +91,19 @@ def _window(text: str) -> tuple:
     return lo, hi
 
 
+def _decay(text: str) -> int | str:
+    """`--decay N|all` (argparse type)."""
+    if text.strip().lower() == "all":
+        return "all"
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0 or 'all' (got {text!r})")
+    return value
+
+
 def _max_rows(text: str) -> int | None:
     """`--max-rows`: an integer >= 1, or `none` (argparse type)."""
     if text.strip().lower() == "none":
@@ -192,6 +205,14 @@ def add_arguments(p):
         "empty end is open], e.g. one decay of several in a file",
     )
     p.add_argument(
+        "--decay",
+        metavar="N|all",
+        type=_decay,
+        help="raw signal of several free decays (repeated taps or releases): fit the N-th, "
+        "from 0 in time order (default: the one of the largest swing), or all of them jointly "
+        "(with --shared for the parameters they share, e.g. omega,zeta,xF)",
+    )
+    p.add_argument(
         "--max-rows",
         metavar="N",
         type=_max_rows,
@@ -240,8 +261,8 @@ def run(args) -> int:
     given = _settings(args.set)
     bounds = _bounds(args.bounds)
     shared = _names(args.shared, "--shared")
-    if shared and len(args.FILE) < 2:
-        raise ValueError("--shared needs several FILEs")
+    if shared and len(args.FILE) < 2 and args.decay != "all":
+        raise ValueError("--shared needs several FILEs (or --decay all)")
     if "angle_unit" in space.names:
         given["angle_unit"] = _ANGLE_UNITS[args.angle_unit or "deg"]
     elif args.angle_unit is not None:
@@ -255,23 +276,26 @@ def run(args) -> int:
         "--time-unit": args.time_unit,
         "--rate": args.rate,
         "--window": args.window,
+        "--decay": args.decay,
     }
     asked = [name for name, value in raw.items() if value is not None]
     if asked and not args.series:
         raise ValueError(f"{', '.join(asked)}: for a raw signal, read with --series")
-    records = [
-        fits.read_record(
-            path,
-            series=args.series,
-            time_col=args.time_col,
-            signal_col=args.signal_col,
-            time_unit=args.time_unit,
-            rate=args.rate,
-            window=args.window,
-            max_rows=args.max_rows,
-        )
-        for path in args.FILE
-    ]
+    reading = {
+        "time_col": args.time_col,
+        "signal_col": args.signal_col,
+        "time_unit": args.time_unit,
+        "rate": args.rate,
+        "window": args.window,
+        "max_rows": args.max_rows,
+    }
+    if args.decay == "all":  # every decay of every file, fitted jointly
+        records = [rec for path in args.FILE for rec in fits.read_decays(path, **reading)]
+    else:
+        records = [
+            fits.read_record(path, series=args.series, decay=args.decay, **reading)
+            for path in args.FILE
+        ]
     free = args.fit or _DEFAULT_FREE[args.model]
     if args.fit is None and args.model == "oscillator" and any(r.times is None for r in records):
         free = "zeta,xF,a0,offset"

@@ -666,6 +666,7 @@ def _extracted_for(space, rec: Record, given: dict) -> Record:
         hysteresis=rec.meta["hysteresis"],
         min_amplitude=rec.meta["min_amplitude"],
         angle_unit=unit,
+        decay=rec.meta.get("decays", {}).get("index"),
     )
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "extract_turning_points",
     "record_from_sequence",
     "read_record",
+    "read_decays",
     "MAX_ROWS",
     "EDGE_RELEASE",
     "HELD_RELEASE",
@@ -1303,6 +1304,7 @@ def extract_turning_points(
     hysteresis: float | None = None,
     min_amplitude: float | None = None,
     angle_unit: float | None = None,
+    decay: int | None = None,
 ) -> Record:
     """Turning points of a raw decaying signal, robust to irregular sampling, noise,
     quantisation, a constant offset and a few spurious extrema.
@@ -1316,8 +1318,9 @@ def extract_turning_points(
        point counts only once the signal has moved back from it by more than `h`; a swing
        more than 1.5 times the one before it starts a new free decay (`_decays`: a tap, a
        pluck or a release, after a quiet lead-in or during another decay), and the decay of
-       the largest swing is kept (`meta["decays"]`: where each starts, and the one taken,
-       where there are several);
+       the largest swing is kept, or the `decay`-th (0-based, in time order) where it is
+       given (`meta["decays"]`: where each starts, the one taken and its index, where there
+       are several; [`fits.read_decays`][] reads every one);
     3. pairs of extrema much closer in time than the median half-period (spurious wiggles) are
        dropped; each extremum is refined by a local quartic over +-0.4 local half-periods
        (sub-sample time and value; a sinusoid over +-0.5 where fewer than 7 samples fall
@@ -1384,8 +1387,17 @@ def extract_turning_points(
         _fail(source, f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})")
     floor = float(min_amplitude) if min_amplitude is not None else 10 * h
     decays = _decays(y_clean, idx, h, starts_at_edge)
-    a, b = max(decays, key=lambda d: d[2])[:2]  # the decay of the largest swing
-    others = [float(t[idx[d[0]]]) for d in decays if d[2] >= 2 * floor]
+    decays = [d for d in decays if d[2] >= 2 * floor] or decays  # (none: refused below)
+    if decay is None:
+        decay = max(range(len(decays)), key=lambda i: decays[i][2])  # of the largest swing
+    elif not 0 <= decay < len(decays):
+        _fail(
+            source,
+            f"decay {decay} asked for, but the signal holds {len(decays)} free "
+            f"decay{'s' if len(decays) > 1 else ''} (numbered from 0 in time order)",
+        )
+    a, b = decays[decay][:2]
+    others = [float(t[idx[d[0]]]) for d in decays]
     if a > 0:
         starts_at_edge = False
     idx = idx[a:b]
@@ -1447,7 +1459,7 @@ def extract_turning_points(
             tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
     meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
     if len(others) > 1:  # several free decays: where each starts, and the one taken
-        meta["decays"] = {"starts": others, "taken": float(t[idx[0]])}
+        meta["decays"] = {"starts": others, "taken": others[decay], "index": decay}
     if one_sided:
         # released at (or just after) the first sample: its extremum is located from one side,
         # biased towards the centre (by 0.020 of a0 = 1 noise sd on average, 20 synthetic
@@ -1528,11 +1540,12 @@ def read_record(
     max_rows: int | None = MAX_ROWS,
     angle_unit: float | None = None,
     window: tuple | None = None,
+    decay: int | None = None,
 ) -> Record:
     """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
     turning points extracted from a raw signal (see [`fits.read_signal`][] for `time_col`,
-    `signal_col`, `clock`, `rate`, `time_unit`, `window` and
-    [`fits.extract_turning_points`][])."""
+    `signal_col`, `clock`, `rate`, `time_unit`, `window`, and
+    [`fits.extract_turning_points`][] for `decay`)."""
     if series:
         return extract_turning_points(
             read_signal(
@@ -1546,11 +1559,30 @@ def read_record(
                 window=window,
             ),
             angle_unit=angle_unit,
+            decay=decay,
         )
-    raw = (time_col, signal_col, rate, time_unit, window)
+    raw = (time_col, signal_col, rate, time_unit, window, decay)
     if any(v is not None for v in raw) or clock != "auto":
         raise ValueError(
-            "time_col, signal_col, clock, rate, time_unit and window apply to raw signals "
-            "(series=True)"
+            "time_col, signal_col, clock, rate, time_unit, window and decay apply to raw "
+            "signals (series=True)"
         )
     return read_peaks(path, max_rows=max_rows)
+
+
+def read_decays(path: str | os.PathLike, **kwargs) -> list:
+    """Every free decay of a raw signal (repeated taps or releases in one file), one
+    [`fits.Record`][] each, in time order: fitted together with shared parameters
+    (`fits.fit(records, ..., shared=("omega", "zeta", "xF"))`), each keeps its own release
+    amplitude and offset. `kwargs` as [`fits.read_record`][]'s for raw signals (not
+    `series`, not `decay`)."""
+    for name in ("series", "decay"):
+        if name in kwargs:
+            raise ValueError(f"read_decays reads raw signals, every decay: no {name}=")
+    angle_unit = kwargs.pop("angle_unit", None)
+    signal = read_signal(path, **kwargs)
+    first = extract_turning_points(signal, angle_unit=angle_unit)
+    n = len(first.meta.get("decays", {}).get("starts", ())) or 1
+    if n == 1:
+        return [first]
+    return [extract_turning_points(signal, angle_unit=angle_unit, decay=i) for i in range(n)]

@@ -322,6 +322,27 @@ def _assess(job, prob, shape) -> _Assessed:
     )
 
 
+def _decays_left_out(records) -> list:
+    """A warning per signal of several free decays of which the fit leaves some out."""
+    taken, starts = {}, {}
+    for rec in records:
+        decays = rec.meta.get("decays")
+        if decays:
+            taken.setdefault(rec.source, set()).add(decays["index"])
+            starts[rec.source] = decays["starts"]
+    out = []
+    for source, indices in taken.items():
+        if len(indices) < len(starts[source]):
+            at = ", ".join(f"{v:.6g}" for v in starts[source])
+            which = ", ".join(str(i) for i in sorted(indices))
+            out.append(
+                f"{source}: the signal holds {len(starts[source])} free decays (starting at {at} "
+                f"s of its clock, numbered from 0): decay {which} fitted; another with --decay "
+                f"N (decay=N), all of them jointly with --decay all (fits.read_decays)"
+            )
+    return out
+
+
 def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     """The [`fits.FitResult`][] of an assessed job; `ends`: its profile-likelihood interval
     ends (`fits._solve._profiles`; None where they were not computed)."""
@@ -401,6 +422,7 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                 f"interval +- 1.96 stderr"
             )
         intervals[nm] = (float(lo), float(hi))
+    warn += _decays_left_out(prob.records)
     for rec in prob.records:
         if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:
             warn.append(
@@ -408,15 +430,6 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                 f"in turn); a table of one side's peaks (one per period) needs a 'cycle' "
                 f"column: read as half-swings, it gives half the frequency and twice the "
                 f"damping"
-            )
-        decays = rec.meta.get("decays")
-        if decays:
-            starts = ", ".join(f"{v:.6g}" for v in decays["starts"])
-            warn.append(
-                f"{rec.source}: the signal holds {len(decays['starts'])} free decays (starting "
-                f"at {starts} s of its clock): the one with the largest swing, from "
-                f"{decays['taken']:.6g} s, is fitted; another with a window (--window "
-                f"START:END [s], window=)"
             )
         levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
         if levels:

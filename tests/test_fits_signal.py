@@ -472,8 +472,9 @@ def test_a_decay_excited_from_rest_after_a_quiet_lead_in(tmp_path):
     assert np.allclose(starts, [1.05, 11.05, 21.05], atol=3e-3)
     assert rec.meta["decays"]["taken"] == starts[1]  # (a sample's time; the origin refined)
     assert abs(rec.time_origin - starts[1]) < 2e-3
-    r = fits.fit(rec, "oscillator", ("omega", "zeta", "a0", "offset"), compare=False)
-    assert any("holds 3 free decays" in msg for msg in r.warnings)
+    with pytest.warns(UserWarning, match="holds 3 free decays"):
+        r = fits.fit(rec, "oscillator", ("omega", "zeta", "a0", "offset"), compare=False)
+    assert any("decay 1 fitted" in msg for msg in r.warnings)
     assert abs(r.params["zeta"] / zeta - 1) < 0.01
     # quiet, then pulled aside over 1 s, held for 1 s and released at 3 s: the release is
     # the hold (refused before, as the tap was)
@@ -487,6 +488,19 @@ def test_a_decay_excited_from_rest_after_a_quiet_lead_in(tmp_path):
     rec = fits.read_record(str(tmp_path / "hold.csv"), series=True)
     assert rec.meta["release"] == fits.HELD_RELEASE and abs(rec.time_origin - 3.0) < 2e-3
     assert abs(rec.positions[0] - 1.2) < 0.01 and "decays" not in rec.meta
+    # every decay, in time order, fitted jointly with shared omega and zeta; or one by index
+    path = str(tmp_path / "taps.csv")
+    every = fits.read_decays(path)
+    assert [d.meta["decays"]["index"] for d in every] == [0, 1, 2]
+    assert np.allclose([d.time_origin for d in every], starts, atol=2e-3)
+    assert fits.read_record(path, series=True, decay=2).time_origin == every[2].time_origin
+    joint = fits.fit(
+        every, "oscillator", ("omega", "zeta", "a0", "offset"), shared=("omega", "zeta")
+    )
+    assert joint.converged and abs(joint.params["zeta"] / zeta - 1) < 0.003
+    assert not any("free decays" in msg for msg in joint.warnings)  # none left out
+    with pytest.raises(ValueError, match="decay 3 asked for, but the signal holds 3 free"):
+        fits.read_record(path, series=True, decay=3)
     # another decay by a window [s from the first sample]; its times stay on the file's clock
     rec = fits.read_record(str(tmp_path / "taps.csv"), series=True, window=(20.0, None))
     assert "decays" not in rec.meta and abs(rec.time_origin - starts[2]) < 2e-3

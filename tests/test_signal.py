@@ -564,8 +564,9 @@ def test_row_limit_on_the_command_line(tmp_path, capsys):
         assert "--max-rows: must be an integer >= 1 or 'none'" in capsys.readouterr().err
 
 
-def test_window_on_the_command_line(tmp_path, capsys):
-    """`vmj fit --window START:END`: checked by the parser, for raw signals only."""
+def test_window_and_decay_on_the_command_line(tmp_path, capsys):
+    """`vmj fit --window START:END` and `--decay N|all`: checked by the parser, for raw
+    signals only."""
     from vmj.cli import main
 
     path = tmp_path / "x.csv"
@@ -584,6 +585,15 @@ def test_window_on_the_command_line(tmp_path, capsys):
     assert "--window: for a raw signal, read with --series" in capsys.readouterr().err
     assert main([*args, "--series", "--window", "9:"]) == 2
     assert "window [9, inf] s holds 0 samples" in capsys.readouterr().err
+    # --decay N|all, likewise
+    for bad in ("-1", "some"):
+        with pytest.raises(SystemExit):
+            main([*args, "--series", "--decay", bad])
+        assert "--decay: must be an integer >= 0 or 'all'" in capsys.readouterr().err
+    assert main([*args, "--decay", "1"]) == 2
+    assert "--decay: for a raw signal, read with --series" in capsys.readouterr().err
+    assert main([*args, "--series", "--decay", "4"]) == 2
+    assert "decay 4 asked for, but the signal holds 1 free decay" in capsys.readouterr().err
 
 
 @pytest.mark.long  # 12 s of writing and reading, with the long runs for CI's time
