@@ -42,6 +42,22 @@ def _settings(text: str) -> dict:
     return out
 
 
+def _span(text: str) -> tuple:
+    """`LO:HI` as floats, an empty or infinite end open (+-inf); `ValueError` saying what is
+    wrong."""
+    lo_t, colon, hi_t = text.partition(":")
+    if not colon:
+        raise ValueError("must be LO:HI")
+    try:
+        lo = -math.inf if lo_t.strip() in ("", "-inf") else float(lo_t)
+        hi = math.inf if hi_t.strip() in ("", "inf", "+inf") else float(hi_t)
+    except ValueError:
+        raise ValueError("LO and HI must be numbers") from None
+    if math.isnan(lo) or math.isnan(hi) or not lo < hi:
+        raise ValueError("need LO < HI")
+    return lo, hi
+
+
 def _bounds(text: str | None) -> dict:
     """`NAME=LO:HI[,NAME=LO:HI...]` of `--bounds` as `{name: (lo, hi)}` (`LO`/`HI` may be
     empty or `inf` for an open end)."""
@@ -49,19 +65,15 @@ def _bounds(text: str | None) -> dict:
     for item in filter(None, (s.strip() for s in (text or "").split(","))):
         name, sep, rng = item.partition("=")
         name = name.strip()
-        lo_t, colon, hi_t = rng.partition(":")
-        if not sep or not colon or not name:
+        if not sep or ":" not in rng or not name:
             raise ValueError(f"--bounds takes NAME=LO:HI pairs separated by commas (got {item!r})")
         try:
-            lo = -math.inf if lo_t.strip() in ("", "-inf") else float(lo_t)
-            hi = math.inf if hi_t.strip() in ("", "inf", "+inf") else float(hi_t)
-        except ValueError:
-            raise ValueError(f"--bounds {name}: LO and HI must be numbers (got {rng!r})") from None
-        if math.isnan(lo) or math.isnan(hi) or not lo < hi:
-            raise ValueError(f"--bounds {name}: need LO < HI (got {rng!r})")
+            out_range = _span(rng)
+        except ValueError as err:
+            raise ValueError(f"--bounds {name}: {err} (got {rng!r})") from None
         if name in out:
             raise ValueError(f"--bounds gives {name} twice")
-        out[name] = (lo, hi)
+        out[name] = out_range
     return out
 
 
@@ -74,47 +86,35 @@ def _rate(text: str) -> float:
 
 
 def _window(text: str) -> tuple:
-    """`--window START:END` [s] (argparse type; an empty end is open)."""
-    lo_t, colon, hi_t = text.partition(":")
+    """`--window START:END` [s from the first sample] (argparse type; an empty end is open)."""
     try:
-        if not colon:
-            raise ValueError
-        lo = None if not lo_t.strip() else float(lo_t)
-        hi = None if not hi_t.strip() else float(hi_t)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"must be START:END in seconds from the first sample, an end may be empty "
-            f"(got {text!r})"
-        ) from None
-    if lo is not None and hi is not None and not lo < hi:
-        raise argparse.ArgumentTypeError(f"needs START < END (got {text!r})")
-    return lo, hi
+        return _span(text)
+    except ValueError as err:
+        what = (
+            "needs START < END"
+            if "LO < HI" in str(err)
+            else "must be START:END in seconds from the first sample, an end may be empty"
+        )
+        raise argparse.ArgumentTypeError(f"{what} (got {text!r})") from None
 
 
-def _decay(text: str) -> int | str:
-    """`--decay N|all` (argparse type)."""
-    if text.strip().lower() == "all":
-        return "all"
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0 or 'all' (got {text!r})")
-    return value
+def _count_or(word: str, least: int):
+    """An argparse type: an integer >= `least`, or `word` (returned as `None` for "none")."""
 
+    def parse(text: str):
+        if text.strip().lower() == word:
+            return None if word == "none" else word
+        try:
+            value = int(text)
+        except ValueError:
+            value = least - 1
+        if value < least:
+            raise argparse.ArgumentTypeError(
+                f"must be an integer >= {least} or '{word}' (got {text!r})"
+            )
+        return value
 
-def _max_rows(text: str) -> int | None:
-    """`--max-rows`: an integer >= 1, or `none` (argparse type)."""
-    if text.strip().lower() == "none":
-        return None
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1 or 'none' (got {text!r})")
-    return value
+    return parse
 
 
 def _names(text: str | None, option: str) -> tuple:
@@ -207,7 +207,7 @@ def add_arguments(p):
     p.add_argument(
         "--decay",
         metavar="N|all",
-        type=_decay,
+        type=_count_or("all", 0),
         help="raw signal of several free decays (repeated taps or releases): fit the N-th, "
         "from 0 in time order (default: the one of the largest swing), or all of them jointly "
         "(with --shared for the parameters they share, e.g. omega,zeta,xF)",
@@ -215,7 +215,7 @@ def add_arguments(p):
     p.add_argument(
         "--max-rows",
         metavar="N",
-        type=_max_rows,
+        type=_count_or("none", 1),
         default=MAX_ROWS,
         help=f"refuse files of more data rows than N, or 'none' for no limit (default: "
         f"{MAX_ROWS:,}, about 2 hours at 259 Hz)",

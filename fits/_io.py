@@ -420,7 +420,8 @@ def _columns(tab: _Table, cols: list, missing: bool = False) -> list:
             if parts[c] and (np.any(block[:, :-1] < 0) or np.any(block[:, -1] < 0)):
                 raise ValueError("negative clock field")
             out.append(value)
-        if not all(np.all(np.isfinite(v)) for v in out):
+        # (NaN is a missing value where those are allowed; infinity never)
+        if not all(np.all(~np.isinf(v) if missing else np.isfinite(v)) for v in out):
             raise ValueError("not finite")
         return out
     except ValueError:
@@ -546,7 +547,7 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     times = values.get("time")
     if times is not None:
         _strictly_increasing(times, tab, label["time"])
-        times = times * TIME_UNITS[_time_unit(label["time"])]
+        times = times * TIME_UNITS[_time_unit(label["time"]) or "s"]
     crossed = values.get("crossed")
     if crossed is not None:
         check("crossed", ~np.isin(crossed, (0.0, 1.0)), "crossed must hold 0 or 1")
@@ -675,11 +676,11 @@ def _time_candidates(tab: _Table, yi: int) -> list:
     return out
 
 
-def _time_unit(name: str) -> str:
-    """The unit of a time column named `name` (`TIME_UNITS`' keys): from the end of the name
-    (`time_ms`, `t [ms]`, `Time (us)`), seconds where it names none."""
+def _time_unit(name: str) -> str | None:
+    """The unit of a time column named `name` (`TIME_UNITS`' keys) from the end of the name
+    (`time_ms`, `t [ms]`, `Time (us)`); `None` where it names none."""
     m = _TIME_UNIT.search(name.strip())
-    return _UNIT_SPELLINGS.get(m.group(1).lower(), "s") if m else "s"
+    return _UNIT_SPELLINGS.get(m.group(1).lower(), "s") if m else None
 
 
 def _stamps(
@@ -705,14 +706,14 @@ def _stamps(
             values[there] += 86400.0 * np.cumsum(
                 np.concatenate([[0.0], np.diff(values[there]) < -43200.0])
             )
-        parsed.append((c, values, bool(np.all(np.diff(values[there]) >= 0))))
+        monotone = bool(np.all(np.diff(values[there]) >= 0))
+        parsed.append((c, values, monotone, np.unique(values[there]).size))
     if not parsed:
         if first_error is None:
             _fail(tab.source, f"the time column {names[candidates[0]]!r} holds no values")
         raise first_error
     usable = [p for p in parsed if p[2]] or parsed[:1]
-    distinct = [np.unique(v[np.isfinite(v)]).size for _, v, _ in usable]
-    ti, stamps, _ = usable[int(np.argmax(distinct))]  # the first of the finest
+    ti, stamps = usable[int(np.argmax([p[3] for p in usable]))][:2]  # the first of the finest
     rows = np.flatnonzero(np.isfinite(stamps))
     dt = np.diff(stamps[rows])
     if np.any(dt < 0):
@@ -727,7 +728,7 @@ def _stamps(
         _fail(tab.source, f"time must increase (column {names[ti]!r} is constant)")
     others = [
         f"{names[c]!r}" + (f" ({d} distinct values)" if ok else " (not monotone)")
-        for (c, _, ok), d in zip(parsed, [np.unique(v[np.isfinite(v)]).size for _, v, _ in parsed])
+        for c, _, ok, d in parsed
         if c != ti
     ]
     note = (
@@ -736,7 +737,7 @@ def _stamps(
         else ""
     )
     if not _CLOCK.match(tab.first[ti].strip()):
-        named = unit or (_time_unit(names[ti]) if _TIME_UNIT.search(names[ti].strip()) else None)
+        named = unit or _time_unit(names[ti])
         if named not in (None, "s"):
             stamps = stamps * TIME_UNITS[named]
             note += f"; {names[ti]!r} read in {named}"
@@ -932,12 +933,13 @@ def _quantum(y) -> float:
 def _despike(t, y, sigma, threshold, keep=None):
     """Replace isolated spikes: a sample farther than `threshold` noise standard deviations
     (`sigma`) from the cubic through its two neighbours on either side (at times `t`) is
-    replaced by that cubic's value, unless `keep` (a mask) holds it. A smooth oscillation sampled `N` times per period departs
-    from the cubic by about `(2 pi / N)^4 / 6` of its amplitude (4e-3 at `N = 16`, 7e-4 at 25),
-    so this is for signals of at least 16 samples per period (`_SMOOTH_MIN`). (A running median
-    of 5 samples took a swing's peak for a spike below about 30 samples per period: on
-    synthetic records at 25, the extrema 4 times the noise off, against 0.6 times without it;
-    on the pendulum records 60, 70 and 90p.txt, 1-10 peak samples of swings of 30 deg.)"""
+    replaced by that cubic's value, unless `keep` (a mask) holds it. A smooth oscillation
+    sampled `N` times per period departs from the cubic by about `(2 pi / N)^4 / 6` of its
+    amplitude (4e-3 at `N = 16`, 7e-4 at 25), so this is for signals of at least 16 samples
+    per period (`_SMOOTH_MIN`). (A running median of 5 samples took a swing's peak for a spike
+    below about 30 samples per period: on synthetic records at 25, the extrema 4 times the
+    noise off, against 0.6 times without it; on the pendulum records 60, 70 and 90p.txt, 1-10
+    peak samples of swings of 30 deg.)"""
     if len(y) < 5:
         return y
     tc, others = t[2:-2], [t[:-4], t[1:-3], t[3:-1], t[4:]]
@@ -1279,6 +1281,14 @@ def _clipped(t, y, idx, peak, half):
     return mask, levels
 
 
+def _maxima(y, idx) -> np.ndarray:
+    """Which of the alternating extrema `y[idx]` are maxima."""
+    peak = np.empty(idx.size, dtype=bool)
+    peak[:-1] = y[idx[:-1]] > y[idx[1:]]
+    peak[-1] = not peak[-2]
+    return peak
+
+
 def _near_clipping(t, y, idx):
     """The samples at a saturated sensor's levels (`_clipped`, judged at the raw signal's
     extrema `idx`) and the two on either side of each: the corners of a flat run depart from
@@ -1286,8 +1296,7 @@ def _near_clipping(t, y, idx):
     near = np.zeros(y.shape, dtype=bool)
     if idx.size < 3:
         return near
-    peak = np.append(y[idx[:-1]] > y[idx[1:]], y[idx[-2]] <= y[idx[-1]])
-    _, levels = _clipped(t, y, idx, peak, _local_half_periods(t[idx]))
+    _, levels = _clipped(t, y, idx, _maxima(y, idx), _local_half_periods(t[idx]))
     for level in levels.values():
         if level is not None:
             near |= y == level
@@ -1402,15 +1411,13 @@ def extract_turning_points(
         starts_at_edge = False
     idx = idx[a:b]
     if idx.size < 3:
-        _fail(source, f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})")
+        _fail(source, f"decay {decay} of the signal holds only {idx.size} turning points")
     swings = np.abs(np.diff(y_clean[idx]))
     small = np.nonzero(swings[int(np.argmax(swings)) :] < 1.5 * floor)[0] + int(np.argmax(swings))
     if small.size and small[0] + 3 < idx.size:  # the tail far below the floor: not refined
         idx = idx[: small[0] + 3]
     half = _local_half_periods(t[idx])
-    peak = np.empty(idx.size, dtype=bool)
-    peak[:-1] = y_clean[idx[:-1]] > y_clean[idx[1:]]
-    peak[-1] = not peak[-2]
+    peak = _maxima(y_clean, idx)
     clipped, clip_levels = _clipped(t, y_clean, idx, peak, half)
 
     def refine(kinks, degree=4):  # every extremum, (time, value) rows
@@ -1582,7 +1589,12 @@ def read_decays(path: str | os.PathLike, **kwargs) -> list:
     angle_unit = kwargs.pop("angle_unit", None)
     signal = read_signal(path, **kwargs)
     first = extract_turning_points(signal, angle_unit=angle_unit)
-    n = len(first.meta.get("decays", {}).get("starts", ())) or 1
-    if n == 1:
+    decays = first.meta.get("decays")
+    if decays is None:
         return [first]
-    return [extract_turning_points(signal, angle_unit=angle_unit, decay=i) for i in range(n)]
+    return [
+        first
+        if i == decays["index"]
+        else extract_turning_points(signal, angle_unit=angle_unit, decay=i)
+        for i in range(len(decays["starts"]))
+    ]
