@@ -129,15 +129,14 @@ def add_arguments(p):
         "FILE",
         type=input_file,
         nargs="+",
-        help="peak-sequence CSV (k|cycle|time, amplitude|position[, crossed]) or, with "
-        "--series, a raw signal; several files are fitted jointly "
-        "(see --shared)",
+        help="peak-sequence CSV (k|cycle|time, amplitude|position[, crossed]) or a raw "
+        "signal (see --series); several files are fitted jointly (see --shared)",
     )
     p.add_argument(
         "--model",
         choices=MODELS,
-        default="variable-mass",
-        help="model family (default: %(default)s)",
+        help="model family (default: variable-mass; a record of unknown mass and stiffness: "
+        "oscillator)",
     )
     p.add_argument(
         "--fit",
@@ -172,7 +171,9 @@ def add_arguments(p):
     p.add_argument(
         "--series",
         action="store_true",
-        help="FILE is a raw signal: extract the turning points first",
+        help="FILE is a raw signal: extract the turning points first (default: decided from "
+        "the file: a raw signal where it has no header line, no amplitude or position column, "
+        "or values that are samples of an oscillation, or where a raw-signal option is given)",
     )
     p.add_argument(
         "--residuals",
@@ -254,10 +255,12 @@ def run(args) -> int:
     import warnings
 
     import fits
+    from fits._fit import MissingParameters
     from fits._models import SPACES
     from fits._report import outliers_at
 
-    space = SPACES[args.model]
+    model = args.model or "variable-mass"
+    space = SPACES[model]
     given = _settings(args.set)
     bounds = _bounds(args.bounds)
     shared = _names(args.shared, "--shared")
@@ -268,19 +271,9 @@ def run(args) -> int:
     elif args.angle_unit is not None:
         raise ValueError(
             f"--angle-unit applies only to models with an angle_unit parameter "
-            f"(the {args.model} model has none)"
+            f"(the {model} model has none)"
         )
-    raw = {
-        "--time-col": args.time_col,
-        "--signal-col": args.signal_col,
-        "--time-unit": args.time_unit,
-        "--rate": args.rate,
-        "--window": args.window,
-        "--decay": args.decay,
-    }
-    asked = [name for name, value in raw.items() if value is not None]
-    if asked and not args.series:
-        raise ValueError(f"{', '.join(asked)}: for a raw signal, read with --series")
+    series = True if args.series else None  # None: the file decides (fits.read_record)
     reading = {
         "time_col": args.time_col,
         "signal_col": args.signal_col,
@@ -293,27 +286,35 @@ def run(args) -> int:
         records = [rec for path in args.FILE for rec in fits.read_decays(path, **reading)]
     else:
         records = [
-            fits.read_record(path, series=args.series, decay=args.decay, **reading)
-            for path in args.FILE
+            fits.read_record(path, series=series, decay=args.decay, **reading) for path in args.FILE
         ]
-    free = args.fit or _DEFAULT_FREE[args.model]
-    if args.fit is None and args.model == "oscillator" and any(r.times is None for r in records):
+    free = args.fit or _DEFAULT_FREE[model]
+    if args.fit is None and model == "oscillator" and any(r.times is None for r in records):
         free = "zeta,xF,a0,offset"
     names = _names(free, "--fit")
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
-        result = fits.fit(
-            records if len(records) > 1 else records[0],
-            args.model,
-            names,
-            given,
-            shared=shared,
-            bounds=bounds,
-            forward=args.forward,
-            loss=args.loss,
-            optimizer=args.optimizer,
-            residuals=args.residuals,
-        )
+        try:
+            result = fits.fit(
+                records if len(records) > 1 else records[0],
+                model,
+                names,
+                given,
+                shared=shared,
+                bounds=bounds,
+                forward=args.forward,
+                loss=args.loss,
+                optimizer=args.optimizer,
+                residuals=args.residuals,
+            )
+        except MissingParameters as err:
+            if args.model is not None:
+                raise
+            raise ValueError(
+                f"{err}; or choose the model (--model): oscillator for a decay of unknown mass "
+                "and stiffness (omega, zeta, xF in the signal's units), pendulum for an "
+                "angle, rope for a hoisting rope"
+            ) from None
     if args.plot:
         fits.plot_fit(result, args.plot)
     if args.json:

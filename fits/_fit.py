@@ -164,6 +164,11 @@ def _slot_transform(space, name, bounds) -> tuple[Transform, bool, bool]:
     return transform_for(lo, hi), name in bounds and ulo >= plo, name in bounds and uhi <= phi
 
 
+class MissingParameters(ValueError):
+    """A model's parameter that is neither fitted, given nor defaulted (the command line adds
+    which models need fewer)."""
+
+
 def _fixed_values(space, record, free, given, hold=None) -> dict:
     """Values of every parameter not fitted: held (sub-model), given, or the physical default;
     a parameter with none of these is an error naming it."""
@@ -185,10 +190,10 @@ def _fixed_values(space, record, free, given, hold=None) -> dict:
     if missing:
         if len(missing) == 1:
             nm = missing[0]
-            raise ValueError(
+            raise MissingParameters(
                 f"the {space.name} model needs {nm}: give {nm} with --set {nm}=VALUE or fit it"
             )
-        raise ValueError(
+        raise MissingParameters(
             f"the {space.name} model needs {', '.join(missing)}: give them with "
             f"--set NAME=VALUE or fit them"
         )

@@ -153,8 +153,14 @@ class Record:
         return None if self.signal is None else dict(self.signal.clock_report)
 
 
-def _fail(source: str, message: str):
-    raise ValueError(f"{source}: {message}" if source else message)
+class _NotPeakTable(ValueError):
+    """`read_peaks`' refusal of a file that is no peak table: no header line, no amplitude or
+    position column, or values that are samples of a motion (`read_record` reads it as a raw
+    signal instead)."""
+
+
+def _fail(source: str, message: str, error: type = ValueError):
+    raise error(f"{source}: {message}" if source else message)
 
 
 # -- text files --------------------------------------------------------------------------------
@@ -196,9 +202,20 @@ _RAISE_LIMIT = (
 )
 
 
+@dataclass(frozen=True)
+class _Loaded:
+    """A file's text as `_text` returned it, for a second reader (`read_record` tries the peak
+    table, then the raw signal) without reading the file again."""
+
+    text: str
+    source: str
+
+
 def _text(path_or_text, max_rows: int | None = None) -> tuple[str, str]:
     """(contents with `\\n` line ends, source name) of a path, or of literal text given as
     `io.StringIO`. Refuses a file estimated to hold more than `max_rows` lines."""
+    if isinstance(path_or_text, _Loaded):
+        return path_or_text.text, path_or_text.source
     if isinstance(path_or_text, io.StringIO):
         text, source = path_or_text.getvalue(), "<text>"
     else:
@@ -314,6 +331,7 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
                     source,
                     f"line {no}: expected a header line naming the columns, found "
                     f"numbers: {line.strip()!r}",
+                    _NotPeakTable,
                 )
             hdr = None if header is None else _splitter(sep)(header)
             if hdr is not None and sep is None and len(hdr) != len(cells):
@@ -479,6 +497,23 @@ def _peak_role(name: str) -> str | None:
     return _PEAK_ROLES.get(re.split(r"[\s(\[_/]", name.strip().lower(), maxsplit=1)[0])
 
 
+def _samples_of_motion(x) -> str | None:
+    """What shows that a peak table's values (rows in order) are samples of an oscillation, not
+    its turning points; `None` where nothing does. Both sides' turning points alternate about
+    their median (successive rows cross it: gaps of one row); one side's peaks and amplitudes
+    cross it where their envelope does (once, or in one band of rows where a sensor offset
+    alternates them). Samples cross it twice a period all along the record, rows apart."""
+    side = np.sign(x - np.median(x))
+    side = side[side != 0]
+    cross = np.flatnonzero(side[:-1] != side[1:])
+    if cross.size < 6 or np.median(np.diff(cross)) < 2 or cross[-1] - cross[0] < side.size / 2:
+        return None
+    return (
+        f"the values cross their median {cross.size} times in {x.size} rows, "
+        f"{np.median(np.diff(cross)):.0f} rows apart"
+    )
+
+
 def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> Record:
     """Read a peak sequence from a CSV file with a header line.
 
@@ -516,16 +551,31 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
         if role is not None:
             names[role] = i
     if "amplitude" not in names and "position" not in names:
-        _fail(source, f"missing column: need 'amplitude' or 'position' (found {tab.header})")
+        _fail(
+            source,
+            f"missing column: need 'amplitude' or 'position' (found {tab.header})",
+            ValueError if {"k", "cycle", "crossed"} & set(names) else _NotPeakTable,
+        )
     if "k" in names and "cycle" in names:
         _fail(source, "give 'k' (half-swings) or 'cycle' (full periods), not both")
-    if "k" not in names and "cycle" not in names and "time" not in names:
-        _fail(source, f"missing column: need 'k', 'cycle' or 'time' (found {tab.header})")
     wanted = [c for c in ("k", "cycle", "time", "amplitude", "position", "crossed") if c in names]
     values = dict(zip(wanted, _columns(tab, [names[c] for c in wanted])))
     n = len(values[wanted[0]])
     _rows_ok(n, source, max_rows, 2, "a decay")
     label = {c: tab.header[names[c]].strip() for c in wanted}
+    value = "position" if "position" in values else "amplitude"
+    if not {"k", "cycle", "crossed"} & set(values):  # nothing says the rows are turning points
+        samples = _samples_of_motion(values[value])
+        if samples:
+            _fail(
+                source,
+                f"column {label[value]!r}: {samples}: these are samples of a motion, not its "
+                "turning points: read the file as a raw signal (fits.read_record(path) "
+                "decides by itself, or series=True; a 'k' column makes it a peak table)",
+                _NotPeakTable,
+            )
+    if "k" not in names and "cycle" not in names and "time" not in names:
+        _fail(source, f"missing column: need 'k', 'cycle' or 'time' (found {tab.header})")
 
     def check(column, bad, what):
         rows = np.nonzero(bad)[0]
@@ -1538,7 +1588,7 @@ def sample_window(record: Record) -> tuple[np.ndarray, np.ndarray]:
 def read_record(
     path: str | os.PathLike,
     *,
-    series: bool = False,
+    series: bool | None = None,
     time_col: str | int | None = None,
     signal_col: str | int | None = None,
     clock: str = "auto",
@@ -1549,27 +1599,48 @@ def read_record(
     window: tuple | None = None,
     decay: int | None = None,
 ) -> Record:
-    """A [`fits.Record`][] from a file: a peak sequence (default) or, with `series=True`, the
-    turning points extracted from a raw signal (see [`fits.read_signal`][] for `time_col`,
-    `signal_col`, `clock`, `rate`, `time_unit`, `window`, and
-    [`fits.extract_turning_points`][] for `decay`)."""
-    if series:
-        return extract_turning_points(
-            read_signal(
-                path,
-                time_col,
-                signal_col,
-                clock,
-                rate=rate,
-                time_unit=time_unit,
-                max_rows=max_rows,
-                window=window,
-            ),
-            angle_unit=angle_unit,
-            decay=decay,
-        )
+    """A [`fits.Record`][] from a file: a peak sequence ([`fits.read_peaks`][]) or the turning
+    points extracted from a raw signal ([`fits.read_signal`][] for `time_col`, `signal_col`,
+    `clock`, `rate`, `time_unit`, `window`, and [`fits.extract_turning_points`][] for `decay`).
+
+    `series`: `True` for a raw signal, `False` for a peak table, `None` (default) to decide
+    from the file: a raw signal where one of the raw signal's arguments is given, or where the
+    file is no peak table (no header line, no amplitude or position column, or values that
+    cross their median all along the file, rows apart, as samples of an oscillation do;
+    a peak table's rows alternate about it or follow its envelope), else a peak table.
+    """
     raw = (time_col, signal_col, rate, time_unit, window, decay)
-    if any(v is not None for v in raw) or clock != "auto":
+    raw_given = any(v is not None for v in raw) or clock != "auto"
+    not_peaks = None
+    if series is None and not raw_given:
+        path = _Loaded(*_text(path, max_rows))
+        try:
+            return read_peaks(path, max_rows=max_rows)
+        except _NotPeakTable as err:
+            not_peaks = str(err).removeprefix(f"{path.source}: ")
+    if series or series is None:
+        try:
+            return extract_turning_points(
+                read_signal(
+                    path,
+                    time_col,
+                    signal_col,
+                    clock,
+                    rate=rate,
+                    time_unit=time_unit,
+                    max_rows=max_rows,
+                    window=window,
+                ),
+                angle_unit=angle_unit,
+                decay=decay,
+            )
+        except ValueError as err:
+            if not_peaks is None:
+                raise
+            raise ValueError(
+                f"{err} (read as a raw signal; as a peak table: {not_peaks})"
+            ) from None
+    if raw_given:
         raise ValueError(
             "time_col, signal_col, clock, rate, time_unit, window and decay apply to raw "
             "signals (series=True)"

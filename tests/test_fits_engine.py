@@ -88,10 +88,7 @@ def test_converged_rules_at_bounds(viscous_decay):
 
 def test_json_contract(viscous_decay, capsys):
     path, _, _ = viscous_decay
-    assert (
-        main(["fit", path, "--series", "--model", "oscillator", "--bounds", "xF=0:0.5", "--json"])
-        == 0
-    )
+    assert main(["fit", path, "--model", "oscillator", "--bounds", "xF=0:0.5", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert list(out) == [
         "model",

@@ -183,6 +183,52 @@ def test_peak_columns_by_their_names_first_word(tmp_path):
         fits.read_peaks(_write(tmp_path, "k,height\n0,1\n1,0.9\n"))
 
 
+def test_raw_signal_or_peak_table_decided_from_the_file(tmp_path, capsys):
+    """`read_record(path)` (and `vmj fit` without `--series`) reads a raw signal as one: a
+    file without a header, without an amplitude or position column, or whose position or
+    (oscilloscope-style, signed) amplitude column holds samples of an oscillation (read as
+    peaks, 2000 samples would be fitted as 2000 turning points: converged False, lag-1 1.00).
+    Peak tables stay peak tables: both sides' signed turning points, amplitudes with a
+    sensor offset's alternation, one side's peaks."""
+    t, y, _ = _oscillator_signal(9.4, 0.02, 0.002, 0.5, 0.1, 10.0, seed=3, n_spikes=0)
+    t, y = t[:2000], y[:2000]
+    want = None
+    for header in ("time,position", "Time (s),Amplitude (V)", "t,displacement", None):
+        body = "\n".join(f"{a:.17g},{b:.17g}" for a, b in zip(t, y))
+        path = _write(tmp_path, (f"{header}\n" if header else "") + body)
+        rec = fits.read_record(path)
+        assert rec.signal is not None, header
+        if want is None:
+            want = fits.read_record(path, series=True)
+        np.testing.assert_array_equal(rec.positions, want.positions)
+        np.testing.assert_array_equal(rec.times, want.times)
+    with pytest.raises(ValueError, match="samples of a motion, not its turning points"):
+        fits.read_peaks(path := _write(tmp_path, "time,position\n" + body, "raw.csv"))
+    with pytest.raises(ValueError, match="samples of a motion"):
+        fits.read_record(path, series=False)
+    # peak tables: the extracted turning points themselves (alternating about the centre)
+    rows = "\n".join(f"{a:.17g},{b:.17g}" for a, b in zip(want.times, want.positions))
+    rec = fits.read_record(_write(tmp_path, "time,position\n" + rows))
+    assert rec.signal is None and np.allclose(rec.positions, want.positions)
+    # amplitudes of a decay to 10 % with an offset alternating them (+-0.1 of 1), and one
+    # side's peaks as signed positions: cross their median in one band of rows, or once
+    k = np.arange(60)
+    amp = np.exp(-k / 26) + 0.1 * (-1.0) ** k
+    rows = "\n".join(f"{0.33 * i},{a:.17g}" for i, a in zip(k, amp))
+    assert fits.read_record(_write(tmp_path, "time,amplitude\n" + rows)).signal is None
+    rows = "\n".join(f"{0.67 * i},{a:.17g}" for i, a in zip(k, np.exp(-k / 26)))
+    assert fits.read_record(_write(tmp_path, "time,position\n" + rows)).signal is None
+    # a peak table whose amplitude column is misnamed: said as a peak table's error too
+    with pytest.raises(ValueError, match="as a peak table: missing column: need 'amplitude'"):
+        fits.read_record(_write(tmp_path, "time,amp\n0,1\n1,0.8\n2,0.6\n"))
+    with pytest.raises(ValueError, match="missing column: need 'amplitude'"):  # a k column
+        fits.read_record(_write(tmp_path, "k,amp\n0,1\n1,0.8\n2,0.6\n"))
+    # the command line: without --model, the default model's needs and the other models
+    assert main(["fit", path]) == 2
+    err = capsys.readouterr().err
+    assert "the variable-mass model needs m0, c" in err and "--model): oscillator" in err
+
+
 def test_one_sides_peaks_by_cycle(tmp_path):
     """A logarithmic-decrement table: the negative peaks of the exact oscillator (omega 20,
     zeta 0.01, xF 0.05, released from 10) one per period, amplitudes to 0.002 and times to
@@ -514,7 +560,7 @@ def test_a_decay_excited_from_rest_after_a_quiet_lead_in(tmp_path):
     with pytest.raises(ValueError, match="start < end"):
         fits.read_signal(str(tmp_path / "taps.csv"), window=(5.0, 3.0))
     with pytest.raises(ValueError, match="apply to raw signals"):
-        fits.read_record(str(tmp_path / "taps.csv"), window=(5.0, 9.0))
+        fits.read_record(str(tmp_path / "taps.csv"), series=False, window=(5.0, 9.0))
 
 
 def test_a_clipped_signal_leaves_its_cut_off_extrema_out(synthetic_signal, tmp_path):

@@ -565,8 +565,8 @@ def test_row_limit_on_the_command_line(tmp_path, capsys):
 
 
 def test_window_and_decay_on_the_command_line(tmp_path, capsys):
-    """`vmj fit --window START:END` and `--decay N|all`: checked by the parser, for raw
-    signals only."""
+    """`vmj fit --window START:END` and `--decay N|all`: checked by the parser; either makes
+    the file a raw signal."""
     from vmj.cli import main
 
     path = tmp_path / "x.csv"
@@ -581,18 +581,14 @@ def test_window_and_decay_on_the_command_line(tmp_path, capsys):
         with pytest.raises(SystemExit):
             main([*args, "--series", "--window", bad])
         assert message in capsys.readouterr().err
-    assert main([*args, "--window", "1:2"]) == 2
-    assert "--window: for a raw signal, read with --series" in capsys.readouterr().err
-    assert main([*args, "--series", "--window", "9:"]) == 2
+    assert main([*args, "--window", "9:"]) == 2  # a raw signal: --window says so
     assert "window [9, inf] s holds 0 samples" in capsys.readouterr().err
     # --decay N|all, likewise
     for bad in ("-1", "some"):
         with pytest.raises(SystemExit):
             main([*args, "--series", "--decay", bad])
         assert "--decay: must be an integer >= 0 or 'all'" in capsys.readouterr().err
-    assert main([*args, "--decay", "1"]) == 2
-    assert "--decay: for a raw signal, read with --series" in capsys.readouterr().err
-    assert main([*args, "--series", "--decay", "4"]) == 2
+    assert main([*args, "--decay", "4"]) == 2
     assert "decay 4 asked for, but the signal holds 1 free decay" in capsys.readouterr().err
 
 
@@ -622,4 +618,4 @@ def test_stringio_and_read_record_arguments(tmp_path):
     sig = fits.read_signal(io.StringIO("t,y\n0,1\n0.5,2\n1,3\n"))
     assert sig.source == "<text>" and sig.t.tolist() == [0.0, 0.5, 1.0]
     with pytest.raises(ValueError, match="apply to raw signals"):
-        fits.read_record(P80, rate=100.0)
+        fits.read_record(P80, series=False, rate=100.0)
