@@ -46,7 +46,17 @@ MAX_ROWS = 2_000_000
 """Largest number of data rows read by default (about 2 hours at 259 Hz, 33 minutes at 1 kHz):
 beyond it a file is refused before it is read, unless `max_rows` is raised or `None`."""
 
-_CLOCK = re.compile(r"^(?:(\d+):)?(\d+):(\d+(?:\.\d*)?)$")
+#: a date before a clock time (`2026-11-27`, `2026/11/27`, `27.11.2026`, `11/27/2026`); the
+#: date itself is not read: a record's clock times are unwrapped through midnight
+_DATE = r"(?:\d{4}[-/.]\d{1,2}[-/.]\d{1,2}|\d{1,2}[-/.]\d{1,2}[-/.]\d{2,4})"
+_DATE_PREFIX = re.compile(rf"{_DATE}(?:T|\s+)(?=\d{{1,2}}:)")
+#: clock times `[date ]HH:MM:SS.mmm` or `MM:SS.mmm`, 12-hour (`AM`/`PM`) or with a time zone
+_CLOCK = re.compile(
+    rf"^({_DATE}(?:T|\s+))?(?:(\d+):)?(\d+):(\d+(?:\.\d*)?)\s*([AaPp][Mm])?"
+    r"(?:Z|[+-]\d\d:?\d\d)?$"
+)
+#: clock times as the fast reader takes them (`HH:MM:SS.mmm`, `MM:SS.mmm`)
+_PLAIN_CLOCK = re.compile(r"^(?:\d+:)?\d+:\d+(?:\.\d*)?$")
 _TIME_NAME = re.compile(
     r"time|stamp|elapsed|zeit|^t$|^t[\s(\[_/]|^sec|[(\[](?:s|ms|us|µs|ns|min)[)\]]", re.IGNORECASE
 )
@@ -255,11 +265,21 @@ def _skip(line: str) -> bool:
 
 
 def _parse_time(text: str) -> float | None:
+    """Seconds since midnight of a clock time (`_CLOCK`), or `None`."""
     m = _CLOCK.match(text.strip())
-    if m:
-        h, mnt, s = m.groups()
-        return (int(h) if h else 0) * 3600 + int(mnt) * 60 + float(s)
-    return None
+    if not m:
+        return None
+    date, h, mnt, s, half = m.groups()
+    if h is None and (date or half):  # `date HH:MM`, `HH:MM PM`: hours and whole minutes
+        if "." in s:
+            return None
+        h, mnt, s = mnt, s, "0"
+    hours = int(h) if h else 0
+    if half:
+        if not 1 <= hours <= 12:
+            return None
+        hours = hours % 12 + (12 if half.lower() == "pm" else 0)
+    return hours * 3600 + int(mnt) * 60 + float(s)
 
 
 def _is_number(text: str) -> bool:
@@ -270,11 +290,26 @@ def _is_number(text: str) -> bool:
         return _parse_time(text) is not None
 
 
+def _clock_groups(words: list) -> list:
+    """Whitespace-separated words grouped into cells: a date and the clock time after it, and
+    a clock time and its `AM`/`PM`, are one cell each (`2026-11-27 23:59:50.125 4.1`)."""
+    groups = []
+    for w in words:
+        if groups and (
+            (re.fullmatch(_DATE, groups[-1][-1]) and _CLOCK.match(w))
+            or (w.lower() in ("am", "pm") and _CLOCK.match(" ".join(groups[-1])))
+        ):
+            groups[-1].append(w)
+        else:
+            groups.append([w])
+    return groups
+
+
 def _splitter(sep):
-    """Cells of a line: split at `sep` (whitespace if `None`), spaces and double quotes
-    around each cell removed."""
+    """Cells of a line: split at `sep` (whitespace if `None`: a date and its clock time stay
+    one cell), spaces and double quotes around each cell removed."""
     if sep is None:
-        return lambda ln: [c.strip('"') for c in ln.split()]
+        return lambda ln: [" ".join(g) for g in _clock_groups([c.strip('"') for c in ln.split()])]
     return lambda ln: [c.strip().strip('"').strip() for c in ln.split(sep)]
 
 
@@ -334,6 +369,11 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
                     _NotPeakTable,
                 )
             hdr = None if header is None else _splitter(sep)(header)
+            if hdr is not None and sep is None and len(hdr) != len(cells):
+                groups = _clock_groups([c.strip('"') for c in line.split()])
+                if len(hdr) == sum(map(len, groups)):  # `Date Time Angle`: a name per word
+                    names = iter(hdr)
+                    hdr = [" ".join(next(names) for _ in g) for g in groups]
             if hdr is not None and sep is None and len(hdr) != len(cells):
                 hdr = [h for h in re.split(r"\s{2,}|\t", header.strip()) if h]  # "time (s)"
             while hdr and len(hdr) > len(cells) and not hdr[-1]:
@@ -399,51 +439,67 @@ def _slow_columns(tab: _Table, cols: list, clock_cols: set, missing: bool = Fals
     return [np.asarray(v, dtype=float) for v in out]
 
 
-def _columns(tab: _Table, cols: list, missing: bool = False) -> list:
-    """Float arrays of the columns `cols` (clock times `HH:MM:SS.mmm` in seconds; with
-    `missing`, NaN where a cell is empty or says NaN, `_MISSING`). Fast path: NumPy's parser,
-    the clock's colons turned into separators; any problem is located and reported by the
-    line-by-line parser."""
-    clock_cols = {c for c in cols if c < len(tab.first) and _CLOCK.match(tab.first[c].strip())}
-    body = tab.text[tab.body :]
-    parts = [tab.first[c].count(":") for c in range(len(tab.first))]
+def _fast_columns(tab: _Table, body: str, first: list, cols: list, missing: bool) -> list:
+    """`_columns` by NumPy's parser: `body` (dates removed) with the clock's colons turned
+    into separators; `ValueError` where anything does not parse."""
+    clock_cols = [c for c in cols if c < len(first) and ":" in first[c]]
+    if any(not _PLAIN_CLOCK.match(first[c].strip()) for c in clock_cols):
+        raise ValueError("12-hour clock times or time zones")  # read line by line
+    parts = [cell.count(":") for cell in first]
     index = np.concatenate([[0], np.cumsum(np.asarray(parts) + 1)])
+    if any(parts):
+        body = body.replace(":", " " if tab.sep is None or tab.sep == ":" else tab.sep)
+    use = []
+    for c in cols:
+        if c >= len(first):
+            raise ValueError("short row")
+        use += range(index[c], index[c] + parts[c] + 1)
+    data = np.loadtxt(
+        io.StringIO(body),
+        delimiter=tab.sep,
+        usecols=use,
+        comments="#",
+        quotechar='"',
+        ndmin=2,
+        dtype=float,
+    )
+    out, j = [], 0
+    for c in cols:
+        block = data[:, j : j + parts[c] + 1]
+        j += parts[c] + 1
+        value = block[:, -1].copy()
+        for q in range(1, parts[c] + 1):
+            value += block[:, -1 - q] * 60.0**q
+        if parts[c] and (np.any(block[:, :-1] < 0) or np.any(block[:, -1] < 0)):
+            raise ValueError("negative clock field")
+        out.append(value)
+    # (NaN is a missing value where those are allowed; infinity never)
+    if not all(np.all(~np.isinf(v) if missing else np.isfinite(v)) for v in out):
+        raise ValueError("not finite")
+    return out
+
+
+def _columns(tab: _Table, cols: list, missing: bool = False) -> list:
+    """Float arrays of the columns `cols` (clock times `HH:MM:SS.mmm` in seconds, a date
+    before them not read; with `missing`, NaN where a cell is empty or says NaN, `_MISSING`).
+    Fast path: NumPy's parser (`_fast_columns`), the dates removed (as text where every row
+    has the first row's, else by their pattern: a record through midnight); any problem is
+    located and reported by the line-by-line parser."""
+    body, first = tab.text[tab.body :], tab.first
+    dates = {m.group(0) for m in map(_DATE_PREFIX.match, first) if m}
+    rows = body.count("\n") + (not body.endswith("\n"))
+    if all(body.count(date) == rows for date in dates):  # every row's date as the first's
+        for date in dates:
+            body = body.replace(date, "")
+    else:
+        body = _DATE_PREFIX.sub("", body)
+    first = [_DATE_PREFIX.sub("", c) for c in first]
     try:
-        if any(parts):
-            if tab.sep is None or tab.sep == ":":
-                body = body.replace(":", " ")
-            else:
-                body = body.replace(":", tab.sep)
-        use = []
-        for c in cols:
-            if c >= len(tab.first):
-                raise ValueError("short row")
-            use += range(index[c], index[c] + parts[c] + 1)
-        data = np.loadtxt(
-            io.StringIO(body),
-            delimiter=tab.sep,
-            usecols=use,
-            comments="#",
-            quotechar='"',
-            ndmin=2,
-            dtype=float,
-        )
-        out, j = [], 0
-        for c in cols:
-            block = data[:, j : j + parts[c] + 1]
-            j += parts[c] + 1
-            value = block[:, -1].copy()
-            for q in range(1, parts[c] + 1):
-                value += block[:, -1 - q] * 60.0**q
-            if parts[c] and (np.any(block[:, :-1] < 0) or np.any(block[:, -1] < 0)):
-                raise ValueError("negative clock field")
-            out.append(value)
-        # (NaN is a missing value where those are allowed; infinity never)
-        if not all(np.all(~np.isinf(v) if missing else np.isfinite(v)) for v in out):
-            raise ValueError("not finite")
-        return out
+        return _fast_columns(tab, body, first, cols, missing)
     except ValueError:
-        return _slow_columns(tab, cols, clock_cols, missing)
+        pass
+    clock_cols = {c for c in cols if c < len(tab.first) and _CLOCK.match(tab.first[c].strip())}
+    return _slow_columns(tab, cols, clock_cols, missing)
 
 
 def _rows_ok(n: int, source: str, max_rows: int | None, need: int, what: str):
@@ -824,7 +880,9 @@ def read_signal(
     - `time_col`, `signal_col`: the columns, by name (a header name or its first word,
       case-insensitive) or 0-based index. By default the signal is the last column and the
       time the column named like a time (`time`, `timestamp`, `elapsed`, `t`, `... (s)`) or
-      holding clock times `HH:MM:SS.mmm` (a pass through midnight is unwrapped): of several
+      holding clock times `HH:MM:SS.mmm`, after a date or not (`2026-11-27T23:59:50.125`,
+      `27.11.2026 23:59:50,125`, `11/27/2026 11:59:50.125 PM`, a time zone after it; the date
+      is not read, a pass through midnight is unwrapped): of several
       such, the one with the finest resolution (most distinct values), so a quantised
       `Time_Elapsed` column beside the stamps is ignored; else the first column. A file of one
       column has no time: give `rate`.

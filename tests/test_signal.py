@@ -367,6 +367,59 @@ def _write(tmp_path, content, name="f.csv"):
     return str(p)
 
 
+DATE_TIMES = [  # (header, separator, how a datetime is written)
+    ("datetime,angle", ",", lambda d: d.isoformat(timespec="milliseconds")),
+    ("time,angle", ",", lambda d: d.isoformat(timespec="milliseconds") + "+01:00"),
+    ("Zeit;Winkel", ";", lambda d: d.strftime("%d.%m.%Y %H:%M:%S,%f")[:-3]),
+    ("Date Time Angle", " ", lambda d: d.strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]),
+    (
+        "Timestamp\tAngle",
+        "\t",
+        lambda d: d.strftime("%m/%d/%Y %I:%M:%S.%f")[:-3] + d.strftime(" %p"),
+    ),
+]
+
+
+@pytest.mark.parametrize("header, sep, write", DATE_TIMES)
+def test_date_and_time_stamps(tmp_path, header, sep, write):
+    """A logger's date and clock time in one cell (ISO 8601 with `T` or a space, a time zone,
+    `DD.MM.YYYY` with a decimal comma, `MM/DD/YYYY` with `AM`/`PM`; whitespace-separated, a
+    date and its time as two words and two header names): read as the clock times they are,
+    through midnight (the date itself is not read). Before, each was "a header but no data
+    rows"."""
+    import datetime
+
+    t = np.arange(0, 20, 0.004)
+    y = np.round(5 * np.exp(-0.14 * t) * np.cos(7 * t) + 0.3, 5)
+    start = datetime.datetime(2026, 11, 27, 23, 59, 50)
+    lines = [
+        f"{write(start + datetime.timedelta(seconds=float(a)))}{sep}{b:.5f}".replace(
+            ".", "," if sep == ";" else "."
+        )
+        for a, b in zip(t, y)
+    ]
+    sig = fits.read_signal(_write(tmp_path, header + "\n" + "\n".join(lines) + "\n"))
+    np.testing.assert_allclose(sig.t, t, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(sig.y, y)
+    assert sig.time_name == ("Date Time" if sep == " " else header.split(sep)[0])
+
+
+def test_clock_times():
+    from fits._io import _parse_time
+
+    for text, seconds in [
+        ("12:00:01.5", 43201.5),
+        ("01:02", 62.0),  # minutes and seconds
+        ("2026-11-27 23:59", 86340.0),  # with a date: hours and minutes
+        ("2026/11/27T07:08:09.25Z", 25689.25),
+        ("11/27/2026 12:00:00.5 AM", 0.5),
+        ("12:30 PM", 45000.0),
+        ("13:00:00 PM", None),
+        ("1.2.3", None),
+    ]:
+        assert _parse_time(text) == seconds, text
+
+
 BAD_SIGNALS = [
     ("", "the file is empty"),
     ("\n\n# only a comment\n", "the file is empty"),
