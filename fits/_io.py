@@ -345,11 +345,48 @@ def _data_cells(line: str) -> tuple:
     return seps[0], None, False
 
 
+#: a line of units under a header (`s,mm`, `(ms),(V)`, `seconds degrees`): every cell a unit
+_UNIT_WORDS = {
+    *("s", "ms", "us", "µs", "μs", "ns", "min", "h", "hz", "khz", "-", "%", "°", "counts"),
+    *("m", "mm", "cm", "um", "µm", "μm", "nm", "in", "v", "mv", "a", "ma", "deg", "rad", "g"),
+    *("n", "kn", "pa", "kpa", "m/s", "mm/s", "m/s^2", "m/s2", "m/s²", "sec", "secs"),
+    *("second", "seconds", "degree", "degrees", "volt", "volts", "radian", "radians"),
+    *("meter", "meters", "metre", "metres", "millimeter", "millimeters", "millimetre"),
+    "millimetres",
+}
+
+
+def _units_line(names: list) -> bool:
+    return any(names) and all(
+        not n or n.lower() in _UNIT_WORDS or re.fullmatch(r"[(\[][^()\[\]]{0,16}[)\]]", n)
+        for n in names
+    )
+
+
+def _header_names(header: str, line: str, sep, cells: list) -> list:
+    """The column names of a header line above the data line `line` (split into `cells` at
+    `sep`)."""
+    hdr = _splitter(sep)(header)
+    if sep is None and len(hdr) != len(cells):
+        groups = _clock_groups([c.strip('"') for c in line.split()])
+        if len(hdr) == sum(map(len, groups)):  # `Date Time Angle`: a name per word
+            names = iter(hdr)
+            hdr = [" ".join(next(names) for _ in g) for g in groups]
+    if sep is None and len(hdr) != len(cells):
+        hdr = [h for h in re.split(r"\s{2,}|\t", header.strip()) if h]  # "time (s)"
+    while hdr and len(hdr) > len(cells) and not hdr[-1]:
+        hdr.pop()
+    return hdr
+
+
 def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
     """Header, separator and first data row of a text table (a header line is optional unless
-    `need_header`; lines of units below the header are skipped)."""
+    `need_header`). Of the lines of text above the data (an instrument's notes, the header,
+    units), the header is the last that names as many columns as the data have and is not a
+    line of units; where none does, the first. A line of units under the header adds each
+    column's unit to its name (`Time` over `(ms)`: `Time (ms)`, read in milliseconds)."""
     pos, no = 0, 0
-    header = None
+    texts = []
     while pos < len(text):
         end = text.find("\n", pos)
         end = len(text) if end < 0 else end
@@ -360,35 +397,38 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
         sep, cells, comma = _data_cells(line)
         if comma:  # decimal commas (`0,005;-19,41`): every comma of the data is one
             text = text[:start] + text[start:].replace(",", ".")
-        if cells is not None:
-            if header is None and need_header:
-                _fail(
-                    source,
-                    f"line {no}: expected a header line naming the columns, found "
-                    f"numbers: {line.strip()!r}",
-                    _NotPeakTable,
-                )
-            hdr = None if header is None else _splitter(sep)(header)
-            if hdr is not None and sep is None and len(hdr) != len(cells):
-                groups = _clock_groups([c.strip('"') for c in line.split()])
-                if len(hdr) == sum(map(len, groups)):  # `Date Time Angle`: a name per word
-                    names = iter(hdr)
-                    hdr = [" ".join(next(names) for _ in g) for g in groups]
-            if hdr is not None and sep is None and len(hdr) != len(cells):
-                hdr = [h for h in re.split(r"\s{2,}|\t", header.strip()) if h]  # "time (s)"
-            while hdr and len(hdr) > len(cells) and not hdr[-1]:
-                hdr.pop()
-            if hdr is not None and len(hdr) < len(cells):
-                _fail(
-                    source,
-                    f"line {no}: {len(cells)} cells, but the header names only "
-                    f"{len(hdr)} columns: {hdr}",
-                )
-            ncols = len(hdr) if hdr else len(cells)
-            return _Table(text, source, hdr, sep, ncols, start, no, cells)
-        if header is None:
-            header = line
-    if header is None:
+        if cells is None:
+            texts.append(line)
+            continue
+        if not texts and need_header:
+            _fail(
+                source,
+                f"line {no}: expected a header line naming the columns, found "
+                f"numbers: {line.strip()!r}",
+                _NotPeakTable,
+            )
+        hdr = None
+        if texts:
+            named = [_header_names(t, line, sep, cells) for t in texts]
+            fits_data = [
+                i for i, h in enumerate(named) if len(h) == len(cells) and not _units_line(h)
+            ]
+            hdr = named[fits_data[-1] if fits_data else 0]
+            units = [h for h in named[fits_data[-1] + 1 :] if len(h) == len(cells)][:1]
+            if fits_data and units:  # `Time,Channel A` over `(ms),(V)`: `Time (ms)`
+                hdr = [
+                    f"{n} {u if u[:1] in '([' else f'({u})'}" if u and u[:1] not in "-" else n
+                    for n, u in zip(hdr, units[0])
+                ]
+        if hdr is not None and len(hdr) < len(cells):
+            _fail(
+                source,
+                f"line {no}: {len(cells)} cells, but the header names only "
+                f"{len(hdr)} column{'s' if len(hdr) != 1 else ''}: {hdr}",
+            )
+        ncols = len(hdr) if hdr else len(cells)
+        return _Table(text, source, hdr, sep, ncols, start, no, cells)
+    if not texts:
         _fail(source, "the file is empty")
     _fail(source, "the file has a header but no data rows")
 
@@ -874,9 +914,10 @@ def read_signal(
 
     **Arguments:**
 
-    - `path`: the file. An optional header line names the columns (lines of units below it,
-      lines of dashes and `#` comments are skipped); UTF-8 with or without a byte-order mark,
-      UTF-16 with one, Windows line ends.
+    - `path`: the file. An optional header line names the columns (lines of notes above it
+      are passed over, a line of units below it adds the units to the names; lines of dashes
+      and `#` comments are skipped); UTF-8 with or without a byte-order mark, UTF-16 with
+      one, Windows line ends.
     - `time_col`, `signal_col`: the columns, by name (a header name or its first word,
       case-insensitive) or 0-based index. By default the signal is the last column and the
       time the column named like a time (`time`, `timestamp`, `elapsed`, `t`, `... (s)`) or

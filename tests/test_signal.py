@@ -404,6 +404,32 @@ def test_date_and_time_stamps(tmp_path, header, sep, write):
     assert sig.time_name == ("Date Time" if sep == " " else header.split(sep)[0])
 
 
+@pytest.mark.parametrize(
+    "above, time_name, signal_name",
+    [  # an instrument's notes above the header, units under it
+        (
+            "Instrument: DAQ 3000\nSample rate: 250 Hz\n\nTime (s),Displacement (mm)\n",
+            "Time (s)",
+            "Displacement (mm)",
+        ),
+        ("Title,Decay test 4\nChannels,1\nTime,Ch1\ns,mm\n", "Time (s)", "Ch1 (mm)"),
+        ("Title,Decay test 4\nTime,Ch1\n(ms),(V)\n", "Time (ms)", "Ch1 (V)"),
+        ("t,x\nseconds,degrees\n", "t (seconds)", "x (degrees)"),
+    ],
+)
+def test_header_below_notes_and_above_units(tmp_path, above, time_name, signal_name):
+    """The header is the last line of text above the data that names as many columns as they
+    have and is not a line of units (before: the first line of text, so that notes above it
+    were an error, "the header names only 1 columns", or the columns' names); a line of units
+    under it adds them to the names, and a time unit there is read (before: milliseconds under
+    `Time` were read as seconds, `omega` 1000 times too small)."""
+    t = np.arange(0, 2, 0.004)
+    body = "\n".join(f"{a:.3f},{b:.5f}" for a, b in zip(t, np.sin(7 * t)))
+    sig = fits.read_signal(_write(tmp_path, above + body + "\n"))
+    assert (sig.time_name, sig.signal_name) == (time_name, signal_name)
+    np.testing.assert_allclose(sig.t, t * (1e-3 if "(ms)" in above else 1), atol=1e-12)
+
+
 def test_clock_times():
     from fits._io import _parse_time
 
