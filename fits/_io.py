@@ -413,11 +413,12 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
             fits_data = [
                 i for i, h in enumerate(named) if len(h) == len(cells) and not _units_line(h)
             ]
-            hdr = named[fits_data[-1] if fits_data else 0]
-            units = [h for h in named[fits_data[-1] + 1 :] if len(h) == len(cells)][:1]
-            if fits_data and units:  # `Time,Channel A` over `(ms),(V)`: `Time (ms)`
-                hdr = [
-                    f"{n} {u if u[:1] in '([' else f'({u})'}" if u and u[:1] not in "-" else n
+            at = fits_data[-1] if fits_data else 0
+            hdr = named[at]
+            units = [h for h in named[at + 1 :] if fits_data and len(h) == len(cells)][:1]
+            if units:  # (a line of units, as the header is the last line that is not)
+                hdr = [  # `Time,Channel A` over `(ms),(V)`: `Time (ms)`
+                    f"{n} {u if u[:1] in '([' else f'({u})'}" if u and u != "-" else n
                     for n, u in zip(hdr, units[0])
                 ]
         if hdr is not None and len(hdr) < len(cells):
