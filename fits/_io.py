@@ -6,6 +6,7 @@ Everything here is NumPy (no JAX): it runs once per file, before the fit.
 
 from __future__ import annotations
 
+import functools
 import io
 import math
 import os
@@ -95,6 +96,7 @@ class Signal:
     - `clock_report`: what was done with the time stamps, a JSON-ready dict (`method`,
       `stamps`, `rate_hz`, `t0`, `jitter_s`, `dropped`, `rows`, `column`, `message`; see
       [`fits.recover_clock`][]).
+    - `others`: the names of the file's other columns (neither the time nor the signal).
     """
 
     t: np.ndarray
@@ -104,6 +106,7 @@ class Signal:
     signal_name: str = "signal"
     clock: str = "stamps"
     clock_report: dict = field(default_factory=dict)
+    others: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -169,6 +172,11 @@ class _NotPeakTable(ValueError):
     signal instead)."""
 
 
+class _NoDecay(ValueError):
+    """A signal that holds no decay to extract (constant, noise, growing): where the file has
+    other columns, the message names them."""
+
+
 def _fail(source: str, message: str, error: type = ValueError):
     raise error(f"{source}: {message}" if source else message)
 
@@ -210,6 +218,11 @@ _RAISE_LIMIT = (
     "to read it, raise the limit (max_rows=N, or max_rows=None for none; on the command line "
     "--max-rows N or --max-rows none)"
 )
+
+
+#: a file longer than this many lines that is no peak table was not meant as one (the raw
+#: signal's errors do not add why it is none)
+_PEAK_TABLE_ROWS = 200
 
 
 @dataclass(frozen=True)
@@ -1022,6 +1035,7 @@ def read_signal(
         signal_name=names[yi],
         clock=kind,
         clock_report=report,
+        others=tuple(n for i, n in enumerate(names) if i != yi and i not in candidates),
     )
 
 
@@ -1457,6 +1471,29 @@ def _near_clipping(t, y, idx):
     return near
 
 
+def _naming_other_columns(extract):
+    """`extract_turning_points`, whose failure to find a decay names the file's other columns
+    (the signal is the last column unless one is named: a trigger or a second sensor may be
+    last)."""
+
+    @functools.wraps(extract)
+    def named(signal: Signal, **kwargs) -> Record:
+        try:
+            return extract(signal, **kwargs)
+        except _NoDecay as err:
+            if not signal.others:
+                raise
+            others = ", ".join(map(repr, signal.others))
+            raise ValueError(
+                f"{err} (in the column {signal.signal_name!r}; the file's other "
+                f"column{'s' if len(signal.others) > 1 else ''}: {others}: name the signal's "
+                "with --signal-col NAME, signal_col=NAME)"
+            ) from None
+
+    return named
+
+
+@_naming_other_columns
 def extract_turning_points(
     signal: Signal,
     *,
@@ -1516,7 +1553,7 @@ def extract_turning_points(
     sigma = _noise(t, y)
     span = float(np.max(y) - np.min(y))
     if span <= 0:
-        _fail(source, "the signal is constant: no decay to fit")
+        _fail(source, "the signal is constant: no decay to fit", _NoDecay)
     h = float(hysteresis) if hysteresis is not None else max(6 * sigma, 1e-3 * span)
     first = _zigzag(y, h)  # (the raw signal's extrema: how many samples a swing spans)
     per_half = _samples_per_half_period(first)
@@ -1525,6 +1562,7 @@ def extract_turning_points(
             source,
             f"about {2 * per_half:.3g} samples per period: at least {2 * _SAMPLES_MIN} are needed "
             f"to locate the turning points",
+            _NoDecay,
         )
     if per_half >= _SMOOTH_MIN:  # spikes are told from the swings (`_despike`)
         y_clean = _despike(t, y, sigma, 8.0, keep=_near_clipping(t, y, first))
@@ -1543,7 +1581,11 @@ def extract_turning_points(
             break
         idx = np.delete(idx, [j, j + 1]) if j + 1 < idx.size else np.delete(idx, j)
     if idx.size < 3:
-        _fail(source, f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})")
+        _fail(
+            source,
+            f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})",
+            _NoDecay,
+        )
     floor = float(min_amplitude) if min_amplitude is not None else 10 * h
     decays = _decays(y_clean, idx, h, starts_at_edge)
     decays = [d for d in decays if d[2] >= 2 * floor] or decays  # (none: refused below)
@@ -1643,8 +1685,13 @@ def extract_turning_points(
                 f"the swings grow (peak to peak about {early:.3g} over the record's first quarter, "
                 f"{swings.max():.3g} at its end): not a free decay (a driven or self-excited "
                 f"motion?)",
+                _NoDecay,
             )
-        _fail(source, "fewer than 3 turning points above the amplitude floor: no decay to fit")
+        _fail(
+            source,
+            "fewer than 3 turning points above the amplitude floor: no decay to fit",
+            _NoDecay,
+        )
     centres = _local_centres(xk)
     whole = ~(clipped[:-2] | clipped[1:-1] | clipped[2:])
     centre = float(np.median(centres[whole] if np.any(whole) else centres))
@@ -1735,7 +1782,7 @@ def read_record(
                 decay=decay,
             )
         except ValueError as err:
-            if not_peaks is None:
+            if not_peaks is None or path.text.count("\n") > _PEAK_TABLE_ROWS:
                 raise
             raise ValueError(
                 f"{err} (read as a raw signal; as a peak table: {not_peaks})"

@@ -229,6 +229,24 @@ def test_raw_signal_or_peak_table_decided_from_the_file(tmp_path, capsys):
     assert "the variable-mass model needs m0, c" in err and "--model): oscillator" in err
 
 
+def test_a_column_without_a_decay_names_the_others(tmp_path):
+    """The signal is the last column unless one is named: where that column holds no decay (a
+    trigger, a constant, noise), the error names the file's other columns and how to choose
+    (the time columns are not among them)."""
+    t = np.arange(0, 20, 0.004)
+    x = 5 * np.exp(-0.14 * t) * np.cos(7 * t) + 0.3
+    for last in (np.where(t > 0.5, 5.0, 0.0), np.full_like(t, 2.5)):
+        rows = "\n".join(f"{a:.3f},{a:.2f},{b:.5f},{c:g}" for a, b, c in zip(t, x, last))
+        path = _write(tmp_path, "time,elapsed,displacement,trigger\n" + rows)
+        with pytest.raises(ValueError, match="no decay|turning points") as err:
+            fits.read_record(path)
+        assert str(err.value).endswith(
+            "(in the column 'trigger'; the file's other column: 'displacement': name the "
+            "signal's with --signal-col NAME, signal_col=NAME)"
+        )
+    assert len(fits.read_record(path, signal_col="displacement")) > 20
+
+
 def test_one_sides_peaks_by_cycle(tmp_path):
     """A logarithmic-decrement table: the negative peaks of the exact oscillator (omega 20,
     zeta 0.01, xF 0.05, released from 10) one per period, amplitudes to 0.002 and times to
