@@ -343,6 +343,54 @@ def _decays_left_out(records) -> list:
     return out
 
 
+def _line(x, y) -> tuple:
+    """(the fraction of `y`'s variance that a straight line in `x` explains, its slope)."""
+    design = np.column_stack([np.ones(x.size), x])
+    beta = np.linalg.lstsq(design, y, rcond=None)[0]
+    return 1 - np.var(y - design @ beta) / np.var(y), beta[1]
+
+
+def _sensor_hints(records, per_record, space, free) -> list:
+    """Where a fit's residuals are structured: what their mean over each pair of successive
+    turning points (the part that both sides share) follows. A linear trend in time is a
+    sensor zero that drifts (`drift`); a trend with the amplitude, sides that differ (the
+    sensor's gain, `asym`; an uneven restoring force, the pendulum's `b2`). Said only where
+    that shared part is at least half of the residuals and a straight line in time or in the
+    amplitude explains at least half of its variance, and only for a parameter the model has
+    and the fit left out."""
+    out = []
+    for rec, one in zip(records, per_record):
+        x = np.asarray(one["residuals"]["position"], dtype=float)
+        if rec.times is None or x.size < 8:
+            continue
+        shared = (x[:-1] + x[1:]) / 2
+        t = (rec.times[:-1] + rec.times[1:]) / 2
+        a = (rec.amplitudes[:-1] + rec.amplitudes[1:]) / 2
+        ok = np.isfinite(shared)
+        if ok.sum() < 6 or np.mean(shared[ok] ** 2) < 0.25 * np.nanmean(x**2):
+            continue
+        shared, t, a = shared[ok], t[ok], a[ok]
+        (in_time, slope), (in_amplitude, _) = _line(t, shared), _line(a, shared)
+        if max(in_time, in_amplitude) < 0.5:
+            continue
+        of = f"{rec.source}: " if rec.source else ""
+        if in_time > in_amplitude and "drift" in space.names and "drift" not in free:
+            out.append(
+                f"{of}the residuals' mean over successive turning points drifts with "
+                f"time (a line of {-slope:.3g} [{space.unit('drift')}] explains "
+                f"{in_time:.0%} of it): the sensor's zero may drift; fit drift (--fit "
+                f"...,drift)"
+            )
+        elif in_amplitude >= in_time and "asym" in space.names and "asym" not in free:
+            out.append(
+                f"{of}the residuals' mean over successive turning points follows the "
+                f"amplitude (a line explains {in_amplitude:.0%} of it): the two sides differ "
+                f"(the sensor's gain: fit asym, --fit ...,asym; or an uneven restoring force: "
+                f"the pendulum model's b2)"
+            )
+    return out
+
+
 def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     """The [`fits.FitResult`][] of an assessed job; `ends`: its profile-likelihood interval
     ends (`fits._solve._profiles`; None where they were not computed)."""
@@ -437,6 +485,7 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                 f"{rec.source}: the signal is clipped at {' and '.join(levels)} (a saturated "
                 f"sensor): the extrema cut off there are left out of the fit"
             )
+    structured = bool(diag["warnings"])
     warn += diag["warnings"]
     diag = {**diag, "warnings": warn}
     # per-record residuals in data units
@@ -473,6 +522,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         }
         one["rms"], one["rms_time"] = (_pooled_rms([one], kind) for kind in ("position", "time"))
         per_record.append(one)
+    if structured and not series:
+        warn += _sensor_hints(prob.records, per_record, space, job.free)
     top = [s for s, (nm, rr) in enumerate(job.slots) if rr is None]
 
     def pick(arr, sel):

@@ -384,7 +384,8 @@ def test_signals_of_few_samples_per_period_fit_with_honest_intervals():
 def test_a_drifting_sensor_zero_is_fitted():
     """A sensor whose zero drifts by 3 % of a0 over the record (a strain gauge warming up):
     fitted without `drift` the model does not explain the data (flagged, its standard errors
-    widened for it); with it the fit is clean and every parameter's interval holds the truth
+    widened for it) and the warnings say that the residuals' shared part drifts (fit drift);
+    with it the fit is clean and every parameter's interval holds the truth
     (three seeds measured: the drift within 1.4 of its standard errors, 1-3 % of its value).
     A record without times cannot have it fitted."""
     drift = 0.03 * TRUE["a0"] / 8.0  # [signal units / s]
@@ -395,7 +396,10 @@ def test_a_drifting_sensor_zero_is_fitted():
         plain = fits.fit(rec, "oscillator", FREE, compare=False)
         r = fits.fit(rec, "oscillator", FREE + ("drift",), compare=False)
     assert any(w.startswith("the model does not explain the data") for w in plain.warnings)
-    assert r.converged and not any("does not explain" in w for w in r.warnings)
+    (hint,) = [w for w in plain.warnings if "the sensor's zero may drift; fit drift" in w]
+    assert hint.startswith("the residuals' mean over successive turning points drifts")
+    assert abs(float(hint.split("a line of ")[1].split(" ")[0]) / drift - 1) < 0.05
+    assert r.converged and not any("does not explain" in w or "drift" in w for w in r.warnings)
     truth = {**TRUE, "offset": TRUE["offset"] + drift * rec.time_origin, "drift": drift}
     for name, value in truth.items():
         lo, hi = r.intervals[name]
@@ -405,6 +409,34 @@ def test_a_drifting_sensor_zero_is_fitted():
     amplitudes = fits.record_from_sequence(positions=rec.positions)
     with pytest.raises(ValueError, match="drift can only be fitted from a record with times"):
         fits.fit(amplitudes, "oscillator", ("zeta", "xF", "a0", "drift"), {"omega": 20.0})
+
+
+def test_sensor_hints_follow_the_residuals_shared_part():
+    """`_sensor_hints` on residuals whose mean over successive turning points grows with the
+    time (a drifting zero), follows the amplitude (sides that differ), or is noise; and not for
+    a parameter the fit had."""
+    from fits._models import SPACES
+    from fits._result import _sensor_hints
+
+    k = np.arange(40)
+    times, amp = 0.16 * k, 5.0 * 0.97**k
+    rec = fits.record_from_sequence(positions=amp * (-1.0) ** (k + 1), times=times)
+    rng = np.random.default_rng(2)
+    noise = 0.002 * rng.normal(size=k.size)
+    side = (-1.0) ** k * 0.01  # what the sides do not share
+    space = SPACES["oscillator"]
+
+    def hints(shared, free=FREE):
+        return _sensor_hints(
+            [rec], [{"residuals": {"position": shared + side + noise}}], space, free
+        )
+
+    (drift,) = hints(-0.01 * times)
+    assert "drifts with time" in drift and "fit drift" in drift
+    assert abs(float(drift.split("a line of ")[1].split(" ")[0]) - 0.01) < 5e-4
+    (asym,) = hints(0.02 * amp)
+    assert "follows the amplitude" in asym and "fit asym" in asym
+    assert hints(0.0 * times) == [] and hints(-0.01 * times, FREE + ("drift",)) == []
 
 
 def test_a_signal_of_too_few_samples_per_period_is_refused():
