@@ -1153,6 +1153,69 @@ def _zigzag(y, h):
     return np.asarray(idx, dtype=int)
 
 
+#: how far a faster oscillation's spectral line stands above the noise's median bin
+_LINE = 300.0
+#: the swing's harmonics that are its shape, not another oscillation (`_faster_period`)
+_HARMONICS = 9
+
+
+def _faster_period(t, y) -> tuple | None:
+    """`(samples per period, angular frequency [rad/s])` of an oscillation faster than the
+    decay's that rides on it (mains hum, a higher mode of the structure), or `None`. The
+    signal less its average over a quarter of its half-swing (from the spectrum's highest
+    peak) holds the noise and what is faster; there, above 1.5 times the decay's
+    frequency, a spectral line (a local peak `_LINE` times the median of the bins around it:
+    white noise's highest bin is some 15 times it) is such an oscillation, away from the
+    swing's own harmonics (up to the `_HARMONICS`-th, +-0.15 of the swing's frequency, and
+    their skirts: the shape of a pendulum's large swings, not another oscillation). A decaying
+    higher mode whose power is spread over a band is not found."""
+    dt = float(np.median(np.diff(t)))
+    window = np.hanning(y.size)
+    n = 1 << (y.size - 1).bit_length()  # (a fast length: zeros after the data)
+    f = np.fft.rfftfreq(n, dt)
+    power = np.abs(np.fft.rfft((y - y.mean()) * window, n)) ** 2
+    slow = np.flatnonzero(f > 2 / (y.size * dt))  # (not a drift)
+    if slow.size < 16:
+        return None
+    main_half = 1 / (2 * f[slow[np.argmax(power[slow])]] * dt)  # [samples]
+    rest = y - _smooth(y, max(2, int(main_half // 4)))
+    power = np.abs(np.fft.rfft((rest - rest.mean()) * window, n)) ** 2
+    ratio = f * (2 * main_half * dt)  # (multiples of the swing's frequency)
+    harmonic = (np.round(ratio) <= _HARMONICS) & (np.abs(ratio - np.round(ratio)) < 0.15)
+    usable = (ratio > 1.5) & ~harmonic
+    lobe = int(math.ceil(2 * n / y.size))  # the window's main lobe [bins]
+    peaks = (
+        np.flatnonzero(usable[1:-1] & (power[1:-1] >= power[:-2]) & (power[1:-1] >= power[2:])) + 1
+    )
+    for k in peaks[np.argsort(power[peaks])[::-1][:8]]:
+        if k - lobe < 0 or k + lobe >= f.size or not np.all(usable[k - lobe : k + lobe + 1]):
+            continue  # (on a harmonic's skirt)
+        around = np.r_[max(k - 16 * lobe, 0) : k - lobe, k + lobe + 1 : k + 16 * lobe + 1]
+        around = around[(around < f.size) & usable[np.minimum(around, f.size - 1)]]
+        if around.size >= 4 and power[k] >= _LINE * np.median(power[around]):
+            break
+    else:
+        return None
+    shift = 0.0
+    if 0 < k < f.size - 1 and np.all(power[k - 1 : k + 2] > 0):
+        a, b, c = np.log(power[k - 1 : k + 2])
+        shift = 0.5 * (a - c) / (a - 2 * b + c) if a - 2 * b + c < 0 else 0.0
+    rate = float(f[k] + shift * (f[1] - f[0]))
+    return max(2, int(round(1 / (rate * dt)))), 2 * np.pi * rate
+
+
+def _smooth(y, width: int) -> np.ndarray:
+    """`y` averaged twice over `width` samples (a triangle of `2 width - 1`): an oscillation of
+    `width` samples per period (and its multiples) removed, a much slower one kept but for
+    `1 - sinc(width / P)^2` of its amplitude. Used only to find the turning points."""
+    out = y
+    for left in (width // 2, (width - 1) // 2):  # (the two passes' shifts cancel)
+        padded = np.concatenate([[0.0], np.full(left, out[0]), out, np.full(width, out[-1])])
+        sums = np.cumsum(padded)
+        out = (sums[width:] - sums[:-width])[: y.size] / width
+    return out
+
+
 def _harmonic_noise(t, y, idx) -> float:
     """Noise level [signal units] of a signal of few samples per period, from the residuals of
     the arcs through the samples within the mean half-period of each extremum `idx` (`c0 +
@@ -1204,7 +1267,7 @@ _SMOOTH_MIN = 8
 _WINDOW = 0.4  #: half-width of the local fit around an extremum, in local half-periods
 
 
-def _refine(t, y, i, half, peak, kink=0.0, degree=4):
+def _refine(t, y, i, half, peak, kink=0.0, degree=4, fast=None):
     """Time and value of the extremum near sample `i`: a least-squares polynomial of `degree`
     (a quartic by default; where fewer than `degree + 3` samples fall inside, a sinusoid:
     `_refine_harmonic`) through the samples within `0.4 half` of it, less the dry-friction kink `kink sign(tau)
@@ -1223,7 +1286,11 @@ def _refine(t, y, i, half, peak, kink=0.0, degree=4):
     At 37 samples per half-period (the pendulum records) and noise of 0.2 % of the amplitude
     this times an extremum to about 0.2 ms (a twentieth of a sample period) and biases its value
     by less than 1e-3 of the amplitude for a sinusoid; the window is wide enough that quantised
-    or flat-topped peaks still show their curvature."""
+    or flat-topped peaks still show their curvature.
+
+    `fast` [rad/s]: the angular frequency of a faster oscillation on the signal
+    (`_faster_period`): a sinusoid at it is fitted with the polynomial (its two terms, a few
+    of its periods in the window), so that it does not move the vertex."""
     width = _WINDOW * half
     rate = math.pi / half  # the local angular frequency [rad/s]
     centre, value = t[i], y[i]
@@ -1236,7 +1303,11 @@ def _refine(t, y, i, half, peak, kink=0.0, degree=4):
         if tau.size < degree + 3:
             return _refine_harmonic(t, y, i, half, peak, kink)
         bump = np.sign(tau) * (1.0 - np.cos(rate * width * tau))
-        c = np.linalg.lstsq(np.vander(tau, degree + 1), ys - kink * bump, rcond=None)[0]
+        design = np.vander(tau, degree + 1)
+        if fast is not None:
+            phase = fast * width * tau
+            design = np.column_stack([design, np.cos(phase), np.sin(phase)])
+        c = np.linalg.lstsq(design, ys - kink * bump, rcond=None)[0][: degree + 1]
         slope = np.polyder(c)  # (coefficients highest power first)
         roots = np.roots(slope)
         roots = roots[np.abs(roots.imag) < 1e-9].real
@@ -1516,7 +1587,10 @@ def extract_turning_points(
        pluck or a release, after a quiet lead-in or during another decay), and the decay of
        the largest swing is kept, or the `decay`-th (0-based, in time order) where it is
        given (`meta["decays"]`: where each starts, the one taken and its index, where there
-       are several; [`fits.read_decays`][] reads every one);
+       are several; [`fits.read_decays`][] reads every one). An oscillation faster than the
+       decay's riding on it (mains hum: a spectral line, `_faster_period`) is averaged out
+       of the signal they are found on, and fitted beside the local polynomial that locates
+       each (`meta["faster"]`: its period [s] and amplitude);
     3. pairs of extrema much closer in time than the median half-period (spurious wiggles) are
        dropped; each extremum is refined by a local quartic over +-0.4 local half-periods
        (sub-sample time and value; a sinusoid over +-0.5 where fewer than 7 samples fall
@@ -1556,6 +1630,13 @@ def extract_turning_points(
         _fail(source, "the signal is constant: no decay to fit", _NoDecay)
     h = float(hysteresis) if hysteresis is not None else max(6 * sigma, 1e-3 * span)
     first = _zigzag(y, h)  # (the raw signal's extrema: how many samples a swing spans)
+    fast, rate = _faster_period(t, y) or (None, None)
+    if fast:  # the turning points are found on the signal without it, refined on the signal
+        fast_amp = float(np.sqrt(2) * np.std(y - _smooth(y, fast)))
+        sigma_found = _noise(t, _smooth(y, fast))
+        if hysteresis is None:
+            h = max(6 * sigma_found, 1e-3 * span)
+        first = _zigzag(_smooth(y, fast), h)
     per_half = _samples_per_half_period(first)
     if per_half < _SAMPLES_MIN:
         _fail(
@@ -1569,9 +1650,12 @@ def extract_turning_points(
     else:  # the differences of `_noise` see the swings: their residuals from sinusoids
         y_clean = y
         sigma = min(sigma, _harmonic_noise(t, y, first))
+    if fast:
+        sigma = sigma_found
     if hysteresis is None:
         h = max(6 * sigma, 1e-3 * float(np.max(y_clean) - np.min(y_clean)))
-    idx = _zigzag(y_clean, h)
+    y_found = _smooth(y_clean, fast) if fast else y_clean  # (where they are found)
+    idx = _zigzag(y_found, h)
     starts_at_edge = bool(idx.size and idx[0] == 0)
     # spurious wiggles: remove the closest pair while an interval is far below the median
     while idx.size >= 4:
@@ -1587,7 +1671,7 @@ def extract_turning_points(
             _NoDecay,
         )
     floor = float(min_amplitude) if min_amplitude is not None else 10 * h
-    decays = _decays(y_clean, idx, h, starts_at_edge)
+    decays = _decays(y_found, idx, h, starts_at_edge)
     decays = [d for d in decays if d[2] >= 2 * floor] or decays  # (none: refused below)
     if decay is None:
         decay = max(range(len(decays)), key=lambda i: decays[i][2])  # of the largest swing
@@ -1604,7 +1688,7 @@ def extract_turning_points(
     idx = idx[a:b]
     if idx.size < 3:
         _fail(source, f"decay {decay} of the signal holds only {idx.size} turning points")
-    swings = np.abs(np.diff(y_clean[idx]))
+    swings = np.abs(np.diff(y_found[idx]))
     small = np.nonzero(swings[int(np.argmax(swings)) :] < 1.5 * floor)[0] + int(np.argmax(swings))
     if small.size and small[0] + 3 < idx.size:  # the tail far below the floor: not refined
         idx = idx[: small[0] + 3]
@@ -1615,7 +1699,7 @@ def extract_turning_points(
     def refine(kinks, degree=4):  # every extremum, (time, value) rows
         return np.array(
             [
-                _refine(t, y_clean, i, hp, pk, kinks[0] if pk else -kinks[1], degree)
+                _refine(t, y_clean, i, hp, pk, kinks[0] if pk else -kinks[1], degree, rate)
                 for i, hp, pk in zip(idx, half, peak)
             ]
         )
@@ -1657,6 +1741,8 @@ def extract_turning_points(
         if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
     meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
+    if fast:
+        meta["faster"] = {"period": 2 * np.pi / rate, "amplitude": fast_amp}
     if len(others) > 1:  # several free decays: where each starts, and the one taken
         meta["decays"] = {"starts": others, "taken": others[decay], "index": decay}
     if one_sided:

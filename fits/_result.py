@@ -479,6 +479,13 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                 f"column: read as half-swings, it gives half the frequency and twice the "
                 f"damping"
             )
+        faster = rec.meta.get("faster")
+        if faster:
+            warn.append(
+                f"{rec.source}: a faster oscillation rides on the signal ({1 / faster['period']:.4g}"
+                f" Hz, amplitude about {faster['amplitude']:.3g}: mains hum? a higher mode?): "
+                f"the turning points were found without it and located with it fitted beside them"
+            )
         levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
         if levels:
             warn.append(
