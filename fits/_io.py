@@ -601,10 +601,19 @@ _PEAK_ROLES = {
 }
 
 
+#: words after `peak` that make a column a count of the peaks, not their amplitude
+_COUNTS = {"no", "nr", "number", "num", "#", "index", "idx", "count", "n"}
+
+
 def _peak_role(name: str) -> str | None:
     """What a peak table's column holds, from its name: its first word, less a unit (`Time
-    (s)`, `time_ms`, `t/min`, `Amplitude [mm]`, `amplitude_mm`); `None` for another column."""
-    return _PEAK_ROLES.get(re.split(r"[\s(\[_/]", name.strip().lower(), maxsplit=1)[0])
+    (s)`, `time_ms`, `t/min`, `Amplitude [mm]`, `amplitude_mm`); `None` for another column,
+    and for a count of the peaks (`Peak No.`, `peak #`, `peak_index`: half-swings or periods,
+    the name does not say)."""
+    words = re.split(r"[\s(\[_/.]+", name.strip().lower())
+    if words[0] == "peak" and len(words) > 1 and words[1] in _COUNTS:
+        return None
+    return _PEAK_ROLES.get(words[0])
 
 
 def _samples_of_motion(x) -> str | None:

@@ -179,6 +179,9 @@ def test_peak_columns_by_their_names_first_word(tmp_path):
     assert np.allclose(rec.times, [0, 150, 300]) and rec.positions.tolist() == [10, 9, 8.1]
     with pytest.raises(ValueError, match="both name the amplitude"):
         fits.read_peaks(_write(tmp_path, "k,amplitude,peak\n0,1,1\n1,0.9,0.9\n"))
+    # a count of the peaks (half-swings or periods: the name does not say) is no amplitude
+    rec = fits.read_peaks(_write(tmp_path, "Peak No.;Time [s];Amplitude [mm]\n1;0;10\n2;0.15;9\n"))
+    assert rec.amplitudes.tolist() == [10, 9] and rec.meta["rows"] == fits.ROWS_AS_HALF_SWINGS
     with pytest.raises(ValueError, match="missing column: need 'amplitude'"):
         fits.read_peaks(_write(tmp_path, "k,height\n0,1\n1,0.9\n"))
 
