@@ -1609,7 +1609,12 @@ def extract_turning_points(
        are not quartic over the window); leading
        extrema on the same side of the centre as the next one (the mass held or nudged before
        its release) are dropped, so the record starts at the release;
-    4. the record ends where the swings fall below `min_amplitude` (default `10 h`);
+    4. the record ends where the swings fall below `min_amplitude` (default `10 h`); where
+       that floor would cut the decay short (swings down to 90 noise sd above a fifth of the
+       largest), at 16 or more samples per half-swing, the turning points are found on the
+       signal averaged over a quarter of a half-swing, its noise and so `h` lower by
+       `sqrt(2 / (3 width))` (`width` the samples averaged; `meta["averaged"]` [s]), and
+       located on the samples as above;
     5. extrema cut off by a saturated sensor (flat runs at the signal's extreme value at two
        or more swings, `_clipped`) are left out of the record (their `k` skipped; positions
        and times), of the dry-friction level and of the centre; `meta["clipped"]` holds the
@@ -1659,11 +1664,25 @@ def extract_turning_points(
     else:  # the differences of `_noise` see the swings: their residuals from sinusoids
         y_clean = y
         sigma = min(sigma, _harmonic_noise(t, y, first))
+    width = fast  # samples averaged over in the signal the turning points are found on
     if fast:
         sigma = sigma_found
+    elif (
+        hysteresis is None
+        and min_amplitude is None
+        and per_half >= 2 * _SMOOTH_MIN
+        and first.size >= 2
+        and 90 * sigma > 0.2 * float(np.max(np.abs(np.diff(y_clean[first]))))
+    ):
+        # the noise floor (swings down to 1.5 x 10 h = 90 sigma) would cut the decay short
+        # (above a fifth of its largest swing): found on the signal averaged over a quarter of
+        # a half-swing, whose noise is sqrt(2 / (3 width)) of the samples' (located on the
+        # samples, over +-0.4 half-swings, as ever)
+        width = int(per_half // 4)
+        sigma *= math.sqrt(2 / (3 * width))
     if hysteresis is None:
         h = max(6 * sigma, 1e-3 * float(np.max(y_clean) - np.min(y_clean)))
-    y_found = _smooth(y_clean, fast) if fast else y_clean  # (where they are found)
+    y_found = _smooth(y_clean, width) if width else y_clean  # (where they are found)
     idx = _zigzag(y_found, h)
     starts_at_edge = bool(idx.size and idx[0] == 0)
     # spurious wiggles: remove the closest pair while an interval is far below the median
@@ -1752,6 +1771,8 @@ def extract_turning_points(
     meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
     if fast:
         meta["faster"] = {"period": 2 * np.pi / rate, "amplitude": fast_amp}
+    elif width:
+        meta["averaged"] = float(width * np.median(np.diff(t)))
     if len(others) > 1:  # several free decays: where each starts, and the one taken
         meta["decays"] = {"starts": others, "taken": others[decay], "index": decay}
     if one_sided:
