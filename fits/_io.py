@@ -1838,9 +1838,17 @@ def extract_turning_points(
 def sample_window(record: Record) -> tuple[np.ndarray, np.ndarray]:
     """`(t [s] from the release, samples)` of an extracted record's raw signal from its release
     to its last turning point, less the samples at a saturated sensor's levels
-    (`meta["clipped"]`): the data of a fit on the whole time series."""
+    (`meta["clipped"]`) and less a faster oscillation found on it (`meta["faster"]`: its
+    least-squares sinusoid over the whole signal, as mains hum is): the data of a fit on the
+    whole time series."""
     t = np.asarray(record.signal.t, dtype=float) - record.time_origin
     y = np.asarray(record.signal.y, dtype=float)
+    faster = record.meta.get("faster")
+    if faster:  # a stationary faster oscillation (mains hum): its least-squares sinusoid
+        width = max(2, int(round(faster["period"] / np.median(np.diff(t)))))
+        phase = 2 * np.pi * t / faster["period"]
+        basis = np.column_stack([np.cos(phase), np.sin(phase)])
+        y = y - basis @ np.linalg.lstsq(basis, y - _smooth(y, width), rcond=None)[0]
     keep = (t >= 0) & (t <= record.times[-1])
     for level in record.meta.get("clipped", {}).values():
         if level is not None:  # samples at a saturated sensor's level are no measurements

@@ -479,6 +479,12 @@ def test_mains_hum_on_the_signal(per_period, hum, spikes):
             lo, hi = r.intervals[name]
             assert lo <= value <= hi, (name, value, (lo, hi))
         assert any("a faster oscillation rides on the signal (50 Hz" in w for w in r.warnings)
+        # the samples of a fit on the whole time series: less the hum's sinusoid
+        from fits._io import sample_window
+
+        ts, ys = sample_window(hum_record)
+        clean = np.interp(ts + hum_record.time_origin, t, y)
+        assert np.sqrt(np.mean((ys - clean) ** 2)) < 0.03 * hum * 2.0
 
 
 def test_a_noisy_signal_is_averaged_to_find_its_turning_points():
