@@ -541,13 +541,14 @@ def _columns(tab: _Table, cols: list, missing: bool = False) -> list:
     located and reported by the line-by-line parser."""
     body, first = tab.text[tab.body :], tab.first
     dates = {m.group(0) for m in map(_DATE_PREFIX.match, first) if m}
-    rows = body.count("\n") + (not body.endswith("\n"))
-    if all(body.count(date) == rows for date in dates):  # every row's date as the first's
-        for date in dates:
-            body = body.replace(date, "")
-    else:
-        body = _DATE_PREFIX.sub("", body)
-    first = [_DATE_PREFIX.sub("", c) for c in first]
+    if dates:
+        rows = body.count("\n") + (not body.endswith("\n"))
+        if all(body.count(date) == rows for date in dates):  # every row's date the first's
+            for date in dates:
+                body = body.replace(date, "")
+        else:
+            body = _DATE_PREFIX.sub("", body)
+        first = [_DATE_PREFIX.sub("", c) for c in first]
     try:
         return _fast_columns(tab, body, first, cols, missing)
     except ValueError:
