@@ -1647,11 +1647,12 @@ def extract_turning_points(
     first = _zigzag(y, h)  # (the raw signal's extrema: how many samples a swing spans)
     fast, rate = _faster_period(t, y) or (None, None)
     if fast:  # the turning points are found on the signal without it, refined on the signal
-        fast_amp = float(np.sqrt(2) * np.std(y - _smooth(y, fast)))
-        sigma_found = _noise(t, _smooth(y, fast))
+        smoothed = _smooth(y, fast)
+        fast_amp = float(np.sqrt(2) * np.std(y - smoothed))
+        sigma_found = _noise(t, smoothed)
         if hysteresis is None:
             h = max(6 * sigma_found, 1e-3 * span)
-        first = _zigzag(_smooth(y, fast), h)
+        first = _zigzag(smoothed, h)
     per_half = _samples_per_half_period(first)
     if per_half < _SAMPLES_MIN:
         _fail(
