@@ -491,21 +491,17 @@ def test_a_noisy_signal_is_averaged_to_find_its_turning_points():
     """Noise of 2 % of a0 at 200 samples per period: the noise floor (swings down to 90 noise
     sd) would have cut the decay above its start (refused: "fewer than 3 turning points above
     the amplitude floor"); the turning points are found on the signal averaged over a quarter
-    of a half-swing (its noise 0.16 of the samples') and located on the samples. Measured on 12
-    seeds: every fit converged, every 95 % interval of omega, zeta and xF held the truth,
-    z-scores' spread 0.69-1.04."""
-    t, y, _ = _oscillator_signal(
+    of a half-swing (its noise 0.16 of the samples') and located on the samples: 52 turning
+    points, their RMS error 0.3 noise sd. (Fits of 12 seeds, measured: every fit converged,
+    every 95 % interval of omega, zeta and xF held the truth, z-scores' spread 0.69-1.04.)"""
+    t, y, truth = _oscillator_signal(
         12.0, 0.004, 0.01, 2.0, 0.0, 40.0, seed=5, n_spikes=0, per_period=200, noise=0.02
     )
     rec = fits.extract_turning_points(fits.Signal(t=t, y=y, clock="uniform"))
-    assert len(rec) >= 40
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = fits.fit(rec, "oscillator", FREE, compare=False)
-    assert r.converged
-    for name, value in {"omega": 12.0, "zeta": 0.004, "xF": 0.01}.items():
-        lo, hi = r.intervals[name]
-        assert lo <= value <= hi, (name, value, (lo, hi))
+    assert len(rec) >= 40 and rec.meta["averaged"] > 0
+    at = rec.times + rec.time_origin
+    j = np.array([np.argmin(np.abs(truth[:, 0] - x)) for x in at])
+    assert np.sqrt(np.mean((rec.positions - truth[j, 1]) ** 2)) < 0.4 * 0.02 * 2.0
 
 
 def test_a_signal_of_too_few_samples_per_period_is_refused():
