@@ -179,7 +179,7 @@ def add_arguments(p):
         "--residuals",
         choices=("turning-points", "series"),
         default="turning-points",
-        help="what the fit compares: the turning points (default) or, with --series, every "
+        help="what the fit compares: the turning points (default) or, for a raw signal, every "
         "sample of the raw signal against the exact motion between the turning points (the "
         "turning-point fit starts it; the release's time shift t0 is fitted)",
     )
