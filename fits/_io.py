@@ -1201,7 +1201,8 @@ def _faster_period(t, y) -> tuple | None:
         if k - lobe < 0 or k + lobe >= f.size or not np.all(usable[k - lobe : k + lobe + 1]):
             continue  # (on a harmonic's skirt)
         around = np.r_[max(k - 16 * lobe, 0) : k - lobe, k + lobe + 1 : k + 16 * lobe + 1]
-        around = around[(around < f.size) & usable[np.minimum(around, f.size - 1)]]
+        around = around[around < f.size]
+        around = around[usable[around]]
         if around.size >= 4 and power[k] >= _LINE * np.median(power[around]):
             break
     else:
@@ -1643,16 +1644,16 @@ def extract_turning_points(
     span = float(np.max(y) - np.min(y))
     if span <= 0:
         _fail(source, "the signal is constant: no decay to fit", _NoDecay)
-    h = float(hysteresis) if hysteresis is not None else max(6 * sigma, 1e-3 * span)
-    first = _zigzag(y, h)  # (the raw signal's extrema: how many samples a swing spans)
+    # the extrema at the noise's hysteresis (a given `hysteresis` applies to the turning points
+    # only): how many samples a swing spans, and whether the signal is too noisy for them
     fast, rate = _faster_period(t, y) or (None, None)
     if fast:  # the turning points are found on the signal without it, refined on the signal
         smoothed = _smooth(y, fast)
         fast_amp = float(np.sqrt(2) * np.std(y - smoothed))
         sigma_found = _noise(t, smoothed)
-        if hysteresis is None:
-            h = max(6 * sigma_found, 1e-3 * span)
-        first = _zigzag(smoothed, h)
+        first = _zigzag(smoothed, max(6 * sigma_found, 1e-3 * span))
+    else:
+        first = _zigzag(y, max(6 * sigma, 1e-3 * span))
     per_half = _samples_per_half_period(first)
     if per_half < _SAMPLES_MIN:
         _fail(
@@ -1670,9 +1671,7 @@ def extract_turning_points(
     if fast:
         sigma = sigma_found
     elif (
-        hysteresis is None
-        and min_amplitude is None
-        and per_half >= 2 * _SMOOTH_MIN
+        per_half >= 2 * _SMOOTH_MIN
         and first.size >= 2
         and 90 * sigma > 0.2 * float(np.max(np.abs(np.diff(y_clean[first]))))
     ):
@@ -1682,8 +1681,11 @@ def extract_turning_points(
         # samples, over +-0.4 half-swings, as ever)
         width = int(per_half // 4)
         sigma *= math.sqrt(2 / (3 * width))
-    if hysteresis is None:
-        h = max(6 * sigma, 1e-3 * float(np.max(y_clean) - np.min(y_clean)))
+    h = (
+        float(hysteresis)
+        if hysteresis is not None
+        else max(6 * sigma, 1e-3 * float(np.max(y_clean) - np.min(y_clean)))
+    )
     y_found = _smooth(y_clean, width) if width else y_clean  # (where they are found)
     idx = _zigzag(y_found, h)
     starts_at_edge = bool(idx.size and idx[0] == 0)

@@ -502,6 +502,14 @@ def test_a_noisy_signal_is_averaged_to_find_its_turning_points():
     at = rec.times + rec.time_origin
     j = np.array([np.argmin(np.abs(truth[:, 0] - x)) for x in at])
     assert np.sqrt(np.mean((rec.positions - truth[j, 1]) ** 2)) < 0.4 * 0.02 * 2.0
+    # extracted again with the record's hysteresis (a model with an angle unit: the
+    # pendulum's fits) it is averaged alike (it was refused: "about 4.4 samples per period")
+    from fits._fit import _extracted_for, _space
+
+    again = _extracted_for(_space("pendulum"), rec, {})
+    direct = fits.extract_turning_points(rec.signal, angle_unit=math.radians(1.0))
+    np.testing.assert_array_equal(again.times, direct.times)
+    assert again.meta["averaged"] == rec.meta["averaged"]
 
 
 def test_a_signal_of_too_few_samples_per_period_is_refused():
