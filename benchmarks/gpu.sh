@@ -2,7 +2,8 @@
 # The GPU measurements in one run, on a machine whose Python has JAX with CUDA (no
 # virtual environment needed: vmj runs from the checkout): the exact and the energy-balance
 # sweeps in float64 and float32, each against its same-run peer (SciPy's event loop, NumPy in
-# place: both on the host), then vmj's solver, sweep and fit tests on the GPU.
+# place: both on the host), the whole-process `vmj fit` on the GPU and on the CPU, then vmj's
+# solver, sweep and fit tests on the GPU.
 #
 # Run from the repository root: bash benchmarks/gpu.sh [SECONDS]  (PYTHON=... picks the
 # interpreter, default python3; SECONDS bounds the whole run, default 540: the tests get what the
@@ -34,6 +35,11 @@ for flags in "" "--float32"; do
 done
 # a GPU fills at far more lanes than the 4096 points
 $PY benchmarks/bench_exact.py --points 65536 2>&1 | tee -a "$LOG/bench.txt"
+# the `vmj fit` of bench_cli.py, whole processes: JAX's default device (the GPU), then the CPU
+for platforms in "" cpu; do
+  echo "== vmj fit, JAX_PLATFORMS='$platforms' ==" | tee -a "$LOG/bench.txt"
+  JAX_PLATFORMS=$platforms $PY benchmarks/bench_cli.py --quick --fit 2>&1 | tee -a "$LOG/bench.txt"
+done
 
 left=$((BUDGET - SECONDS))
 echo "== tests on the GPU ($left s left) =="
