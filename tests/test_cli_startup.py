@@ -152,6 +152,39 @@ def test_no_cache_leaves_jax_configuration_alone(capsys):
     assert jax.config.jax_compilation_cache_dir == before
 
 
+def test_commands_run_on_the_cpu_and_sweeps_on_the_default_device():
+    """The process's own command runs on the CPU (a single solve or fit is faster there than
+    on a GPU), `vmj sweep` on JAX's default device; `JAX_PLATFORMS` decides for every command;
+    `main` called in-process leaves the caller's devices alone."""
+    code = (
+        "import sys, jax; from vmj.cli import main; "
+        "sys.argv = ['vmj', '--no-cache', *sys.argv[1:]]; "
+        "status = main(); print(status, jax.config.jax_platforms or 'default')"
+    )
+    linear = ["linear", "--m", "1", "--c", "1", "--k", "14.5", "--json"]
+    sweep = ["sweep", "linear", "--m", "1", "--c", "1", "--k", "14.5,20", "--out", os.devnull]
+
+    def platforms(argv, **env):
+        environ = {k: v for k, v in os.environ.items() if k != "JAX_PLATFORMS"}
+        run = subprocess.run(
+            [sys.executable, "-c", code, *argv],
+            capture_output=True,
+            text=True,
+            env={**environ, **env},
+        )
+        assert run.returncode == 0, run.stderr
+        return run.stdout.split()[-2:]
+
+    assert platforms(linear) == ["0", "cpu"]
+    assert platforms(sweep) == ["0", "default"]
+    assert platforms(linear, JAX_PLATFORMS="cpu,cuda") == ["0", "cpu,cuda"]
+    import jax
+
+    before = jax.config.jax_platforms
+    assert main(["--no-cache", *linear]) == 0
+    assert jax.config.jax_platforms == before
+
+
 def test_an_unusable_cache_directory_is_refused(tmp_path, monkeypatch, capsys):
     a_file = tmp_path / "f"
     a_file.write_text("")

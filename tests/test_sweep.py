@@ -26,6 +26,7 @@ from vmj._sweep._sweep import (
     chunk_lanes,
     chunk_plan,
     default_chunk,
+    chunk_options,
     host_output,
     pinned_host,
 )
@@ -197,6 +198,34 @@ def test_results_in_pinned_host_memory_are_the_same(monkeypatch):
     assert {x.sharding.memory_kind for x in jax.tree.leaves(placed)} == {"pinned_host"}
     for a, b in zip(jax.tree.leaves(got.values), jax.tree.leaves(want.values)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_wide_vectors_on_avx512_processors(monkeypatch):
+    """A CPU with AVX-512 compiles the chunks for 512-bit vectors (`chunk_options`; forced here
+    whatever this machine's processor): the same turning points to rounding, the same counts
+    and results; an accelerator, or `XLA_FLAGS` naming the width, leaves XLA's default."""
+    from vmj._sweep import _sweep as sweep_module
+
+    cpu = jax.devices("cpu")[:1]
+    g = vmj.grid(paper_model(), eps=np.linspace(0, 1, 7), mu=[0.0, 5.0])
+    monkeypatch.setattr(sweep_module, "_AVX512", [False])
+    assert chunk_options(cpu) == {}
+    narrow = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4, devices=cpu)
+    monkeypatch.setattr(sweep_module, "_AVX512", [True])
+    assert chunk_options(cpu) == {"xla_cpu_prefer_vector_width": 512}
+    assert chunk_options([type("GPU", (), {"platform": "gpu"})()]) == {}
+    with monkeypatch.context() as m:
+        m.setenv("XLA_FLAGS", "--xla_cpu_prefer_vector_width=256")
+        assert chunk_options(cpu) == {}
+    sweep_module._KNOWN.clear()  # (compiled anew with the option)
+    made, real = [], sweep_module._chunk_function
+    monkeypatch.setattr(sweep_module, "_chunk_function", lambda *a: made.append(a[-1]) or real(*a))
+    wide = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4, devices=cpu)
+    assert made == [{"xla_cpu_prefer_vector_width": 512}]
+    np.testing.assert_allclose(wide.values.positions, narrow.values.positions, atol=1e-13 * A0)
+    np.testing.assert_allclose(wide.values.times, narrow.values.times, rtol=1e-13)
+    for name in ("crossed", "count", "stopped", "result"):
+        np.testing.assert_array_equal(getattr(wide.values, name), getattr(narrow.values, name))
 
 
 def test_chunking_gives_identical_results_and_reports_progress(capsys):

@@ -111,13 +111,53 @@ def pinned_host(device, sharding):
     return jax.sharding.SingleDeviceSharding(device, memory_kind="pinned_host")
 
 
+def _avx512() -> bool:
+    """Whether this machine's processor has AVX-512 (Linux's `/proc/cpuinfo`; False where it
+    cannot be read)."""
+    if _AVX512[0] is None:
+        try:
+            with open("/proc/cpuinfo") as fh:
+                _AVX512[0] = any(line.startswith("flags") and " avx512f" in line for line in fh)
+        except OSError:
+            _AVX512[0] = False
+    return _AVX512[0]
+
+
+_AVX512: list = [None]
+
+
+def chunk_options(devices) -> dict:
+    """XLA's options for the compiled chunks on `devices` (`None`: this process's default
+    device, as a cluster's worker runs): on a CPU with AVX-512, vectors of 512 bits (XLA's CPU
+    code prefers 256 by default). Measured on the 2-core AMD EPYC (Zen 4) development machine,
+    alternating processes: the exact sweep of `benchmarks/bench_exact.py` 3.2-3.3 -> 2.1-2.5
+    us/point, the smoothed sweep about 8 % faster, the energy balance unchanged within its
+    noise; results unchanged (the same accuracy against SciPy). `XLA_FLAGS` naming
+    `--xla_cpu_prefer_vector_width` is left to decide."""
+    device = devices[0] if devices else jax.local_devices()[0]
+    if device.platform != "cpu" or "xla_cpu_prefer_vector_width" in os.environ.get("XLA_FLAGS", ""):
+        return {}
+    return {"xla_cpu_prefer_vector_width": 512} if _avx512() else {}
+
+
 def _chunk_function(
-    fn, static_kwargs, kwargs_def, static_model, model_def, swept, shape, size, sharding, output
+    fn,
+    static_kwargs,
+    kwargs_def,
+    static_model,
+    model_def,
+    swept,
+    shape,
+    size,
+    sharding,
+    output,
+    options,
 ):
     """The compiled function of a sweep's chunks, `(model arrays, kwargs arrays, start) -> fn`
     at the points `start ... start + size` (flat, C order; indices past the last point repeat
     it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`, its result
-    placed by `output` (`host_output`'s). Everything else is closed over: a call is `jax.jit`'s
+    placed by `output` (`host_output`'s), compiled with XLA's `options` (`chunk_options`'s).
+    Everything else is closed over: a call is `jax.jit`'s
     dispatch of a few arrays (tens of microseconds less per chunk than sorting a whole model and
     its arguments into static and traced parts)."""
 
@@ -143,7 +183,7 @@ def _chunk_function(
 
         return jax.vmap(point)([x for x, s in zip(part, swept) if s])
 
-    return jax.jit(run, out_shardings=output)
+    return jax.jit(run, out_shardings=output, compiler_options=options or None)
 
 
 class _SweepJob:
@@ -295,6 +335,7 @@ class _SweepJob:
                     chunk,
                     self.sharding,
                     self.output(),
+                    chunk_options(self.devices),
                 )
             self._functions[chunk] = known["function"]
             return known["function"]

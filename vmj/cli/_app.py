@@ -26,12 +26,15 @@ __all__ = ["COMMANDS", "main", "build_parser", "cache_directory"]
 class Command:
     """A command: its name, one line of help, and the module that defines it, with
     `add_arguments(parser)` and `run(args) -> int` (imported when the command is named);
-    `synchronous`: JAX's CPU computations run in the calling thread (`_set_up_jax`)."""
+    `synchronous`: JAX's CPU computations run in the calling thread; `accelerator`: the command
+    runs on JAX's default device, an accelerator where there is one, where the others run on
+    the CPU (`_set_up_jax`)."""
 
     name: str
     help: str
     module: str
     synchronous: bool = True
+    accelerator: bool = False
 
     def load(self):
         return importlib.import_module(self.module)
@@ -45,6 +48,7 @@ COMMANDS = (
         "sweep",
         "a decay or cycle over a grid of parameters (CSV, NetCDF, figures)",
         "vmj.cli._sweep",
+        accelerator=True,
     ),
     Command(
         "sensitivity",
@@ -67,12 +71,16 @@ COMMANDS = (
 )
 
 CACHE_ENV = "VMJ_CACHE_DIR"
+PLATFORMS_ENV = "JAX_PLATFORMS"  #: JAX's own choice of devices, which the command keeps
 _OFF = ("off", "none", "0", "false", "no")
 
 EPILOG = f"""\
 Compiled and traced programs are kept in a persistent cache, so that a repeated command
   starts faster: ${{XDG_CACHE_HOME:-~/.cache}}/vmj/jax by default; --cache-dir PATH or
   {CACHE_ENV}=PATH moves it, --no-cache or {CACHE_ENV}=off switches it off.
+Commands run on the CPU (a single solve or fit is faster there than on a GPU); 'vmj sweep'
+  on JAX's default device, a GPU where there is one. {PLATFORMS_ENV}=cuda (or cpu) decides
+  for every command.
 Numbers must be finite, of magnitude at most {LARGEST:g}, in the units shown in brackets.
 Bad input prints one line 'vmj: error: ...' and exits with status 2.
 Run 'vmj COMMAND --help' for the options of a command (units in brackets)."""
@@ -111,7 +119,11 @@ class _Commands(argparse._SubParsersAction):
             module = command.load()
             module.add_arguments(sub)
             add_global_options(sub, nested=True)
-            sub.set_defaults(command_run=module.run, synchronous=command.synchronous)
+            sub.set_defaults(
+                command_run=module.run,
+                synchronous=command.synchronous,
+                accelerator=command.accelerator,
+            )
         super().__call__(parser, namespace, values, option_string)
 
 
@@ -175,11 +187,18 @@ def cache_directory(args) -> tuple[str | None, str]:
     return os.path.join(base, "vmj", "jax"), "default"
 
 
-def _set_up_jax(args) -> None:
+def _set_up_jax(args, process: bool = False) -> None:
     """float64, synchronous dispatch, the persistent compilation cache, host memory reuse
-    (entry point only)."""
+    (entry point only); for the process's own command (`process`), the CPU as its device
+    unless the command is for an accelerator or `JAX_PLATFORMS` says otherwise."""
     import jax
 
+    if process and not getattr(args, "accelerator", False) and not os.environ.get(PLATFORMS_ENV):
+        # a single solve's loops test their exit on the host at every iteration: on a machine
+        # with an H200, `vmj fit` (bench_cli.py) repeated in 3.35 s on its CPU against 5.24 s
+        # on the GPU (a fresh cache: 12.2 against 18.0 s), one warm solve 0.09-0.14 against
+        # 2.7 ms (docs/performance.md); sweeps fill an accelerator and keep it
+        jax.config.update("jax_platforms", "cpu")
     jax.config.update("jax_enable_x64", True)
     # run each compiled call in the calling thread: handing it to JAX's dispatch thread costs
     # a single solve more than its arithmetic (docs/performance.md); sweeps run their chunks
@@ -248,7 +267,7 @@ def main(argv=None) -> int:
     exported = exported_cache_directory()  # restored on return (`main` run in-process)
     try:
         with _settled(argv is None):
-            _set_up_jax(args)
+            _set_up_jax(args, process=argv is None)
         return args.command_run(args)
     except ValueError as e:  # bad input, found by vmj's checks or the command's
         print(f"vmj: error: {_one_line(e)}", file=sys.stderr)
