@@ -24,9 +24,9 @@ from vmj._sweep._sweep import (
     DEFAULT_CHUNK,
     _SweepJob,
     chunk_lanes,
+    chunk_options,
     chunk_plan,
     default_chunk,
-    chunk_options,
     host_output,
     pinned_host,
 )
