@@ -8,6 +8,8 @@ import jax.numpy as jnp
 from equinox.internal import unvmap_any
 from jax import lax
 
+from ._scan import zeros_of_lanes
+
 #: a lane has converged once a Newton step moved it by less than this fraction of its bracket
 #: (quadratic convergence: the final `implicit_step` then leaves an error far below rounding)
 CONVERGED = 1e-8
@@ -52,7 +54,7 @@ def bracketed_newton(f, lo, hi, x0, iterations: int, unrolled: bool = False):
     dtype = jnp.result_type(x0, lo, hi)
     x0, lo, hi = (jnp.asarray(a, dtype) for a in jnp.broadcast_arrays(x0, lo, hi))
     tol = converged_fraction(dtype) * jnp.abs(hi - lo)
-    state = (jnp.array(0), x0, lo, hi, jnp.zeros(x0.shape, bool))
+    state = (jnp.array(0), x0, lo, hi, zeros_of_lanes(x0, bool))
     if unrolled:
         for _ in range(iterations):
             state = step(state)

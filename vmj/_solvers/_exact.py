@@ -28,7 +28,7 @@ from jax import lax
 
 from .._models._base import AbstractDecayModel, AbstractLimitCycle
 from .._numerics._roots import bracketed_newton, implicit_step
-from .._numerics._scan import decay_scan, early_exit_loop
+from .._numerics._scan import decay_scan, early_exit_loop, zeros_of_lanes
 from .._numerics._series import derivative, horner, horner_and_derivative
 from .._solution import RESULTS
 from ._base import AbstractSolver, unsupported
@@ -146,7 +146,7 @@ def march_to_velocity_zero(
     `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`; `one_lane`: as in
     `Exact`)."""
     scale = model.swing_scale(t0, x0)
-    zero = jnp.zeros_like(x0)
+    zero = zeros_of_lanes(x0)
 
     def cond(carry):
         k, found = carry[0], carry[4]
@@ -171,7 +171,7 @@ def march_to_velocity_zero(
         t, x, v = (jnp.where(found, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))
         return k + 1, t, x, v, found, limited, inaccurate, start
 
-    false = jnp.array(False)
+    false = zeros_of_lanes(x0, bool)
     init = (jnp.array(0), t0, x0, zero, jnp.logical_not(moving), false, false, (t0, x0, zero, zero))
     _, _, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
         cond, body, init, max_substeps, kind=kind
@@ -201,6 +201,6 @@ def _velocity_zero(model, t, x, v, s, h, t_guess, one_lane: bool):
         velocity = lambda y: horner_and_derivative(f_cs, y)  # noqa: E731
     hi = lax.stop_gradient(h)
     tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
-    tau = bracketed_newton(velocity, jnp.zeros_like(hi), hi, tau, NEWTON)
+    tau = bracketed_newton(velocity, zeros_of_lanes(hi), hi, tau, NEWTON)
     tau = implicit_step(lambda y: horner_and_derivative(dcs, y), tau)
     return t + tau, horner(cs, tau)
