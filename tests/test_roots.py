@@ -34,3 +34,23 @@ def test_written_out_steps_find_the_loops_root_and_its_derivative():
     # from 0 the first Newton step goes to p, out of the bracket where p > 1: bisection there
     far = bracketed_newton(_f(p), zero, zero + 1, zero, 60, unrolled=True)
     np.testing.assert_allclose(implicit_step(_f(p), far), loop, rtol=0, atol=1e-15)
+
+
+def test_loop_carries_start_batched_wherever_their_lane_is():
+    """`zeros_of_lanes`, the loops' initial carries: zeros (+0, never -0) in the dtype asked
+    for, batched under `vmap` where the lane is (a `vmap` that asks for an unbatched result
+    refuses them, as it takes `jnp.zeros_like`), a floating one with a zero tangent."""
+    import pytest
+
+    from vmj._numerics._scan import zeros_of_lanes
+
+    x = jnp.array([-1.0, 2.0, jnp.nan, -jnp.inf])
+    for dtype in (None, bool, jnp.int32):
+        z = zeros_of_lanes(x, dtype)
+        assert z.dtype == (x.dtype if dtype is None else dtype) and not np.any(z)
+        assert jax.vmap(lambda u: jnp.zeros_like(u, dtype), out_axes=None)(x).shape == ()
+        with pytest.raises(ValueError, match="output was batched"):
+            jax.vmap(lambda u: zeros_of_lanes(u, dtype), out_axes=None)(x)  # noqa: B023
+    assert not np.any(np.signbit(zeros_of_lanes(x)))
+    value, tangent = jax.jvp(zeros_of_lanes, (x,), (jnp.ones(4),))
+    assert not np.any(value) and not np.any(tangent)
