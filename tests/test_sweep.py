@@ -206,6 +206,7 @@ def test_wide_vectors_on_avx512_processors(monkeypatch):
     and results; an accelerator, or `XLA_FLAGS` naming the width, leaves XLA's default."""
     from vmj._sweep import _sweep as sweep_module
 
+    monkeypatch.delenv("XLA_FLAGS", raising=False)  # (a width set by the caller decides)
     cpu = jax.devices("cpu")[:1]
     g = vmj.grid(paper_model(), eps=np.linspace(0, 1, 7), mu=[0.0, 5.0])
     monkeypatch.setattr(sweep_module, "_AVX512", [False])

@@ -111,6 +111,9 @@ def pinned_host(device, sharding):
     return jax.sharding.SingleDeviceSharding(device, memory_kind="pinned_host")
 
 
+_AVX512: list = [None]  #: whether this machine's processor has AVX-512, once read
+
+
 def _avx512() -> bool:
     """Whether this machine's processor has AVX-512 (Linux's `/proc/cpuinfo`; False where it
     cannot be read)."""
@@ -121,9 +124,6 @@ def _avx512() -> bool:
         except OSError:
             _AVX512[0] = False
     return _AVX512[0]
-
-
-_AVX512: list = [None]
 
 
 def chunk_options(devices) -> dict:
@@ -157,9 +157,9 @@ def _chunk_function(
     at the points `start ... start + size` (flat, C order; indices past the last point repeat
     it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`, its result
     placed by `output` (`host_output`'s), compiled with XLA's `options` (`chunk_options`'s).
-    Everything else is closed over: a call is `jax.jit`'s
-    dispatch of a few arrays (tens of microseconds less per chunk than sorting a whole model and
-    its arguments into static and traced parts)."""
+    Everything else is closed over: a call is `jax.jit`'s dispatch of a few arrays (tens of
+    microseconds less per chunk than sorting a whole model and its arguments into static and
+    traced parts)."""
 
     def run(model_arrays, kwargs_arrays, start):
         global _TRACES
