@@ -42,9 +42,13 @@ def _settings(text: str) -> dict:
     return out
 
 
+class _Order(ValueError):
+    """`LO:HI` with `LO >= HI`."""
+
+
 def _span(text: str) -> tuple:
     """`LO:HI` as floats, an empty or infinite end open (+-inf); `ValueError` saying what is
-    wrong."""
+    wrong (`_Order` for ends in the wrong order)."""
     lo_t, colon, hi_t = text.partition(":")
     if not colon:
         raise ValueError("must be LO:HI")
@@ -54,7 +58,7 @@ def _span(text: str) -> tuple:
     except ValueError:
         raise ValueError("LO and HI must be numbers") from None
     if math.isnan(lo) or math.isnan(hi) or not lo < hi:
-        raise ValueError("need LO < HI")
+        raise _Order("need LO < HI")
     return lo, hi
 
 
@@ -89,13 +93,13 @@ def _window(text: str) -> tuple:
     """`--window START:END` [s from the first sample] (argparse type; an empty end is open)."""
     try:
         return _span(text)
-    except ValueError as err:
-        what = (
-            "needs START < END"
-            if "LO < HI" in str(err)
-            else "must be START:END in seconds from the first sample, an end may be empty"
-        )
-        raise argparse.ArgumentTypeError(f"{what} (got {text!r})") from None
+    except _Order:
+        raise argparse.ArgumentTypeError(f"needs START < END (got {text!r})") from None
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be START:END in seconds from the first sample, an end may be empty "
+            f"(got {text!r})"
+        ) from None
 
 
 def _count_or(word: str, least: int):

@@ -12,6 +12,7 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -1554,14 +1555,14 @@ def _near_clipping(t, y, idx):
 
 
 def _naming_other_columns(extract):
-    """`extract_turning_points`, whose failure to find a decay names the file's other columns
-    (the signal is the last column unless one is named: a trigger or a second sensor may be
-    last)."""
+    """`extract(signal, ...)` (`extract_turning_points`, `_every_decay`), whose failure to find
+    a decay names the file's other columns (the signal is the last column unless one is named:
+    a trigger or a second sensor may be last)."""
 
     @functools.wraps(extract)
-    def named(signal: Signal, **kwargs) -> Record:
+    def named(signal: Signal, *args, **kwargs):
         try:
-            return extract(signal, **kwargs)
+            return extract(signal, *args, **kwargs)
         except _NoDecay as err:
             if not signal.others:
                 raise
@@ -1638,6 +1639,28 @@ def extract_turning_points(
     with an angle unit (the pendulum) extract a record again with theirs.
     The signal's clock report is `record.clock`.
     """
+    return _extract(signal, _find(signal, hysteresis), min_amplitude, angle_unit, decay)
+
+
+class _Found(NamedTuple):
+    """What `_find` found on a signal, before any one decay is taken."""
+
+    t: np.ndarray
+    y_clean: np.ndarray  # despiked
+    y_found: np.ndarray  # where the turning points were found (averaged, or `y_clean`)
+    idx: np.ndarray  # the turning points' samples
+    h: float  # the hysteresis
+    starts_at_edge: bool
+    sigma: float  # the noise of `y_found`
+    per_half: float  # samples per half-swing
+    width: int | None  # samples averaged over (`y_found`)
+    fast: tuple | None  # (amplitude, angular frequency [rad/s]) of a faster oscillation
+
+
+def _find(signal: Signal, hysteresis) -> _Found:
+    """Steps 1 and 2 of `extract_turning_points` on the whole signal: its noise, spikes,
+    faster oscillation and turning points (every decay's: `read_decays` takes each of them
+    from one `_find`)."""
     t, y = np.asarray(signal.t, dtype=float), np.asarray(signal.y, dtype=float)
     source = signal.source
     sigma = _noise(t, y)
@@ -1702,6 +1725,25 @@ def extract_turning_points(
             f"found only {idx.size} turning points in the signal (hysteresis {h:.3g})",
             _NoDecay,
         )
+    return _Found(
+        t,
+        y_clean,
+        y_found,
+        idx,
+        h,
+        starts_at_edge,
+        sigma,
+        per_half,
+        width,
+        (fast_amp, rate) if fast else None,
+    )
+
+
+def _extract(signal: Signal, found: _Found, min_amplitude, angle_unit, decay) -> Record:
+    """Steps 2-6 of `extract_turning_points` for one decay of what `_find` found."""
+    t, y_clean, y_found, idx, h, starts_at_edge, sigma, per_half, width, fast = found
+    rate = fast[1] if fast else None
+    source = signal.source
     floor = float(min_amplitude) if min_amplitude is not None else 10 * h
     decays = _decays(y_found, idx, h, starts_at_edge)
     decays = [d for d in decays if d[2] >= 2 * floor] or decays  # (none: refused below)
@@ -1774,7 +1816,7 @@ def extract_turning_points(
             tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
     meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
     if fast:
-        meta["faster"] = {"period": 2 * np.pi / rate, "amplitude": fast_amp}
+        meta["faster"] = {"period": 2 * np.pi / rate, "amplitude": fast[0]}
     elif width:
         meta["averaged"] = float(width * np.median(np.diff(t)))
     if len(others) > 1:  # several free decays: where each starts, and the one taken
@@ -1933,14 +1975,18 @@ def read_decays(path: str | os.PathLike, **kwargs) -> list:
         if name in kwargs:
             raise ValueError(f"read_decays reads raw signals, every decay: no {name}=")
     angle_unit = kwargs.pop("angle_unit", None)
-    signal = read_signal(path, **kwargs)
-    first = extract_turning_points(signal, angle_unit=angle_unit)
+    return _every_decay(read_signal(path, **kwargs), angle_unit)
+
+
+@_naming_other_columns
+def _every_decay(signal: Signal, angle_unit) -> list:
+    """`extract_turning_points` of every decay of `signal`, the signal searched once."""
+    found = _find(signal, None)
+    first = _extract(signal, found, None, angle_unit, None)
     decays = first.meta.get("decays")
     if decays is None:
         return [first]
     return [
-        first
-        if i == decays["index"]
-        else extract_turning_points(signal, angle_unit=angle_unit, decay=i)
+        first if i == decays["index"] else _extract(signal, found, None, angle_unit, i)
         for i in range(len(decays["starts"]))
     ]

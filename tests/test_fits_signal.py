@@ -67,6 +67,12 @@ def _oscillator_signal(
     return t, y, np.array(turning)
 
 
+def _true_positions(rec, truth):
+    """The true turning points (`_oscillator_signal`'s) nearest in time to `rec`'s."""
+    at = rec.times + rec.time_origin
+    return truth[[int(np.argmin(np.abs(truth[:, 0] - x))) for x in at], 1]
+
+
 def _extracted(truth, seeds, **signal):
     """The turning points extracted from `_oscillator_signal(**truth, seed=s, **signal)`
     (without spikes) for each seed `s`."""
@@ -460,10 +466,9 @@ def test_mains_hum_on_the_signal(per_period, hum, spikes):
     errors = []
     for signal in (hummed, y):
         rec = fits.extract_turning_points(fits.Signal(t=t, y=signal, clock="uniform"))
-        at = rec.times + rec.time_origin
-        j = np.array([np.argmin(np.abs(truth[:, 0] - x)) for x in at])
-        big = np.abs(truth[j, 1]) > 0.2
-        errors.append(np.sqrt(np.mean((rec.positions - truth[j, 1])[big] ** 2)))
+        want = _true_positions(rec, truth)
+        big = np.abs(want) > 0.2
+        errors.append(np.sqrt(np.mean((rec.positions - want)[big] ** 2)))
         if signal is hummed:
             assert abs(rec.meta["faster"]["period"] / 0.02 - 1) < 1e-4
             assert abs(rec.meta["faster"]["amplitude"] / (2 * hum) - 1) < 0.2
@@ -499,9 +504,7 @@ def test_a_noisy_signal_is_averaged_to_find_its_turning_points():
     )
     rec = fits.extract_turning_points(fits.Signal(t=t, y=y, clock="uniform"))
     assert len(rec) >= 40 and rec.meta["averaged"] > 0
-    at = rec.times + rec.time_origin
-    j = np.array([np.argmin(np.abs(truth[:, 0] - x)) for x in at])
-    assert np.sqrt(np.mean((rec.positions - truth[j, 1]) ** 2)) < 0.4 * 0.02 * 2.0
+    assert np.sqrt(np.mean((rec.positions - _true_positions(rec, truth)) ** 2)) < 0.4 * 0.02 * 2.0
     # extracted again with the record's hysteresis (a model with an angle unit: the
     # pendulum's fits) it is averaged alike (it was refused: "about 4.4 samples per period")
     from fits._fit import _extracted_for, _space

@@ -209,10 +209,10 @@ def test_wide_vectors_on_avx512_processors(monkeypatch):
     monkeypatch.delenv("XLA_FLAGS", raising=False)  # (a width set by the caller decides)
     cpu = jax.devices("cpu")[:1]
     g = vmj.grid(paper_model(), eps=np.linspace(0, 1, 7), mu=[0.0, 5.0])
-    monkeypatch.setattr(sweep_module, "_AVX512", [False])
+    monkeypatch.setattr(sweep_module, "_avx512", lambda: False)
     assert chunk_options(cpu) == {}
     narrow = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4, devices=cpu)
-    monkeypatch.setattr(sweep_module, "_AVX512", [True])
+    monkeypatch.setattr(sweep_module, "_avx512", lambda: True)
     assert chunk_options(cpu) == {"xla_cpu_prefer_vector_width": 512}
     assert chunk_options([type("GPU", (), {"platform": "gpu"})()]) == {}
     with monkeypatch.context() as m:

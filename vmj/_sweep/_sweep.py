@@ -14,6 +14,7 @@ parameters are array fields works.
 from __future__ import annotations
 
 import collections
+import functools
 import math
 import os
 import sys
@@ -111,19 +112,15 @@ def pinned_host(device, sharding):
     return jax.sharding.SingleDeviceSharding(device, memory_kind="pinned_host")
 
 
-_AVX512: list = [None]  #: whether this machine's processor has AVX-512, once read
-
-
+@functools.cache
 def _avx512() -> bool:
-    """Whether this machine's processor has AVX-512 (Linux's `/proc/cpuinfo`; False where it
-    cannot be read)."""
-    if _AVX512[0] is None:
-        try:
-            with open("/proc/cpuinfo") as fh:
-                _AVX512[0] = any(line.startswith("flags") and " avx512f" in line for line in fh)
-        except OSError:
-            _AVX512[0] = False
-    return _AVX512[0]
+    """Whether this machine's processor has AVX-512 (Linux's `/proc/cpuinfo`, read once; False
+    where it cannot be read)."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            return any(line.startswith("flags") and " avx512f" in line for line in fh)
+    except OSError:
+        return False
 
 
 def chunk_options(devices) -> dict:
