@@ -8,7 +8,7 @@ import jax.numpy as jnp
 from equinox.internal import unvmap_any
 from jax import lax
 
-from ._scan import zeros_of_lanes
+from ._scan import computed_once, zeros_of_lanes
 
 #: a lane has converged once a Newton step moved it by less than this fraction of its bracket
 #: (quadratic convergence: the final `implicit_step` then leaves an error far below rounding)
@@ -22,7 +22,7 @@ def converged_fraction(dtype) -> float:
     return max(CONVERGED, 4 * float(jnp.finfo(dtype).eps))
 
 
-def bracketed_newton(f, lo, hi, x0, iterations: int, unrolled: bool = False):
+def bracketed_newton(f, lo, hi, x0, iterations: int, unrolled: bool = False, batch: bool = True):
     """Root of a function in `[lo, hi]`, positive at `lo` and `<= 0` at `hi`; `f(x)` returns its
     value and slope `(y, dy/dx)`. Newton steps from `x0`, falling back to bisection whenever a
     step leaves the bracket. A lane stops (and keeps its value) once a step moved it by at most
@@ -33,7 +33,10 @@ def bracketed_newton(f, lo, hi, x0, iterations: int, unrolled: bool = False):
 
     `unrolled`: exactly `iterations` steps written out instead of a `while_loop`, for a start
     so close that a few steps always suffice (one fused kernel instead of a loop of small
-    ones: the smoothed turning points within a step of the dense output)."""
+    ones: the smoothed turning points within a step of the dense output).
+
+    `batch`: the loop's `f(x)` is `computed_once` (for a batch, whose kernels' arithmetic is
+    its cost); False for a single lane, whose cost is the number of kernels."""
 
     def cond(state):
         i, _, _, _, done = state
@@ -41,7 +44,7 @@ def bracketed_newton(f, lo, hi, x0, iterations: int, unrolled: bool = False):
 
     def step(state):
         i, x, lo, hi, done = state
-        fx, dfx = f(x)
+        fx, dfx = computed_once(f(x), i) if batch and not unrolled else f(x)
         ahead = fx > 0
         lo_new, hi_new = jnp.where(ahead, x, lo), jnp.where(ahead, hi, x)
         newton = x - fx / jnp.where(dfx != 0, dfx, 1.0)

@@ -13,6 +13,30 @@ from .._solution import RESULTS, DecaySequence
 __all__ = ["decay_scan", "early_exit_loop", "zeros_of_lanes"]
 
 
+def computed_once(values, step):
+    """`values` (a tuple of arrays of one shape), each computed once. XLA's CPU backend has no
+    multi-output fusion: every kernel that reads an elementwise expression computes it again,
+    so a long chain (a Taylor recurrence, a Horner evaluation) read by several consumers runs
+    once per consumer. Here the values are packed in pairs as complex numbers (one kernel
+    computes both halves of a pair, their shared chain once) and passed through a conditional,
+    whose operands are buffers (`step`, an unbatched integer such as a loop counter, keeps its
+    predicate opaque). Other platforms fuse several outputs into one kernel: there `values`
+    pass unchanged."""
+
+    def conditional(values):
+        pairs = [
+            lax.complex(*values[i : i + 2]) if i + 1 < len(values) else values[i]
+            for i in range(0, len(values), 2)
+        ]
+        pairs = lax.cond(step >= 0, lambda p: p, lambda p: [jnp.zeros_like(a) for a in p], pairs)
+        out = []
+        for p in pairs:
+            out += [jnp.real(p), jnp.imag(p)] if jnp.iscomplexobj(p) else [p]
+        return tuple(out)
+
+    return lax.platform_dependent(tuple(values), cpu=conditional, default=tuple)
+
+
 def zeros_of_lanes(x, dtype=None):
     """Zeros of `x`'s shape (in `dtype`, default `x`'s) batched wherever `x` is, under `vmap`
     and `jax.jacfwd` alike (a floating result carries a tangent of `x`'s batching too). The

@@ -6,7 +6,14 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["horner", "horner_and_derivative", "derivative", "cauchy", "cauchy_term"]
+__all__ = [
+    "horner",
+    "horner_and_derivative",
+    "slope_and_curvature",
+    "derivative",
+    "cauchy",
+    "cauchy_term",
+]
 
 
 def horner(cs, tau):
@@ -24,6 +31,17 @@ def horner_and_derivative(cs, tau):
         slope = slope * tau + value
         value = value * tau + c
     return value, slope
+
+
+def slope_and_curvature(cs, tau):
+    """`(p'(tau), p''(tau))` of `p = sum_j cs[j] tau^j` in one pass over the coefficients
+    themselves (no derivative's coefficients made first)."""
+    value, slope, half_curvature = cs[-1], jnp.zeros_like(cs[-1]), jnp.zeros_like(cs[-1])
+    for c in cs[-2::-1]:
+        half_curvature = half_curvature * tau + slope
+        slope = slope * tau + value
+        value = value * tau + c
+    return slope, 2 * half_curvature
 
 
 def derivative(cs):

@@ -28,8 +28,8 @@ from jax import lax
 
 from .._models._base import AbstractDecayModel, AbstractLimitCycle
 from .._numerics._roots import bracketed_newton, implicit_step
-from .._numerics._scan import decay_scan, early_exit_loop, zeros_of_lanes
-from .._numerics._series import derivative, horner, horner_and_derivative
+from .._numerics._scan import computed_once, decay_scan, early_exit_loop, zeros_of_lanes
+from .._numerics._series import derivative, horner, horner_and_derivative, slope_and_curvature
 from .._solution import RESULTS
 from ._base import AbstractSolver, unsupported
 
@@ -156,11 +156,13 @@ def march_to_velocity_zero(
         k, t, x, v, found, limited, inaccurate, start = carry
         h, end_limited, t_next = model.substep(t, scale)
         cs = model.taylor(t, x, v, s, ORDER)
-        x1, v1 = horner_and_derivative(cs, h)
         # truncation guard: the last terms of the series must be negligible (a diverging
         # series is off by orders of magnitude; accurate ones stay near 1e-13 or far below)
         n = len(cs) - 1
         tail = jnp.abs(cs[-1]) * h**n + jnp.abs(cs[-2]) * h ** (n - 1)
+        x1, v1 = horner_and_derivative(cs, h)
+        if not one_lane:
+            x1, v1, tail = computed_once((x1, v1, tail), k)
         bad = tail > TAIL_TOLERANCE * (jnp.abs(x) + jnp.abs(x1) + jnp.abs(v) * h)
         inaccurate = inaccurate | (bad & jnp.logical_not(found))
         hit = jnp.logical_not(found) & (v1 * s <= 0)
@@ -187,20 +189,20 @@ def _velocity_zero(model, t, x, v, s, h, t_guess, one_lane: bool):
     series' coefficients carried into their loop, or recomputed in it with `one_lane` (for a
     model with a straight-line recurrence)."""
     cs = model.taylor(t, x, v, s, ORDER)
-    dcs = derivative(cs)
     if one_lane and model.straight_line_taylor:
         stopped = lax.stop_gradient((model, t, x, v))
-
-        def velocity(y):  # (s v, s dv/dt) at t + y
-            series = derivative(stopped[0].taylor(*stopped[1:], s, ORDER))
-            value, slope = horner_and_derivative(series, y)
-            return s * value, s * slope
-
+        series = lambda: stopped[0].taylor(*stopped[1:], s, ORDER)  # noqa: E731
     else:
-        f_cs = [lax.stop_gradient(c * s) for c in dcs]
-        velocity = lambda y: horner_and_derivative(f_cs, y)  # noqa: E731
+        stopped = lax.stop_gradient(cs)
+        series = lambda: stopped  # noqa: E731
+
+    def velocity(y):  # (s v, s dv/dt) at t + y, from the position's coefficients (their
+        # derivative's, loop-invariant, would be made before the loop, a kernel each)
+        value, slope = slope_and_curvature(series(), y)
+        return s * value, s * slope
+
     hi = lax.stop_gradient(h)
     tau = jnp.clip(lax.stop_gradient(t_guess - t), 0.05 * hi, hi)
-    tau = bracketed_newton(velocity, zeros_of_lanes(hi), hi, tau, NEWTON)
-    tau = implicit_step(lambda y: horner_and_derivative(dcs, y), tau)
+    tau = bracketed_newton(velocity, zeros_of_lanes(hi), hi, tau, NEWTON, batch=not one_lane)
+    tau = implicit_step(lambda y: horner_and_derivative(derivative(cs), y), tau)
     return t + tau, horner(cs, tau)

@@ -196,7 +196,7 @@ class _SweepJob:
         self.devices, self.sharding = devices, sharding
         self._lock = threading.Lock()
         self._on_device = None
-        self._known = {}  # chunk size -> what `known` says, where the definition has no key
+        self._known = {}  # chunk size -> what `known` says (the shared entry, or the job's own)
         self._split = None  # what `_parts` returns, worked out once
         self._functions = {}  # chunk size -> compiled chunk function
         self._output = None  # (host_output's answer,), worked out once
@@ -252,7 +252,7 @@ class _SweepJob:
                         self.sharding.mesh, jax.sharding.PartitionSpec()
                     )
                 model_leaves, _, _, kwargs_leaves, _, _ = self._parts()
-                put = lambda xs: tuple(jax.device_put(x, place) for x in xs)  # noqa: E731
+                put = lambda xs: tuple(jax.device_put(list(xs), place))  # noqa: E731
                 self._on_device = (put(model_leaves), put(kwargs_leaves))
             return self._on_device
 
@@ -300,6 +300,8 @@ class _SweepJob:
         (`"compiled"`), its memory (`"bytes"`) and output structure (`"spec"`): shared by the
         sweeps of the same definition, or this job's own where the definition cannot be
         hashed."""
+        if chunk in self._known:
+            return self._known[chunk]
         key = self.key(chunk)
         with _KNOWN_LOCK:
             if key is None:
@@ -308,7 +310,7 @@ class _SweepJob:
             _KNOWN.move_to_end(key)
             while len(_KNOWN) > 64:
                 _KNOWN.popitem(last=False)
-        return entry
+        return self._known.setdefault(chunk, entry)
 
     def function(self, chunk: int | None = None):
         """The compiled function of chunks of `chunk` points (made once per process for the
@@ -682,8 +684,11 @@ def sweep(
             if st is not None:
                 st.fail(c, code, message)
 
-        if cl is None and todo and not job.known(chunk).get("compiled"):
-            job.compile()  # here, once, before the threads share the executable
+        if cl is None and todo:
+            if not job.known(chunk).get("compiled"):
+                job.compile()  # here, once, before the threads share the executable
+            job.on_device()  # (in a thread, the others' start waited for it: 4096 points,
+            # exact turning points, two threads: ...)
         show = progress if progress is not None else (sys.stderr.isatty() and n_chunks > 1)
         bar = Progress(n_chunks, n, show, already=resumed)
         run_chunks(
