@@ -1,4 +1,5 @@
-"""vmj's one root finder (`vmj._numerics._roots`): the loop and its written-out form."""
+"""vmj's one root finder (`vmj._numerics._roots`), the loop and its written-out form, and the
+numerics its loops run on (`computed_once`, `slope_and_curvature`)."""
 
 import jax
 import jax.numpy as jnp
@@ -54,3 +55,63 @@ def test_loop_carries_start_batched_wherever_their_lane_is():
     assert not np.any(np.signbit(zeros_of_lanes(x)))
     value, tangent = jax.jvp(zeros_of_lanes, (x,), (jnp.ones(4),))
     assert not np.any(value) and not np.any(tangent)
+
+
+def test_values_computed_once_keep_their_values_and_derivatives_and_their_chain_runs_once():
+    """`computed_once`: the same values to the last bit, under `vmap` in a loop, with their
+    derivatives (forward and reverse); on a CPU, a chain that three values read is computed
+    once (XLA's CPU kernels would otherwise each compute it)."""
+    from vmj._numerics._scan import computed_once
+
+    def outputs(x):  # a long chain read by three values
+        y = x
+        for j in range(40):
+            y = y * (1.0 + 1e-3 * j) + 0.5 * x
+        return y, y * x, jnp.abs(y) + x
+
+    def loop(x, once):
+        def body(carry):
+            i, a, b, c = carry
+            values = outputs(a + b + c)
+            if once:
+                values = computed_once(values, i)
+            return (i + 1, *(0.3 * v for v in values))
+
+        return jax.lax.while_loop(lambda c: c[0] < 3, body, (0, x, x, x))[1:]
+
+    x = jnp.linspace(0.1, 0.9, 4096)
+    plain, once = (jax.jit(jax.vmap(lambda u, o=o: loop(u, o))) for o in (False, True))
+    for a, b in zip(plain(x), once(x)):
+        np.testing.assert_array_equal(a, b)
+
+    # derivatives pass through (a while loop has forward mode only: here outside one)
+    def total(u, once):
+        return sum(computed_once(outputs(u), 0) if once else outputs(u))
+
+    for v in (0.2, 0.7):
+        assert jax.grad(total)(v, True) == jax.grad(total)(v, False)
+        assert jax.jvp(lambda u: total(u, True), (v,), (1.0,)) == jax.jvp(
+            lambda u: total(u, False), (v,), (1.0,)
+        )
+    if jax.default_backend() == "cpu":
+        # (three values: two kernels, a pair and the third, instead of three: 40 multiplications
+        # each, besides the loop's four)
+        count = [f.lower(x).compile().as_text().count(" multiply(") for f in (plain, once)]
+        assert count[0] >= 120 and count[1] <= 90, count
+
+
+def test_slope_and_curvature_of_a_polynomial():
+    """`slope_and_curvature` (the Newton iterations' velocity from the position's Taylor
+    coefficients) against NumPy's derivatives of the same polynomial, to rounding."""
+    from vmj._numerics._series import horner_and_derivative, slope_and_curvature
+
+    rng = np.random.default_rng(3)
+    cs = list(rng.normal(size=27) / np.arange(1, 28) ** 2)
+    p = np.polynomial.Polynomial(cs)
+    for tau in (0.0, 0.3, -0.8, 1.7):
+        slope, curvature = slope_and_curvature([jnp.asarray(c) for c in cs], tau)
+        np.testing.assert_allclose(slope, p.deriv(1)(tau), rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(curvature, p.deriv(2)(tau), rtol=1e-13, atol=1e-15)
+        # the same pair as the derivative's coefficients evaluated by horner_and_derivative
+        dcs = [jnp.asarray(c) for c in p.deriv(1).coef]
+        np.testing.assert_allclose((slope, curvature), horner_and_derivative(dcs, tau), rtol=1e-13)
