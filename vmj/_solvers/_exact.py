@@ -8,6 +8,9 @@ bracketed Newton, and makes its time differentiable by one final Newton step tak
 gradients (the implicit-function theorem). A guard on each series' last terms turns any loss of
 accuracy into a reported failure instead of a wrong answer.
 
+In a batch the values that several kernels read (a substep's end and its guard, Newton's value
+and slope) are `computed_once`: XLA's CPU kernels would each recompute the series.
+
 Every loop ends as soon as its work is done for every lane of a `vmap`ped batch: the substeps
 when each lane has found its velocity zero (about two per half-swing), the Newton iterations
 when each has converged, the swings when each has stuck or failed. Values come from plain
@@ -161,7 +164,7 @@ def march_to_velocity_zero(
         n = len(cs) - 1
         tail = jnp.abs(cs[-1]) * h**n + jnp.abs(cs[-2]) * h ** (n - 1)
         x1, v1 = horner_and_derivative(cs, h)
-        if not one_lane:
+        if not one_lane:  # (a batch: each of the three would recompute the series)
             x1, v1, tail = computed_once((x1, v1, tail), k)
         bad = tail > TAIL_TOLERANCE * (jnp.abs(x) + jnp.abs(x1) + jnp.abs(v) * h)
         inaccurate = inaccurate | (bad & jnp.logical_not(found))
