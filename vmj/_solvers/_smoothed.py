@@ -140,25 +140,25 @@ class Smoothed(AbstractSolver):
         rtol, steps, ode = self._settings(model)
         w = self.smoothing
         ts = jnp.linspace(0.0, t1, n_save)
-        y0 = model.initial_state(x0, v0)
-        atol = rtol * model.state_scale(x0, v0)
+        pack, unpack = _components(model.state_scale(x0, v0))
+        y0 = pack(model.initial_state(x0, v0))
         go_on = dfx.SaveAt(t1=True, solver_state=True, controller_state=True, made_jump=True)
 
         def piece(t_a, t_b, y, resume):
             sol = ode_solve(
-                lambda t, y, args: model.vector_field(t, y, w),
+                lambda t, y, args: pack(model.vector_field(t, unpack(y), w)),
                 y,
                 t_b,
                 go_on,
                 rtol=rtol,
-                atol=atol,
+                atol=rtol,
                 max_steps=steps,
                 solver=ode,
                 t0=t_a,
                 resume=resume,
             )
             resume = (sol.solver_state, sol.controller_state, sol.made_jump)
-            return sol.ys[-1], resume, sol.result == dfx.RESULTS.successful
+            return tuple(c[-1] for c in sol.ys), resume, sol.result == dfx.RESULTS.successful
 
         def body(carry, interval):
             y, resume, ok = carry
@@ -167,7 +167,7 @@ class Smoothed(AbstractSolver):
 
         y1, resume, ok = piece(ts[0], ts[1], y0, None)
         (_, _, ok), ys = lax.scan(body, (y1, resume, ok), (ts[1:-1], ts[2:]))
-        ys = jnp.concatenate([y0[None], y1[None], ys])
+        ys = unpack([jnp.concatenate([a[None], b[None], c]) for a, b, c in zip(y0, y1, ys)])
         code = jnp.where(ok, RESULTS.successful, RESULTS.solver_failed).astype(jnp.int32)
         xs, vs = model.observe(jnp.where(ok, ys, jnp.nan))
         return Trajectory(ts=ts, xs=xs, vs=vs, result=code)
@@ -196,7 +196,7 @@ class Smoothed(AbstractSolver):
         x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
         v0 = jnp.zeros_like(x0)
         t_end = model.horizon(a0, n)
-        atol = rtol * model.state_scale(x0, v0)
+        pack, unpack = _components(model.state_scale(x0, v0))
         scale = model.velocity_scale(a0)  # (event functions in units of it)
         slots = jnp.arange(n).reshape((n,) + (1,) * x0.ndim)
 
@@ -206,7 +206,7 @@ class Smoothed(AbstractSolver):
 
         def record(t0, t1, y1, interpolation, memo):
             s, count, times, positions, (rev0, arr0), stuck, crept = memo
-            x1, v1 = model.observe(y1)
+            x1, v1 = model.observe(unpack(y1))
             rev1, arr1 = events(s, x1, v1)
             reverses = (rev0 > 0) & (rev1 <= 0)  # (falls through zero, as diffrax's events)
             arrests = (arr0 > 0) & (arr1 <= 0) & jnp.logical_not(reverses)
@@ -216,10 +216,10 @@ class Smoothed(AbstractSolver):
                 interpolation,
                 t0,
                 t1,
-                lambda y: s * model.observe(y)[1] / scale - lift,
+                lambda y: s * model.observe(unpack(y))[1] / scale - lift,
                 jnp.where(reverses, rev0, arr0),
                 jnp.where(reverses, rev1, arr1),
-                lambda y: model.observe(y)[0],
+                lambda y: model.observe(unpack(y))[0],
                 turned,
             )
             s_next, _, stop = model.rest(t, x)
@@ -238,7 +238,7 @@ class Smoothed(AbstractSolver):
             memo = (s, count, times, positions, events(s, x1, v1), stuck, crept)
             return memo, (turned & (stop | (count >= n))) | arrested
 
-        y_start = model.initial_state(x0, v0)
+        y_start = pack(model.initial_state(x0, v0))
         one = jnp.ones_like(x0)
         memo = (
             one,
@@ -250,17 +250,17 @@ class Smoothed(AbstractSolver):
             jnp.ones_like(x0, dtype=bool),
         )
         sol = ode_solve(
-            lambda t, y, args: model.vector_field(t, y, w),
+            lambda t, y, args: pack(model.vector_field(t, unpack(y), w)),
             y_start,
             t_end,
             dfx.SaveAt(t1=True, solver_state=True),
             rtol=rtol,
-            atol=atol,
+            atol=rtol,
             max_steps=n * steps,
             solver=recording(ode, record, memo),
         )
         _, count, times, positions, _, stuck, _ = sol.solver_state[1]
-        y_end = sol.ys[-1]
+        y_end = unpack([c[-1] for c in sol.ys])
         failed = sol.result != dfx.RESULTS.successful
         k = jnp.arange(n)
         valid = k < count
@@ -288,6 +288,24 @@ class Smoothed(AbstractSolver):
         )
         code = code.astype(jnp.int32)
         return DecaySequence.from_code(times, positions, crossed, count, code)
+
+
+def _components(scale):
+    """`(pack, unpack)` between a model's ODE state (an array, its components along the last
+    axis) and the tuple of its components in units of `scale` (`model.state_scale`), in which
+    the smoothed solver integrates; in these units the absolute tolerance is the relative one
+    (the same error norm). XLA's CPU kernels made a stacked state of every stage a
+    concatenation of its own and transposed each for the dense output (14 kernels a step);
+    separate components need neither: a chunk of the 1617-point smoothed sweep, 809 lanes,
+    60 -> 42 ms."""
+
+    def pack(y):
+        return tuple(y[..., i] / scale[i] for i in range(scale.shape[0]))
+
+    def unpack(components):
+        return jnp.stack([c * scale[i] for i, c in enumerate(components)], axis=-1)
+
+    return pack, unpack
 
 
 def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
