@@ -10,7 +10,7 @@ from jax import lax
 
 from .._solution import RESULTS, DecaySequence
 
-__all__ = ["decay_scan", "early_exit_loop", "zeros_of_lanes"]
+__all__ = ["computed_once", "decay_scan", "early_exit_loop", "zeros_of_lanes"]
 
 
 def computed_once(values, step):
