@@ -176,6 +176,50 @@ def test_small_sweeps_use_every_core():
     assert r.chunks == min(LANES, 10)  # (one chunk fills a GPU)
 
 
+def test_sweeps_from_several_threads_at_once_keep_their_results_and_threads():
+    """The chunks' threads are kept between sweeps (`_on_threads`): sweeps started from four
+    threads at once give each its own result, the same as alone, and the threads kept
+    afterwards are no more than the sweeps needed side by side."""
+    import threading
+
+    from vmj._sweep import _engine
+
+    grids = [
+        vmj.grid(paper_model(delta=d), eps=np.linspace(0, 1, 9)) for d in (-2.0, 0.0, 1.0, 3.0)
+    ]
+
+    def run(g):
+        return vmj.sweep(vmj.energy_balance, g, a0=A0, n=6, chunk_size=2).values.amplitudes
+
+    alone = [run(g) for g in grids]
+    got = [None] * len(grids)
+
+    def one(i):
+        got[i] = run(grids[i])
+
+    threads = [threading.Thread(target=one, args=(i,)) for i in range(len(grids))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for a, b in zip(alone, got):
+        np.testing.assert_array_equal(a, b)
+    kept = len(_engine._IDLE)
+    assert 1 <= kept <= len(grids) * CORES
+    for _ in range(5):  # one after the other: no new thread
+        run(grids[0])
+        assert len(_engine._IDLE) == kept
+
+    def broken(done, total):
+        raise RuntimeError("a progress callback that fails")
+
+    # raised in a chunk's thread, it reaches the caller, and the thread is kept
+    with pytest.raises(RuntimeError, match="progress callback"):
+        vmj.sweep(vmj.energy_balance, grids[1], a0=A0, n=6, chunk_size=2, progress=broken)
+    np.testing.assert_array_equal(run(grids[1]), alone[1])
+    assert len(_engine._IDLE) == kept
+
+
 def test_results_in_pinned_host_memory_are_the_same(monkeypatch):
     """On an accelerator the chunks write their results to its pinned host memory
     (`host_output`); forced here on this machine's device (a CPU's pinned host memory in CI):

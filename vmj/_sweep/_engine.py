@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import functools
 import os
 import queue
 import re
@@ -41,22 +42,25 @@ os.register_at_fork(after_in_child=_IDLE.clear)  # (threads do not survive a for
 def _kept_thread(inbox: queue.SimpleQueue) -> None:
     while True:
         inbox.get()()
-        with _IDLE_LOCK:
-            _IDLE.append(inbox)
 
 
 def _on_threads(task: Callable[[], None], n: int) -> Callable[[], None]:
     """Start `task()` on `n` threads and return a function that waits until all have
-    returned. The threads are kept for the next sweep: starting two per sweep and joining
-    them cost 0.5-1 ms, a tenth of a 4096-point sweep of exact turning points. A thread is
-    started where none is idle (a sweep inside another's chunk never waits for a thread)."""
-    done = queue.SimpleQueue()
+    returned, and raises what one of them raised. The threads are kept for the next sweep:
+    starting two per sweep and joining them cost 0.5-1 ms, a tenth of a 4096-point sweep of
+    exact turning points. A thread is started where none is idle (a sweep inside another's
+    chunk never waits for a thread)."""
+    done = queue.SimpleQueue()  # None, or what a thread raised
 
-    def run():
+    def run(inbox):
+        raised = None
         try:
             task()
-        finally:
-            done.put(None)
+        except BaseException as e:  # (handed to the waiting thread: this one is kept)
+            raised = e
+        with _IDLE_LOCK:  # (idle again before the sweep goes on: its next one takes it)
+            _IDLE.append(inbox)
+        done.put(raised)
 
     for _ in range(n):
         with _IDLE_LOCK:
@@ -64,14 +68,20 @@ def _on_threads(task: Callable[[], None], n: int) -> Callable[[], None]:
         if inbox is None:
             inbox = queue.SimpleQueue()
             threading.Thread(target=_kept_thread, args=(inbox,), daemon=True).start()
-        inbox.put(run)
+        inbox.put(functools.partial(run, inbox))
 
-    left = [n]
+    left, raised = [n], []
 
     def wait():  # (again after it returned: at once)
         while left[0]:
-            done.get()
+            e = done.get()
             left[0] -= 1
+            if e is not None:
+                raised.append(e)
+        if raised:
+            e = raised[0]
+            raised.clear()  # (raised once)
+            raise e
 
     return wait
 
