@@ -397,8 +397,8 @@ def smoothed_states(model, solver, t1, n_save: int):
 
     ts = jnp.linspace(0.0, t1, n_save)
     x0, v0 = model.breakaway()
-    sol, code = solver.solve(model, x0, v0, t1, dfx.SaveAt(ts=ts))
-    return ts, jnp.where(code == RESULTS.successful, sol.ys, jnp.nan), code
+    ys, code = solver.solve(model, x0, v0, t1, dfx.SaveAt(ts=ts))
+    return ts, jnp.where(code == RESULTS.successful, ys, jnp.nan), code
 
 
 def _failed_cycle(model, max_reversals, code) -> StickSlipCycle:

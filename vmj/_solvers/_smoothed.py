@@ -110,25 +110,15 @@ class Smoothed(AbstractSolver):
 
     # -- the one diffrax call ------------------------------------------------------------------
     def solve(self, model, x0, v0, t1, saveat):
-        """diffrax solution of the smoothed model from `(x0, v0)` at `t = 0` to `t1`, and its
-        status code."""
+        """The smoothed model's states (`model.initial_state`'s form) at `saveat`'s times of a
+        solve from `(x0, v0)` at `t = 0` to `t1`, and its status code."""
         import diffrax as dfx
 
         rtol, steps, ode = self._settings(model)
-        w = self.smoothing
-        y0 = model.initial_state(x0, v0)
-        sol = ode_solve(
-            lambda t, y, args: model.vector_field(t, y, w),
-            y0,
-            t1,
-            saveat,
-            rtol=rtol,
-            atol=rtol * model.state_scale(x0, v0),
-            max_steps=steps,
-            solver=ode,
-        )
+        y0, field, unpack = _components(model, x0, v0, self.smoothing)
+        sol = ode_solve(field, y0, t1, saveat, rtol=rtol, atol=rtol, max_steps=steps, solver=ode)
         ok = sol.result == dfx.RESULTS.successful
-        return sol, jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
+        return unpack(sol.ys), jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
 
     def simulate(self, model, x0, v0, t1, n_save: int) -> Trajectory:
         """The solution at `n_save` equally spaced times: one solve continued from each saved
@@ -138,15 +128,13 @@ class Smoothed(AbstractSolver):
         import diffrax as dfx
 
         rtol, steps, ode = self._settings(model)
-        w = self.smoothing
         ts = jnp.linspace(0.0, t1, n_save)
-        pack, unpack = _components(model.state_scale(x0, v0))
-        y0 = pack(model.initial_state(x0, v0))
+        y0, field, unpack = _components(model, x0, v0, self.smoothing)
         go_on = dfx.SaveAt(t1=True, solver_state=True, controller_state=True, made_jump=True)
 
         def piece(t_a, t_b, y, resume):
             sol = ode_solve(
-                lambda t, y, args: pack(model.vector_field(t, unpack(y), w)),
+                field,
                 y,
                 t_b,
                 go_on,
@@ -196,7 +184,7 @@ class Smoothed(AbstractSolver):
         x0 = -a0 * jnp.ones_like(model.velocity_scale(1.0))
         v0 = jnp.zeros_like(x0)
         t_end = model.horizon(a0, n)
-        pack, unpack = _components(model.state_scale(x0, v0))
+        y_start, field, unpack = _components(model, x0, v0, w)
         scale = model.velocity_scale(a0)  # (event functions in units of it)
         slots = jnp.arange(n).reshape((n,) + (1,) * x0.ndim)
 
@@ -238,7 +226,6 @@ class Smoothed(AbstractSolver):
             memo = (s, count, times, positions, events(s, x1, v1), stuck, crept)
             return memo, (turned & (stop | (count >= n))) | arrested
 
-        y_start = pack(model.initial_state(x0, v0))
         one = jnp.ones_like(x0)
         memo = (
             one,
@@ -250,7 +237,7 @@ class Smoothed(AbstractSolver):
             jnp.ones_like(x0, dtype=bool),
         )
         sol = ode_solve(
-            lambda t, y, args: pack(model.vector_field(t, unpack(y), w)),
+            field,
             y_start,
             t_end,
             dfx.SaveAt(t1=True, solver_state=True),
@@ -290,14 +277,17 @@ class Smoothed(AbstractSolver):
         return DecaySequence.from_code(times, positions, crossed, count, code)
 
 
-def _components(scale):
-    """`(pack, unpack)` between a model's ODE state (an array, its components along the last
-    axis) and the tuple of its components in units of `scale` (`model.state_scale`), in which
-    the smoothed solver integrates; in these units the absolute tolerance is the relative one
-    (the same error norm). XLA's CPU kernels made a stacked state of every stage a
+def _components(model, x0, v0, w):
+    """`(y0, field, unpack)`: the smoothed ODE of `model` (smoothing velocity `w`) from
+    `(x0, v0)` in the tuple of its state's components, each in units of its scale
+    (`model.state_scale(x0, v0)`), in which every smoothed solve integrates: the initial state,
+    the vector field `field(t, y, args)`, and `unpack`, back to the model's state (an array,
+    its components along the last axis). In these units the absolute tolerance is the relative
+    one (the same error norm). XLA's CPU kernels made a stacked state of every stage a
     concatenation of its own and transposed each for the dense output (14 kernels a step);
     separate components need neither: a chunk of the 1617-point smoothed sweep, 809 lanes,
     60 -> 42 ms."""
+    scale = model.state_scale(x0, v0)
 
     def pack(y):
         return tuple(y[..., i] / scale[i] for i in range(scale.shape[0]))
@@ -305,7 +295,10 @@ def _components(scale):
     def unpack(components):
         return jnp.stack([c * scale[i] for i, c in enumerate(components)], axis=-1)
 
-    return pack, unpack
+    def field(t, y, args):
+        return pack(model.vector_field(t, unpack(y), w))
+
+    return pack(model.initial_state(x0, v0)), field, unpack
 
 
 def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
