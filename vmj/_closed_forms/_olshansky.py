@@ -1,10 +1,11 @@
 """The paper's energy-balance recurrences (11)-(13), with (13) as corrected in SYSTEMS.md.
 
 Written for sweeps of millions of points: between swings a point's state is three numbers (time,
-`u = 1/sqrt(m)`, signed position of the turning point), and the mass itself where the friction
-depends on it. A swing that cannot advance (the mass sticks for good, or the mass would run out)
-leaves the state unchanged, so stopping is absorbing and the status is read off the final state
-instead of being carried through the loop (docs/performance.md has the measurements).
+`u = 1/sqrt(m)`, signed position of the turning point; the last two as one complex number), and
+the mass itself where the friction depends on it. A swing that cannot advance (the mass sticks
+for good, or the mass would run out) leaves the state unchanged, so stopping is absorbing and the
+status is read off the final state instead of being carried through the loop (docs/performance.md
+has the measurements).
 
 Why `u`: XLA's CPU backend has no multi-output fusion, so a value that two updates read (it was
 `sqrt(m)`, read by the mass and the amplitude updates) becomes a kernel of its own, and every
@@ -13,6 +14,14 @@ ratio `m_next/m = 1 + pi delta u/sqrt(c)` and the tests `m_next > 0` and `lam^2 
 mass, and the swing's one `rsqrt` lives in the kernel that updates `u` (the amplitudes of one
 16384-point chunk x 12 swings on one core, same run: 1.65 ms carrying `m`, 1.28 ms carrying `m`
 and `u`, 1.12 ms carrying `u`; results within 5e-16 of a0).
+
+Why `u` and the position travel as one complex number: the same missing multi-output fusion
+made the two updates two kernels, each recomputing the swing's common part, and since each
+read both carries, XLA copied both before every swing. Carried as `u + 1j p`, a swing is one
+kernel that writes its result in place (the amplitudes of a 16384-point chunk x 12 swings, the
+same run, medians of 12 x 16 calls on the 2-core machine: 1455 -> 1036 us with XLA's own
+threads, 1121 -> 966 us with two chunks side by side as `vmj.sweep` runs them; 4 -> 1 kernels
+per swing; results within 1e-15 of a0).
 """
 
 from __future__ import annotations
@@ -41,6 +50,12 @@ def _exp_and_phi(x, inverse_x):
     return e, jnp.where(jnp.abs(x) < _SERIES_RADIUS, series, (e - 1.0) * inverse_x)
 
 
+def _pack(u, p):
+    """`u + 1j p` (the carried pair, module docstring), in their common precision."""
+    dtype = jnp.result_type(u, p)
+    return lax.complex(u.astype(dtype), p.astype(dtype))
+
+
 def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
     """Amplitudes from the energy-balance recurrences (see `vmj.energy_balance`)."""
     m0, c, delta = model.m0, model.c, model.delta
@@ -63,7 +78,8 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
     mass_step = delta * half_per_root_mass  # (m_next - m) / sqrt(m)
 
     def swing(state, _):
-        t_in, u_in, p, m_in = state if varies else (*state, m0)
+        t_in, z, m_in = state if varies else (*state, m0)
+        u_in, p = jnp.real(z), jnp.imag(z)
         a = jnp.abs(p)
         moves = c * a > friction.force(m_in)
         t, u, m = t_in, u_in, m_in
@@ -88,16 +104,18 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
         flags = (advance & (a_next > 0), advance, moves & jnp.logical_not(oscillates))
         # (the guard keeps a mass that would run out, never carried, from a NaN gradient)
         u_next = u * lax.rsqrt(jnp.where(grow > 0, grow, 1.0))
-        state = (t_out, jnp.where(advance, u_next, u_in), p_out)
+        z = _pack(jnp.where(advance, u_next, u_in), p_out)
+        state = (t_out, z)
         if varies:
             state += (jnp.where(advance, m * grow, m_in),)
-        return state, (t_out, p_out) + flags
+        return state, (t_out, z) + flags
 
-    init = (jnp.zeros_like(m0), lax.rsqrt(m0), -a0 * jnp.ones_like(m0))
-    final, (times, positions, crossed, advanced, over) = lax.scan(
+    init = (jnp.zeros_like(m0), _pack(lax.rsqrt(m0), -a0 * jnp.ones_like(m0)))
+    final, (times, zs, crossed, advanced, over) = lax.scan(
         swing, init + ((m0,) if varies else ()), None, length=n
     )
-    p, m = final[2], final[3] if varies else m0
+    positions = jnp.imag(zs)
+    p, m = jnp.imag(final[1]), final[2] if varies else m0
     stuck = (c * jnp.abs(p) <= friction.force(m)) & jnp.logical_not(falls)
     ended = jnp.logical_not(advanced[-1]) & jnp.logical_not(stuck)
     code = jnp.where(
