@@ -26,6 +26,7 @@ Run: .venv/bin/python benchmarks/bench_exact.py [--points 4096] [--scipy-points 
 """
 
 import argparse
+import functools
 import json
 import os
 import subprocess
@@ -49,6 +50,7 @@ import vmj  # noqa: E402
 from vmj._numerics._roots import converged_fraction  # noqa: E402
 from vmj._numerics._series import derivative, horner, horner_and_derivative  # noqa: E402
 from vmj._solvers import _exact  # noqa: E402
+from vmj._sweep._sweep import chunk_options  # noqa: E402
 
 M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
 MAX_SUBSTEPS = 8  #: vmj.Exact()'s default for the variable-mass model
@@ -199,9 +201,10 @@ def replay(eps, mu, delta):
 # -- this machine's rate of elementwise multiply-adds (XLA, all cores) --------------------------
 def multiply_add_rate(lanes=4096, chain=25, steps=400):
     """Operations per second of dependent multiply-add chains (`x = x a + b`) over `lanes`
-    elements, one thread per core as the sweeps run (two operations per multiply-add)."""
+    elements, one thread per core as the sweeps run (two operations per multiply-add), compiled
+    with the XLA options of the sweep's chunks (`chunk_options`)."""
 
-    @jax.jit
+    @functools.partial(jax.jit, compiler_options=chunk_options(jax.local_devices()) or None)
     def kernel(x, a, b):
         def body(_, x):
             for _ in range(chain):
