@@ -74,6 +74,22 @@ def repeat(fn, times: int = REPEAT, number: int = 1, block=None) -> Timing:
     return Timing(out)
 
 
+def interleaved(*measurements, rounds: int = REPEAT) -> list[Timing]:
+    """Wall times of several measurements taken in turns, so that a change of the machine's speed
+    during the run (on the shared development machine, up to 2 x within minutes) reaches each of
+    them alike: each of `rounds` rounds makes `calls` calls of every `(fn, calls)`, one
+    measurement after the other. Returns one `Timing` per measurement, of every call."""
+    times = [[] for _ in measurements]
+    for _ in range(rounds):
+        for out, (fn, calls) in zip(times, measurements):
+            for _ in range(calls):
+                t0 = time.perf_counter()
+                result = fn()
+                out.append(time.perf_counter() - t0)
+                del result
+    return [Timing(t) for t in times]
+
+
 def run_process(argv, env=None, cwd=None) -> tuple[float, str]:
     """Wall time of a whole process [s] and its standard output (raises if it fails)."""
     t0 = time.perf_counter()

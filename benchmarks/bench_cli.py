@@ -8,6 +8,9 @@
   (benchmarks/scipy_fit.py: least_squares over an event-driven solve_ivp model), whose answer
   must agree to 1e-4.
 
+Each group is measured in turns (`interleaved`: one run of each per round), so that the
+machine's changes of speed during the run reach a figure and its peer alike.
+
 Run: .venv/bin/python benchmarks/bench_cli.py [--quick] [--fit]  (`--fit`: the fit's timings alone)
 """
 
@@ -18,7 +21,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _timing import REPEAT, Timing, machine, ratio, run_process  # noqa: E402
+from _timing import REPEAT, interleaved, machine, ratio, run_process  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VMJ = [os.path.join(os.path.dirname(sys.executable), "vmj")]
@@ -39,26 +42,32 @@ FIT = [
 ]
 
 
-def timed(argv, times, cache=None, fresh=False):
-    """`times` runs of a process; with `fresh`, each in a new empty compilation cache."""
-    out, text = [], ""
-    for _ in range(times):
+def process(argv, cache=None, fresh=False, out=None):
+    """One run of a process as a function: in the compilation cache `cache`, or with `fresh` in
+    a new empty one (else one made for the run); its standard output is kept in `out["text"]`."""
+
+    def run():
         with tempfile.TemporaryDirectory() as empty:
             env = dict(os.environ)
             env["VMJ_CACHE_DIR"] = empty if fresh else (cache or empty)
-            t, text = run_process(argv, env=env, cwd=ROOT)
-            out.append(t)
-    return Timing(out), text
+            _, text = run_process(argv, env=env, cwd=ROOT)
+            if out is not None:
+                out["text"] = text
+
+    return run
 
 
 def start_up(times):
-    """`vmj --help` and `vmj table 1` against `python -c "import jax"`."""
-    t_jax, _ = timed([sys.executable, "-c", "import jax"], times)
-    t_help, _ = timed([*VMJ, "--help"], times)
+    """`vmj --help` and `vmj table 1` against `python -c "import jax"`, in turns."""
     with tempfile.TemporaryDirectory() as cache:
-        t_table_cold, _ = timed([*VMJ, "table", "1"], times, fresh=True)
-        timed([*VMJ, "table", "1"], 1, cache=cache)
-        t_table, _ = timed([*VMJ, "table", "1"], times, cache=cache)
+        process([*VMJ, "table", "1"], cache=cache)()  # (fills the cache)
+        t_jax, t_help, t_table_cold, t_table = interleaved(
+            (process([sys.executable, "-c", "import jax"]), 1),
+            (process([*VMJ, "--help"]), 1),
+            (process([*VMJ, "table", "1"], fresh=True), 1),
+            (process([*VMJ, "table", "1"], cache=cache), 1),
+            rounds=times,
+        )
     print(f"  python -c 'import jax':   {t_jax}")
     print(f"  vmj --help:               {t_help}  (goal <= 0.3 s)")
     print(f"  vmj table 1, cold cache:  {t_table_cold}")
@@ -80,13 +89,23 @@ def main():
     if not args.fit:
         start_up(times)
 
+    vmj_out, scipy_out = {}, {}
     with tempfile.TemporaryDirectory() as cache:
-        t_fit_cold, _ = timed([*VMJ, *FIT], times, fresh=True)
-        timed([*VMJ, *FIT], 1, cache=cache)
-        t_fit, text = timed([*VMJ, *FIT], times, cache=cache)
-    vmj_fit = json.loads(text)["params"]
-    t_scipy, text = timed([sys.executable, os.path.join(ROOT, "benchmarks", "scipy_fit.py")], times)
-    scipy_fit = json.loads(text)["params"]
+        process([*VMJ, *FIT], cache=cache)()  # (fills the cache)
+        t_fit_cold, t_fit, t_scipy = interleaved(
+            (process([*VMJ, *FIT], fresh=True), 1),
+            (process([*VMJ, *FIT], cache=cache, out=vmj_out), 1),
+            (
+                process(
+                    [sys.executable, os.path.join(ROOT, "benchmarks", "scipy_fit.py")],
+                    out=scipy_out,
+                ),
+                1,
+            ),
+            rounds=times,
+        )
+    vmj_fit = json.loads(vmj_out["text"])["params"]
+    scipy_fit = json.loads(scipy_out["text"])["params"]
     worst = max(abs(vmj_fit[k] / scipy_fit[k] - 1) for k in ("FT", "mu"))
     print(f"  vmj fit, fresh cache:     {t_fit_cold}  (goal <= 10 s)")
     print(f"  vmj fit, repeated:        {t_fit}")

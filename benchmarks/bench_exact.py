@@ -11,7 +11,9 @@
    it gives each lane's iterations and each batch's, where every loop runs to its slowest
    lane), against fixed loops (8 substeps, 8 Newton iterations, 12 half-swings). The
    counted-flop floor is the operations the lanes need divided by this machine's measured rate
-   of elementwise multiply-adds in XLA on all cores (goal: the sweep within 3 x of it).
+   of elementwise multiply-adds in XLA on all cores (goal: the sweep within 3 x of it). The
+   sweep, the SciPy loop and the multiply-add kernel are measured in turns (`interleaved`), so
+   that the machine's changes of speed during the run reach them alike.
 3. One warm `vmj.turning_points(model, 0.06, 12)` call (goal: <= 100 us), run as the `vmj`
    command runs it (JAX's CPU dispatch synchronous, `jax_cpu_enable_async_dispatch = False`,
    as this whole benchmark) and, in a process of its own, with JAX's default asynchronous
@@ -36,7 +38,7 @@ import threading
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from _timing import REPEAT, Timing, machine, ratio, repeat, set_up_jax  # noqa: E402
+from _timing import REPEAT, Timing, interleaved, machine, ratio, repeat, set_up_jax  # noqa: E402
 
 FLOAT32 = set_up_jax()  # as the vmj command runs (float32 with --float32)
 
@@ -199,10 +201,11 @@ def replay(eps, mu, delta):
 
 
 # -- this machine's rate of elementwise multiply-adds (XLA, all cores) --------------------------
-def multiply_add_rate(lanes=4096, chain=25, steps=400):
-    """Operations per second of dependent multiply-add chains (`x = x a + b`) over `lanes`
-    elements, one thread per core as the sweeps run (two operations per multiply-add), compiled
-    with the XLA options of the sweep's chunks (`chunk_options`)."""
+def multiply_add_kernel(lanes=4096, chain=25, steps=400):
+    """Dependent multiply-add chains (`x = x a + b`) over `lanes` elements, one thread per core
+    as the sweeps run, compiled with the XLA options of the sweep's chunks (`chunk_options`):
+    `(run, operations, cores)`, `run()` evaluating them on all cores at once (two operations
+    per multiply-add)."""
 
     @functools.partial(jax.jit, compiler_options=chunk_options(jax.local_devices()) or None)
     def kernel(x, a, b):
@@ -229,9 +232,7 @@ def multiply_add_rate(lanes=4096, chain=25, steps=400):
         for th in threads:
             th.join()
 
-    t = repeat(all_cores, times=max(REPEAT, 21))
-    ops = 2 * chain * steps * lanes * cores
-    return ops / t.median, ops / t.times.min(), cores
+    return all_cores, 2 * chain * steps * lanes * cores, cores
 
 
 def main():
@@ -261,7 +262,6 @@ def main():
 
     first = repeat(sweep, times=1)
     res = sweep()
-    t_sweep = repeat(sweep, times=max(REPEAT, 21)).per(P)  # (ms each: more runs steady the median)
     idx = np.linspace(0, P - 1, args.scipy_points).astype(int)
     refs = {}
 
@@ -269,7 +269,13 @@ def main():
         for i in idx:
             refs[i] = variable_mass_turning_points(M0, C, delta[i], eps[i], mu[i], A0, N, F=FT)
 
-    t_scipy = repeat(scipy_subset).per(len(idx))
+    # in turns: three sweeps (milliseconds each: more runs steady the median), the SciPy loop and,
+    # on a CPU, three runs of the multiply-add kernel that sets the floor
+    rate = multiply_add_kernel() if platform == "cpu" else None
+    t_sweep, t_scipy, *t_rate = interleaved(
+        (sweep, 3), (scipy_subset, 1), *([(rate[0], 3)] if rate else []), rounds=max(REPEAT, 7)
+    )
+    t_sweep, t_scipy = t_sweep.per(P), t_scipy.per(len(idx))
     err_x = err_t = 0.0
     mismatched = 0
     for i in idx:
@@ -302,8 +308,8 @@ def main():
     )
 
     # 2. the arithmetic
-    if platform == "cpu":
-        floor_of(res, P, eps, mu, delta, t_sweep)
+    if rate:
+        floor_of(res, P, eps, mu, delta, t_sweep, t_rate[0], *rate[1:])
     else:
         print(f"  (the counted-flop floor is a CPU's: skipped on {platform})")
 
@@ -324,8 +330,9 @@ def main():
             print(f"  the same on this machine's CPU: {one_call()}")
 
 
-def floor_of(res, P, eps, mu, delta, t_sweep):
-    """Part 2: the operations the sweep ran and needed, and the counted-flop floor."""
+def floor_of(res, P, eps, mu, delta, t_sweep, t_rate, rate_ops, cores):
+    """Part 2: the operations the sweep ran and needed, and the counted-flop floor (`t_rate`:
+    the multiply-add kernel's times, `rate_ops` operations on `cores` cores each)."""
     ops = operation_counts()
     tr, xr, moving, substeps, newton = replay(*(jnp.asarray(v) for v in (eps, mu, delta)))
     replay_error = float(np.max(np.abs(np.where(moving, xr - res.values.positions, 0.0))))
@@ -350,7 +357,7 @@ def floor_of(res, P, eps, mu, delta, t_sweep):
         ]
     )  # what each lane's batch runs
     fixed = total(N, N * MAX_SUBSTEPS, N * _exact.NEWTON)
-    rate, fastest, cores = multiply_add_rate()
+    rate, fastest = rate_ops / t_rate.median, rate_ops / t_rate.times.min()
     floor = lane.sum() / rate / P
     print(
         f"  operations: {ops['substep']} per substep, {ops['newton']} per Newton iteration, "

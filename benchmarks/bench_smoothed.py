@@ -1,8 +1,8 @@
 """The smoothed solver over the sweep grid of the command line's example: eps 0:1:11, mu
 0:10:21 kg/s, delta -3:3:7 kg/s (1617 points), 12 turning points from a0 = 6 cm, every setting
 at its default (`vmj.Smoothed()`: w = 1e-4 of the velocity scale, Tsit5, rtol 1e-10), against
-the exact solver over the same grid (goal: completes, within 20 x of the exact sweep); the
-turning points of the two compared.
+the exact solver over the same grid (goal: completes, within 20 x of the exact sweep), the two
+measured in turns (`interleaved`); the turning points of the two compared.
 
 Run: .venv/bin/python benchmarks/bench_smoothed.py [--quick]
 """
@@ -12,7 +12,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _timing import REPEAT, machine, ratio, repeat, set_up_jax  # noqa: E402
+from _timing import REPEAT, interleaved, machine, ratio, repeat, set_up_jax  # noqa: E402
 
 set_up_jax()  # as the vmj command runs
 
@@ -45,9 +45,10 @@ def main():
     for name, solver in (("exact", vmj.Exact()), ("smoothed", vmj.Smoothed())):
         first[name] = repeat(lambda s=solver: run(s), times=1)
     exact, smooth = run(vmj.Exact()), run(vmj.Smoothed())
-    # (the exact sweep takes milliseconds: more runs steady its median)
-    t_exact = repeat(lambda: run(vmj.Exact()), times=max(REPEAT, 21))
-    t_smooth = repeat(lambda: run(vmj.Smoothed()), times=REPEAT)
+    # in turns, three exact sweeps (milliseconds: more runs steady their median) to one smoothed
+    t_exact, t_smooth = interleaved(
+        (lambda: run(vmj.Exact()), 3), (lambda: run(vmj.Smoothed()), 1), rounds=max(REPEAT, 7)
+    )
     same = np.asarray(exact.count) == np.asarray(smooth.count)
     k = np.arange(N) < np.asarray(exact.count)[..., None]
     rel = np.abs(np.asarray(smooth.amplitudes) / np.asarray(exact.amplitudes) - 1)
