@@ -74,14 +74,20 @@ def repeat(fn, times: int = REPEAT, number: int = 1, block=None) -> Timing:
     return Timing(out)
 
 
-def interleaved(*measurements, rounds: int = REPEAT) -> list[Timing]:
+def interleaved(*measurements, rounds: int = REPEAT, warm_up: bool = False) -> list[Timing]:
     """Wall times of several measurements taken in turns, so that a change of the machine's speed
     during the run (on the shared development machine, up to 2 x within minutes) reaches each of
     them alike: each of `rounds` rounds makes `calls` calls of every `(fn, calls)`, one
-    measurement after the other. Returns one `Timing` per measurement, of every call."""
+    measurement after the other. With `warm_up`, each measurement's turn starts with a call that
+    is not timed, so that every timed call finds the caches as its own last call left them, as
+    in a run of `repeat` (the energy-balance sweep straight after the NumPy version, whose
+    arrays had taken the caches: 50-69 ms against 47-52 ms). Returns one `Timing` per
+    measurement, of every timed call."""
     times = [[] for _ in measurements]
     for _ in range(rounds):
         for out, (fn, calls) in zip(times, measurements):
+            if warm_up:
+                fn()
             for _ in range(calls):
                 t0 = time.perf_counter()
                 result = fn()

@@ -122,6 +122,7 @@ def main():
         (lambda: numpy_in_place(eps, mu, delta), 1),
         (lambda: np.asarray(limit(x)), 1),
         rounds=max(REPEAT, 7),
+        warm_up=True,
     )
     print(
         f"energy balance, {P} points x {N} half-swings, amplitudes into a ({P}, {N}) "

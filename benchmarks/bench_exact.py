@@ -273,7 +273,11 @@ def main():
     # on a CPU, three runs of the multiply-add kernel that sets the floor
     rate = multiply_add_kernel() if platform == "cpu" else None
     t_sweep, t_scipy, *t_rate = interleaved(
-        (sweep, 3), (scipy_subset, 1), *([(rate[0], 3)] if rate else []), rounds=max(REPEAT, 7)
+        (sweep, 3),
+        (scipy_subset, 1),
+        *([(rate[0], 3)] if rate else []),
+        rounds=max(REPEAT, 7),
+        warm_up=True,
     )
     t_sweep, t_scipy = t_sweep.per(P), t_scipy.per(len(idx))
     err_x = err_t = 0.0

@@ -47,7 +47,10 @@ def main():
     exact, smooth = run(vmj.Exact()), run(vmj.Smoothed())
     # in turns, three exact sweeps (milliseconds: more runs steady their median) to one smoothed
     t_exact, t_smooth = interleaved(
-        (lambda: run(vmj.Exact()), 3), (lambda: run(vmj.Smoothed()), 1), rounds=max(REPEAT, 7)
+        (lambda: run(vmj.Exact()), 3),
+        (lambda: run(vmj.Smoothed()), 1),
+        rounds=max(REPEAT, 7),
+        warm_up=True,
     )
     same = np.asarray(exact.count) == np.asarray(smooth.count)
     k = np.arange(N) < np.asarray(exact.count)[..., None]
