@@ -72,8 +72,8 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
     # fallen below the spring force, then moves on (never with constant friction)
     falls = dF_dm * delta < 0
 
-    # carried: the time, u = 1/sqrt(m) and p, the signed position of the current turning point;
-    # the mass itself only where the friction depends on it
+    # carried: the time, u = 1/sqrt(m) and p, the signed position of the current turning point
+    # (u + 1j p, `_pack`); the mass itself only where the friction depends on it
     varies = friction.varies_with_mass
     mass_step = delta * half_per_root_mass  # (m_next - m) / sqrt(m)
 
