@@ -70,17 +70,16 @@ def _on_threads(task: Callable[[], None], n: int) -> Callable[[], None]:
             threading.Thread(target=_kept_thread, args=(inbox,), daemon=True).start()
         inbox.put(functools.partial(run, inbox))
 
-    left, raised = [n], []
+    left, first = n, None  # threads not yet returned; what the first failing one raised
 
-    def wait():  # (again after it returned: at once)
-        while left[0]:
+    def wait():  # (again after it returned or raised: at once)
+        nonlocal left, first
+        while left:
             e = done.get()
-            left[0] -= 1
-            if e is not None:
-                raised.append(e)
-        if raised:
-            e = raised[0]
-            raised.clear()  # (raised once)
+            left -= 1
+            first = first or e
+        e, first = first, None  # (raised once)
+        if e is not None:
             raise e
 
     return wait
