@@ -104,17 +104,18 @@ def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
         flags = (advance & (a_next > 0), advance, moves & jnp.logical_not(oscillates))
         # (the guard keeps a mass that would run out, never carried, from a NaN gradient)
         u_next = u * lax.rsqrt(jnp.where(grow > 0, grow, 1.0))
-        z = _pack(jnp.where(advance, u_next, u_in), p_out)
+        # the position written out is read off the carried pair behind a barrier: without it
+        # XLA would compute it in a kernel of its own, repeating the swing
+        z = lax.optimization_barrier(_pack(jnp.where(advance, u_next, u_in), p_out))
         state = (t_out, z)
         if varies:
             state += (jnp.where(advance, m * grow, m_in),)
-        return state, (t_out, z) + flags
+        return state, (t_out, jnp.imag(z)) + flags
 
     init = (jnp.zeros_like(m0), _pack(lax.rsqrt(m0), -a0 * jnp.ones_like(m0)))
-    final, (times, zs, crossed, advanced, over) = lax.scan(
+    final, (times, positions, crossed, advanced, over) = lax.scan(
         swing, init + ((m0,) if varies else ()), None, length=n
     )
-    positions = jnp.imag(zs)
     p, m = jnp.imag(final[1]), final[2] if varies else m0
     stuck = (c * jnp.abs(p) <= friction.force(m)) & jnp.logical_not(falls)
     ended = jnp.logical_not(advanced[-1]) & jnp.logical_not(stuck)
