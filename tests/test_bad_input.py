@@ -14,56 +14,15 @@ import os
 import subprocess
 import sys
 
+import cli_args
 import numpy as np
 import pytest
 
 import vmj
 from vmj.cli import main
 
-VM = [
-    "decay",
-    "variable-mass",
-    "--m0",
-    "5",
-    "--c",
-    "4900",
-    "--delta",
-    "3",
-    "--eps",
-    "0",
-    "--mu",
-    "2",
-    "--FT",
-    "14.7",
-    "--a0",
-    "0.06",
-    "--n",
-    "3",
-]
-ROPE = [
-    "decay",
-    "rope",
-    "--m",
-    "2",
-    "--A",
-    "1.74",
-    "--e",
-    "0.8e6",
-    "--d",
-    "0.8e11",
-    "--T",
-    "4",
-    "--l0",
-    "10",
-    "--u",
-    "-3",
-    "--a0",
-    "1",
-    "--t1",
-    "0.05",
-    "--units",
-    "technical",
-]
+VM = ["decay", "variable-mass", *cli_args.VARIABLE_MASS, "--n", "3"]
+ROPE = ["decay", "rope", *cli_args.ROPE]
 SS = ["stick-slip", "--eps", "6.3", "--Omega", "0.7"]
 LIN = ["linear", "--m", "1", "--c", "1", "--k", "14.5"]
 SWEEP = [
@@ -78,26 +37,7 @@ SWEEP = [
     "--method",
     "energy",
 ]
-SENS = [
-    "sensitivity",
-    "variable-mass",
-    "--m0",
-    "5",
-    "--c",
-    "4900",
-    "--delta",
-    "3",
-    "--eps",
-    "0",
-    "--mu",
-    "2",
-    "--FT",
-    "14.7",
-    "--a0",
-    "0.06",
-    "--n",
-    "3",
-]
+SENS = ["sensitivity", "variable-mass", *cli_args.VARIABLE_MASS, "--n", "3"]
 FIT = ["--model", "oscillator"]
 
 

@@ -8,27 +8,12 @@ import os
 
 import numpy as np
 import pytest
+from cli_args import ROPE, VARIABLE_MASS
 
 import vmj
 from vmj._files import check_writable, replacing
 from vmj.cli import main
 
-VM = [
-    "--m0",
-    "5",
-    "--c",
-    "4900",
-    "--delta",
-    "3",
-    "--eps",
-    "0",
-    "--mu",
-    "2",
-    "--FT",
-    "14.7",
-    "--a0",
-    "0.06",
-]
 MODEL = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
 
 
@@ -50,7 +35,7 @@ def test_sensitivity_variable_mass_against_finite_differences(capsys, tmp_path):
         [
             "sensitivity",
             "variable-mass",
-            *VM,
+            *VARIABLE_MASS,
             "--n",
             "4",
             "--wrt",
@@ -84,7 +69,7 @@ def test_sensitivity_variable_mass_against_finite_differences(capsys, tmp_path):
             [
                 "sensitivity",
                 "variable-mass",
-                *VM,
+                *VARIABLE_MASS,
                 "--n",
                 "4",
                 "--wrt",
@@ -146,32 +131,7 @@ def test_sensitivity_stick_slip_against_finite_differences(capsys):
 # tests/test_rope.py, the command's plumbing by the variable-mass sensitivity commands
 @pytest.mark.long
 def test_sensitivity_rope(capsys):
-    argv = [
-        "sensitivity",
-        "rope",
-        "--m",
-        "2",
-        "--A",
-        "1.74",
-        "--e",
-        "0.8e6",
-        "--d",
-        "0.8e11",
-        "--T",
-        "4",
-        "--l0",
-        "10",
-        "--u",
-        "-3",
-        "--a0",
-        "1",
-        "--t1",
-        "0.05",
-        "--units",
-        "technical",
-        "--wrt",
-        "T",
-    ]
+    argv = ["sensitivity", "rope", *ROPE, "--wrt", "T"]
     out = run_json(capsys, argv)
     assert out["units"] == {"T": "Pa"} and max(out["times"]) <= 0.05
     assert all(d < 0 for d in out["d_amplitudes"]["T"])  # more friction, smaller swings
@@ -307,7 +267,7 @@ def test_technical_units_convert_as_the_library_does():
 
 
 def test_force_runs_work_above_the_limit(capsys):
-    argv = ["decay", "variable-mass", *VM, "--method", "energy", "--n", "100001"]
+    argv = ["decay", "variable-mass", *VARIABLE_MASS, "--method", "energy", "--n", "100001"]
     assert main(argv) == 2
     assert "--force" in capsys.readouterr().err
     out = run_json(capsys, argv + ["--force"])

@@ -6,26 +6,12 @@ import sys
 
 import numpy as np
 import pytest
+from cli_args import VARIABLE_MASS_MODEL
 
 import vmj
 from vmj.cli import main
 
-BASE = [
-    "decay",
-    "variable-mass",
-    "--m0",
-    "5",
-    "--c",
-    "4900",
-    "--delta",
-    "3",
-    "--eps",
-    "0",
-    "--mu",
-    "2",
-    "--a0",
-    "0.06",
-]
+BASE = ["decay", "variable-mass", *VARIABLE_MASS_MODEL, "--a0", "0.06"]
 ARGS = BASE + ["--FT", "14.7"]
 
 

@@ -10,32 +10,13 @@ import os
 
 import jax
 import pytest
+from cli_args import VARIABLE_MASS
 
 import vmj._exported as exported
 import vmj._integrate as entry
 from vmj.cli import main
 
-DECAY = [
-    "decay",
-    "variable-mass",
-    "--m0",
-    "5",
-    "--c",
-    "4900",
-    "--delta",
-    "3",
-    "--eps",
-    "0",
-    "--mu",
-    "2",
-    "--FT",
-    "14.7",
-    "--a0",
-    "0.06",
-    "--n",
-    "3",
-    "--json",
-]
+DECAY = ["decay", "variable-mass", *VARIABLE_MASS, "--n", "3", "--json"]
 
 
 @pytest.fixture

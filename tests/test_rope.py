@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from cli_args import ROPE_MODEL
 from hypothesis import given, settings, strategies as st
 from scipy_rope import rope_turning_points
 
@@ -262,24 +263,7 @@ def test_horizon_beyond_zero_length_raises():
         vmj.kbm_amplitude(r, float("nan"), 1.0)
 
 
-CLI = [
-    "decay",
-    "rope",
-    "--m",
-    "2",
-    "--A",
-    "1.74",
-    "--e",
-    "0.8e6",
-    "--d",
-    "0.8e11",
-    "--T",
-    "4",
-    "--l0",
-    "10",
-    "--units",
-    "technical",
-]
+CLI = ["decay", "rope", *ROPE_MODEL, "--units", "technical"]
 
 
 def test_cli_json_shape(capsys):
