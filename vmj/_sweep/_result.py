@@ -56,6 +56,9 @@ class SweepResult:
 
     - `values`: what the swept function returns (e.g. a [`vmj.DecaySequence`][]), with NumPy
       leaves whose leading axes are the sweep's `shape` (e.g. `values.positions[i, j, l, k]`).
+      A leaf that the function computes with the points on another axis (a loop's stacked
+      output, such as the 12 turning points of the energy balance) is a view of memory laid
+      out that way, as NumPy's `.T` is (`np.ascontiguousarray` gives a C-ordered copy).
     - `dims`: the names of the leading axes (`("eps", "mu", "delta")` for a grid, `("point",)`
       for paired points).
     - `coords`: parameter values: for a grid one 1-D array per axis; for paired points every
