@@ -304,11 +304,14 @@ def _components(model, x0, v0, w):
 def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
     """Time and position where `g(y(t))` falls through zero within a step from `t0` to `t1`
     (`g0 > 0 >= g1` at its ends, where `found`), `y(t)` the step's dense output: vmj's root
-    finder on the step's fraction, two bracketed Newton steps from the secant's root written
+    finder on the step's fraction, one bracketed Newton step from the secant's root written
     out, then one with gradients (the implicit function's derivative). A step accepted at the
-    solve's tolerance makes the secant's root close (three or six steps give the same turning
-    points to the last bit over the 1617-point benchmark grid; the error of Newton's method
-    squares at each step).
+    solve's tolerance makes the secant's root close, and the error of Newton's method squares
+    at each step: over a 809-point chunk of the benchmark grid, the turning points are within
+    7.5e-11 s and 1.3e-13 m of those of three steps (three and six steps agree to the last bit;
+    with the implicit step alone, 1.1e-6 s and 4.1e-9 m), below the dense output's own error
+    (the smoothed and the exact turning points agree to 4.5e-8 relative, median, either way),
+    for a step 3-7 % faster (in turns, medians of 8 rounds: 43.2 -> 39.9 and 41.4 -> 40.0 ms).
 
     Computed only in a step where some lane of a `vmap`ped batch has found its turning point,
     in a `lax.cond`: XLA's CPU backend has no multi-output fusion, and recomputed the
@@ -328,7 +331,7 @@ def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
         fs = lambda u: lax.stop_gradient(f(u))  # noqa: E731
         secant = jnp.clip(g0 / jnp.where(g0 > g1, g0 - g1, 1.0), 0.0, 1.0)
         zero = jnp.zeros_like(secant)
-        u = bracketed_newton(fs, zero, zero + 1.0, lax.stop_gradient(secant), 2, unrolled=True)
+        u = bracketed_newton(fs, zero, zero + 1.0, lax.stop_gradient(secant), 1, unrolled=True)
         u = implicit_step(f, u)
         return t0 + (t1 - t0) * u, position(at(u))
 
