@@ -184,8 +184,7 @@ def _chunk_function(
         # (a sharding over several devices splits the first axis)
         out_axes = point_axes(point, points) if sharding is None else None
         out = jax.vmap(point, out_axes=0 if out_axes is None else out_axes)(points)
-        n_leaves = len(jax.tree.leaves(out))
-        axes[:] = [0] * n_leaves if out_axes is None else jax.tree.leaves(out_axes)
+        axes[:] = jax.tree.leaves(jax.tree.map(lambda _: 0, out) if out_axes is None else out_axes)
         return out
 
     axes = []
