@@ -29,7 +29,7 @@ from vmj._sweep._sweep import (
     default_chunk,
     host_output,
     pinned_host,
-    point_axes,
+    vmap_in_place,
 )
 
 LANES = chunk_lanes(jax.local_devices())  #: this machine's cores on a CPU, 1 on a GPU
@@ -295,18 +295,21 @@ def test_results_keep_the_points_on_the_axis_their_computation_puts_them_on():
     # a loop's stacked output (lax.scan: its own axis first, the points after it) comes back
     # without a transpose, a point's own values with the points first; the values as
     # jax.vmap's, over chunks that overlap
-    stacked = lambda x: jax.lax.scan(lambda c, _: (c + 1, c), x, None, length=3)[1]  # noqa: E731
-    assert point_axes(lambda x: {"plain": x, "stacked": stacked(x)}, jnp.ones(5)) == {
-        "plain": 0,
-        "stacked": 1,
-    }
+    def both(x):
+        return {"plain": x, "stacked": jax.lax.scan(lambda c, _: (c + 1, c), x, None, length=3)[1]}
+
+    x = jnp.arange(5.0)
+    out, axes = vmap_in_place(both, x)
+    assert axes == [0, 1] and out["stacked"].shape == (3, 5)
+    np.testing.assert_array_equal(out["stacked"].T, jax.vmap(both)(x)["stacked"])
 
     def fn(model, a0, n):
         seq = vmj.energy_balance(model, a0, n)
         return {"amplitudes": seq.amplitudes, "count": seq.count}
 
     delta, mu = np.linspace(-3, 3, 7), np.linspace(0, 9, 7)
-    r = vmj.sweep(fn, paper_model(delta=delta, mu=mu), a0=A0, n=N_SWINGS, chunk_size=4)
+    one = jax.local_devices()[:1]  # (several devices split the first axis)
+    r = vmj.sweep(fn, paper_model(delta=delta, mu=mu), a0=A0, n=N_SWINGS, chunk_size=4, devices=one)
     ref = jax.vmap(lambda d, m: fn(paper_model(d, 0.0, m), A0, N_SWINGS))(delta, mu)
     assert r.chunks == n_chunks(7, 4) >= 2
     for name in ("amplitudes", "count"):

@@ -25,6 +25,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
 from .._checks import check_int, mark_checked, validated, warn_if_float32
 from .._solution import RESULTS
@@ -155,7 +156,7 @@ def _chunk_function(
     it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`, its result
     placed by `output` (`host_output`'s), compiled with XLA's `options` (`chunk_options`'s).
     Each leaf of the result has its points on the axis its computation puts them on
-    (`point_axes`; on the first where the chunk is sharded over several devices), recorded in
+    (`vmap_in_place`; on the first where the chunk is sharded over several devices), recorded in
     `axes` (a list, filled when the function is traced). Everything else is closed over: a
     call is `jax.jit`'s dispatch of a few arrays (tens of microseconds less per chunk than
     sorting a whole model and its arguments into static and traced parts)."""
@@ -181,36 +182,43 @@ def _chunk_function(
             return fn(mark_checked(one), **kwargs)
 
         points = [x for x, s in zip(part, swept) if s]
-        # (a sharding over several devices splits the first axis)
-        out_axes = point_axes(point, points) if sharding is None else None
-        out = jax.vmap(point, out_axes=0 if out_axes is None else out_axes)(points)
-        axes[:] = jax.tree.leaves(jax.tree.map(lambda _: 0, out) if out_axes is None else out_axes)
+        if sharding is None:
+            out, axes[:] = vmap_in_place(point, points)
+        else:  # (a sharding over several devices splits the first axis)
+            out = jax.vmap(point)(points)
+            axes[:] = [0] * len(jax.tree.leaves(out))
         return out
 
     axes = []
     return jax.jit(run, out_shardings=output, compiler_options=options or None), axes
 
 
-def point_axes(fn, args):
-    """`out_axes` for `jax.vmap(fn)(args)` that leave each leaf of the result with its points
-    on the axis where its computation puts them, rather than moved to the front by a transpose:
-    a loop's stacked outputs (`lax.scan`) come with the loop's axis first and the points after
-    it. The energy-balance sweep of `benchmarks/bench_energy.py` (10^6 points x 12 swings) in
-    turns with the points moved to the front, medians of 20 rounds: 54.0 -> 48.4 ms (0.90 x;
-    one 16384-point chunk 1089 -> 956 us); the exact sweep of `bench_exact.py`, whose loop
-    writes the turning points with the points first: 6.02 -> 6.04 ms (unchanged)."""
-    jaxpr, shapes = jax.make_jaxpr(jax.vmap(fn), return_shape=True)(args)
-    made = {id(v): eqn for eqn in jaxpr.jaxpr.eqns for v in eqn.outvars}
-
-    def axis(v):
+def vmap_in_place(fn, args):
+    """`(jax.vmap(fn)(args), axes)` with each leaf of the result's points on the axis where its
+    computation puts them (`axes`, one per leaf), rather than moved to the front by a
+    transpose: a loop's stacked outputs (`lax.scan`) come with the loop's axis first and the
+    points after it. Traced once: the batched program (`jax.make_jaxpr`) is evaluated without
+    the transposes that `vmap` appended to it. The energy-balance sweep of
+    `benchmarks/bench_energy.py` (10^6 points x 12 swings) in turns with the points moved to the
+    front, medians of 20 rounds: 54.0 -> 48.4 ms (0.90 x; one 16384-point chunk 1089 -> 956
+    us); the exact sweep of `bench_exact.py`, whose loop writes the turning points with the
+    points first: 6.02 -> 6.04 ms (unchanged)."""
+    closed, shapes = jax.make_jaxpr(jax.vmap(fn), return_shape=True)(args)
+    made = {id(v): eqn for eqn in closed.jaxpr.eqns for v in eqn.outvars}
+    outvars, axes = [], []
+    for v in closed.jaxpr.outvars:
         eqn = made.get(id(v))
-        if eqn is None or eqn.primitive.name != "transpose":
-            return 0
-        perm = tuple(eqn.params["permutation"])  # vmap's move of axis `perm[0]` to the front
-        rest = tuple(range(len(perm)))
-        return perm[0] if perm == (perm[0], *rest[: perm[0]], *rest[perm[0] + 1 :]) else 0
-
-    return jax.tree.unflatten(jax.tree.structure(shapes), [axis(v) for v in jaxpr.jaxpr.outvars])
+        axis = 0
+        if eqn is not None and eqn.primitive.name == "transpose":
+            perm = tuple(eqn.params["permutation"])  # vmap's move of axis `perm[0]` to the front
+            rest = tuple(range(len(perm)))
+            if perm == (perm[0], *rest[: perm[0]], *rest[perm[0] + 1 :]):
+                axis, v = perm[0], eqn.invars[0]
+        outvars.append(v)
+        axes.append(axis)
+    program = ClosedJaxpr(closed.jaxpr.replace(outvars=outvars), closed.consts)
+    out = jaxpr_as_fun(program)(*jax.tree.leaves(args))
+    return jax.tree.unflatten(jax.tree.structure(shapes), out), axes
 
 
 def point_array(n: int, trailing: tuple, dtype, axis: int) -> np.ndarray:
