@@ -230,7 +230,12 @@ def test_results_in_pinned_host_memory_are_the_same(monkeypatch):
     assert host_output(jax.devices("cpu")[:1], None) is None  # a CPU's own memory is the host's
     g = vmj.grid(paper_model(), eps=np.linspace(0, 1, 7), mu=[0.0, 5.0])
     want = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4)
+    # (the energy balance's stacked turning points come with the points last)
+    want_map = vmj.sweep(vmj.energy_balance, g, a0=A0, n=N_SWINGS, chunk_size=4)
     monkeypatch.setattr(sweep_module, "host_output", lambda d, s: pinned_host(d[0], s))
+    got_map = vmj.sweep(vmj.energy_balance, g, a0=A0, n=N_SWINGS, chunk_size=4)
+    for a, b in zip(jax.tree.leaves(got_map.values), jax.tree.leaves(want_map.values)):
+        np.testing.assert_array_equal(a, b)
     placed = []
     real = sweep_module._SweepJob.compute
     monkeypatch.setattr(
