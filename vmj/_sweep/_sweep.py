@@ -342,9 +342,8 @@ class _SweepJob:
     def known(self, chunk: int) -> dict:
         """What this process knows of the compiled chunk: its function (`"function"`) and its
         result's point axes (`"axes"`), compiled (`"compiled"`), its memory (`"bytes"`) and
-        output structure (`"spec"`, the points first): shared by the
-        sweeps of the same definition, or this job's own where the definition cannot be
-        hashed."""
+        output structure (`"spec"`, the points first): shared by the sweeps of the same
+        definition, or this job's own where the definition cannot be hashed."""
         if chunk in self._known:
             return self._known[chunk]
         key = self.key(chunk)
