@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import vmj
-from vmj._numerics._ode import ode_solve, recording, tsit5
+from vmj._numerics._ode import ode_solve, recording, step_size_controller, tsit5
 
 
 def _solve(solver, saveat=None):
@@ -31,6 +31,33 @@ def test_tsit5_takes_the_steps_of_diffrax_tsit5():
     # the solve's own tolerance is 1e-10)
     assert int(ours.stats["num_steps"]) == int(theirs.stats["num_steps"]) > 100
     assert int(ours.stats["num_rejected_steps"]) == int(theirs.stats["num_rejected_steps"])
+    scale = np.abs(np.asarray(theirs.ys)).max(axis=0)
+    assert np.all(np.abs(np.asarray(ours.ys - theirs.ys)) < 1e-12 * scale)
+
+
+def test_step_size_controller_takes_the_steps_of_diffraxs_pid_controller():
+    """vmj's controller computes diffrax's step factor with `exp` and `log` instead of XLA's
+    `power`: the same steps, accepted and rejected, and the same solution to rounding."""
+    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
+    w = 1e-3 * float(model.velocity_scale(0.06))
+
+    def solve(controller):
+        return dfx.diffeqsolve(
+            dfx.ODETerm(lambda t, y, args: model.vector_field(t, y, w)),
+            dfx.Tsit5(),
+            0.0,
+            0.5,
+            None,
+            jnp.array([-0.06, 0.0]),
+            saveat=dfx.SaveAt(ts=jnp.linspace(0.0, 0.5, 41)),
+            stepsize_controller=controller,
+            max_steps=100_000,
+        )
+
+    ours = solve(step_size_controller(1e-10, 1e-12))
+    theirs = solve(dfx.PIDController(rtol=1e-10, atol=1e-12))
+    for stat in ("num_accepted_steps", "num_rejected_steps"):
+        assert int(ours.stats[stat]) == int(theirs.stats[stat]) > 20
     scale = np.abs(np.asarray(theirs.ys)).max(axis=0)
     assert np.all(np.abs(np.asarray(ours.ys - theirs.ys)) < 1e-12 * scale)
 

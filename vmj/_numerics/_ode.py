@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["ode_solve", "recording", "tsit5"]
+__all__ = ["ode_solve", "recording", "step_size_controller", "tsit5"]
 
 
 def tsit5():
@@ -188,6 +188,49 @@ def _recording_class():
     return Recording
 
 
+def step_size_controller(rtol, atol):
+    """diffrax's `PIDController(rtol=rtol, atol=atol)` (integral control at its default
+    coefficients: the next step is the last times `clip(safety / error**(1/order), factormin,
+    factormax)`), with the power written as `exp(log(1/error)/order)`: XLA's `power` is, on
+    CPUs, a call of the C library's `pow` for each lane, a scalar function in the middle of
+    vectorised steps. The smoothed turning points of an 809-point chunk, compiled both ways in
+    one process and run in turns: 0.92-0.95 x (three runs), the turning points the same to 5e-11
+    m. No `dtmin`, `dtmax`, P or D terms (vmj uses none)."""
+    return _controller_class()(rtol=rtol, atol=atol)
+
+
+@functools.cache
+def _controller_class():
+    import diffrax as dfx
+
+    class Controller(dfx.PIDController):
+        def adapt_step_size(
+            self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+        ):
+            prev, prev_prev, at_dtmin = controller_state
+
+            def scaled(y, y1, error):  # as diffrax's: a candidate with a NaN counts as y
+                y1 = jnp.where(jnp.isnan(y1).any(), y, y1)
+                return error / (self.atol + jnp.maximum(jnp.abs(y), jnp.abs(y1)) * self.rtol)
+
+            error = self.norm(jax.tree.map(scaled, y0, y1_candidate, y_error))
+            keep = error < 1
+            inverse = jax.lax.stop_gradient(1 / error)
+            exponent = self.icoeff / self._get_error_order(error_order)
+            factor = jnp.clip(
+                self.safety * jnp.exp(exponent * jnp.log(inverse)),
+                jnp.where(keep, 1, self.factormin),
+                jnp.where(keep, self.factormax, self.safety),
+            )
+            dt = (t1 - t0) * jax.lax.stop_gradient(factor).astype(jnp.result_type(t1 - t0))
+            next_t0 = jnp.where(keep, t1, t0)
+            inverse = jnp.where((inverse == 0) | jnp.isinf(inverse), 1, inverse)
+            state = (jnp.where(keep, inverse, prev), jnp.where(keep, prev, prev_prev), at_dtmin)
+            return keep, next_t0, next_t0 + dt, False, state, dfx.RESULTS.successful
+
+    return Controller
+
+
 def ode_solve(
     field,
     y0,
@@ -218,7 +261,7 @@ def ode_solve(
         dt0=None,
         y0=y0,
         saveat=saveat,
-        stepsize_controller=dfx.PIDController(rtol=rtol, atol=atol),
+        stepsize_controller=step_size_controller(rtol, atol),
         max_steps=max_steps,
         throw=False,
         event=event,
