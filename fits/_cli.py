@@ -12,7 +12,7 @@ import json
 import math
 import sys
 
-from vmj.cli import figure_path, input_file, number, parse_set
+from vmj.cli import Joined, figure_path, input_file, number, parse_set
 
 __all__ = ["add_arguments", "run", "MODELS", "TIME_UNITS", "MAX_ROWS"]
 
@@ -145,6 +145,7 @@ def add_arguments(p):
     p.add_argument(
         "--fit",
         metavar="NAME[,NAME...]",
+        action=Joined,
         help="parameters to fit (default: variable-mass FT,mu; oscillator "
         "omega,zeta,xF,a0,offset, without omega for records without times; rope T;"
         " pendulum omega,zeta,xF,cq,b2,a0,offset,asym)",
@@ -152,6 +153,7 @@ def add_arguments(p):
     p.add_argument(
         "--set",
         metavar="NAME=VALUE,...",
+        action=Joined,
         default="",
         help="fixed parameter values (SI units: FT N, mu and delta kg/s, m0 kg, c N/m, "
         "g m/s^2, omega rad/s; the signal's units for xF, a0, offset, and per "
@@ -163,12 +165,14 @@ def add_arguments(p):
     p.add_argument(
         "--bounds",
         metavar="NAME=LO:HI,...",
+        action=Joined,
         help="bounds of parameters, in their units (an empty LO or HI is open); a "
         "fitted value at a bound set here is not flagged",
     )
     p.add_argument(
         "--shared",
         metavar="NAME[,NAME...]",
+        action=Joined,
         help="several FILEs: fitted parameters with one value for all records (the "
         "others, e.g. offset and a0, one per record)",
     )

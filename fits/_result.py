@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vmj.cli import jsonable
+
 from ._io import ROWS_AS_HALF_SWINGS, Record
 from ._params import HELD
 from ._stats import RANK_RTOL, covariance, diagnostics
@@ -110,28 +112,12 @@ class FitResult:
         if self.clock is not None:
             out["clock"] = self.clock
         out["units"] = self.units
-        return _jsonable(out)
+        return jsonable(out)
 
     def report(self) -> str:
         from ._report import text_report
 
         return text_report(self)
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {k: _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
 
 
 # -- views of a solved job ---------------------------------------------------------------------

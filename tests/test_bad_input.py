@@ -352,6 +352,17 @@ CASES = parameter_cases() + [
         ["--set a0 must be finite and > 0"],
     ),
     (
+        "sweep rope energy u",
+        ["sweep", "rope", "--T", "0,1", "--u", "0,3", "--set", "m=2,A=1.74,e=0.8e6,l0=10,a0=1"]
+        + ["--method", "energy"],
+        ["--method energy", "needs --u 0 (got 3)"],
+    ),
+    (
+        "sensitivity rope kbm",
+        ["sensitivity", "rope", *cli_args.ROPE, "--wrt", "T", "--method", "kbm"],
+        ["argument --method", "invalid choice: 'kbm'"],
+    ),
+    (
         "sweep stick-slip eps",
         ["sweep", "stick-slip", "--eps", "0.5:2:3", "--set", "Omega=1"],
         ["--eps must be finite and > 1"],

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import os
+import stat
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -128,6 +130,16 @@ def test_sensitivity_stick_slip_against_finite_differences(capsys):
 
 
 # with the long runs, for CI's time (17 s of compiling): the rope's derivatives are checked in
+def test_sensitivity_of_the_smoothed_solver_in_reverse_mode(capsys):
+    """The smoothed solve is differentiated by diffrax's adjoint (reverse mode only): against
+    central differences of the exact solver's amplitudes (the two solvers agree to ~1e-8)."""
+    argv = ["sensitivity", "variable-mass", *VARIABLE_MASS, "--n", "4", "--wrt", "FT"]
+    out = run_json(capsys, [*argv, "--method", "smooth"])
+    model = lambda F: vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(F))  # noqa: E731
+    amp = lambda F: vmj.turning_points(model(F), 0.06, 4).amplitudes  # noqa: E731
+    np.testing.assert_allclose(out["d_amplitudes"]["FT"], central(amp, 14.7, 1e-4), rtol=1e-5)
+
+
 # tests/test_rope.py, the command's plumbing by the variable-mass sensitivity commands
 @pytest.mark.long
 def test_sensitivity_rope(capsys):
@@ -307,6 +319,57 @@ def test_exponent_and_negative_values(capsys):
 
 
 # -- files: checked before any work, written atomically -------------------------------------------
+def test_repeated_list_options_are_joined_not_overwritten(capsys):
+    """`--set a=1 --set b=2` is `--set a=1,b=2` (argparse alone keeps the last silently); the
+    commands' own checks then refuse a name given twice."""
+    import argparse
+
+    from vmj.cli import Joined
+
+    p = argparse.ArgumentParser()
+    p.add_argument("--set", action=Joined, default="")
+    p.add_argument("--fit", action=Joined)
+    args = p.parse_args(["--set", "m0=5", "--fit", "FT", "--set", "c=4900", "--fit", "mu"])
+    assert (args.set, args.fit) == ("m0=5,c=4900", "FT,mu")
+    assert p.parse_args([]).fit is None
+    argv = ["sweep", "variable-mass", "--eps", "0,1", "--set", "m0=5,c=4900", "--set", "m0=5"]
+    assert main(argv) == 2
+    assert "--set gives m0 twice" in capsys.readouterr().err
+
+
+def test_json_output_is_strict_json():
+    """NaN and infinity become `null` (strict parsers refuse a bare `NaN`); NumPy values become
+    Python ones."""
+    from vmj.cli import jsonable
+
+    obj = {"a": float("nan"), "b": np.float32(1.5), "c": np.array([1.0, np.inf]), "d": np.bool_(1)}
+    text = json.dumps(jsonable(obj), allow_nan=False)
+    assert json.loads(text) == {"a": None, "b": 1.5, "c": [1.0, None], "d": True}
+
+
+def test_replacing_follows_links_and_writes_to_pipes_in_place(tmp_path):
+    """A symbolic link stays a link (its target is replaced); a pipe or device (`/dev/null`) is
+    written to, not replaced by a regular file."""
+    target = tmp_path / "target.csv"
+    target.write_text("old")
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    with replacing(link) as tmp:
+        Path(tmp).write_text("new")
+    assert link.is_symlink() and target.read_text() == "new"
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        assert check_writable(fifo, "--plot") == str(fifo)
+        with replacing(fifo) as tmp:
+            Path(tmp).write_text("through")
+        assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+        assert os.read(reader, 100) == b"through"
+    finally:
+        os.close(reader)
+
+
 def test_replacing_keeps_the_old_file_when_writing_fails(tmp_path):
     path = tmp_path / "out.csv"
     path.write_text("old")

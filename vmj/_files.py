@@ -3,7 +3,9 @@
 Every file vmj writes (figures, sweep CSV and NetCDF exports) goes through [`replacing`][]: the
 content is written to a temporary file in the same directory, which then replaces the target in
 one `os.replace`, so that a full disk or a killed process never leaves a truncated file behind.
-Nothing creates directories or renames a file silently.
+A symbolic link is followed (the file it points to is replaced, the link stays); a device or a
+pipe (`/dev/null`, `/dev/stdout`) is written to directly. Nothing creates directories or renames
+a file silently.
 """
 
 from __future__ import annotations
@@ -24,7 +26,11 @@ def check_writable(path, name: str = "path") -> str:
         raise ValueError(f"{name} must be a file path (got an empty string)")
     if os.path.isdir(path):
         raise ValueError(f"{name} {path!r} is a directory; give a file path")
-    folder = os.path.dirname(os.path.abspath(path))
+    if _special(path):
+        if not os.access(path, os.W_OK):
+            raise ValueError(f"{name} {path!r} is not writable")
+        return path
+    folder = os.path.dirname(os.path.realpath(path))
     if not os.path.isdir(folder):
         raise ValueError(
             f"{name} {path!r}: the directory {folder} does not exist (vmj creates no directories)"
@@ -40,7 +46,11 @@ def replacing(path, name: str = "path"):
     replaces `path` atomically (with the permissions a new file would get, or those of the file
     it replaces); on any error it is removed and `path` is left as it was."""
     path = check_writable(path, name)
-    folder = os.path.dirname(os.path.abspath(path))
+    if _special(path):
+        yield path
+        return
+    path = os.path.realpath(path)  # a symbolic link: the file it points to
+    folder = os.path.dirname(path)
     suffix = os.path.splitext(path)[1] or None
     fd, tmp = tempfile.mkstemp(suffix=suffix, prefix=".vmj-", dir=folder)
     os.close(fd)
@@ -58,3 +68,9 @@ def replacing(path, name: str = "path"):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def _special(path) -> bool:
+    """Whether `path` is (or links to) something other than a regular file or a directory: a
+    device or a pipe, written to in place."""
+    return os.path.exists(path) and not os.path.isfile(path) and not os.path.isdir(path)

@@ -15,10 +15,12 @@ compilation cache; `exported_jit` is the decorator of those entry points, used b
 from .._exported import enable_exported_cache, exported_jit
 from ._app import COMMANDS, main
 from ._options import (
+    Joined,
     count,
     emit,
     figure_path,
     input_file,
+    jsonable,
     number,
     output_path,
     parse_axis,
@@ -38,4 +40,6 @@ __all__ = [
     "output_path",
     "figure_path",
     "emit",
+    "jsonable",
+    "Joined",
 ]

@@ -81,7 +81,7 @@ def _variable_mass(args) -> int:
 
 
 # -- rope ----------------------------------------------------------------------------------------
-def _rope_args(q) -> None:
+def _rope_args(q, methods=("exact", "smooth", "kbm")) -> None:
     q.add_argument(
         "--brake",
         type=number,
@@ -91,12 +91,16 @@ def _rope_args(q) -> None:
         "--t_brake T_BRAKE --t_stop T_STOP)",
     )
     q.add_argument("--t1", type=number, required=True, help="final time [s]")
+    described = {
+        "exact": "the exact non-smooth solver",
+        "smooth": "the smoothed ODE",
+        "kbm": "the first-order averaged envelope (kbm; constant speed only)",
+    }
     q.add_argument(
         "--method",
-        choices=("exact", "smooth", "kbm"),
+        choices=methods,
         default="exact",
-        help="exact non-smooth solver, smoothed ODE, or the first-order averaged "
-        "envelope (kbm; constant speed only)",
+        help=", ".join(described[m] for m in methods),
     )
     q.add_argument(
         "--units",

@@ -15,6 +15,7 @@ import os
 
 __all__ = [
     "HelpFormatter",
+    "Joined",
     "LARGEST",
     "number",
     "count",
@@ -24,6 +25,7 @@ __all__ = [
     "output_path",
     "figure_path",
     "emit",
+    "jsonable",
     "refuse_above",
     "traced_checks",
     "FIGURE_FORMATS",
@@ -43,6 +45,15 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         if action.default not in (None, False, argparse.SUPPRESS) and action.nargs != 0:
             return f"{text} (default: %(default)s)"
         return text
+
+
+class Joined(argparse.Action):
+    """A comma-list option that may be given several times: `--set a=1 --set b=2` means `--set
+    a=1,b=2` (argparse's default would keep the last one silently)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        before = getattr(namespace, self.dest, None)
+        setattr(namespace, self.dest, f"{before},{values}" if before else values)
 
 
 #: largest magnitude of a number on the command line: far beyond any physical parameter in SI
@@ -212,8 +223,22 @@ def figure_path(text: str) -> str:
 
 
 def emit(obj, as_json: bool, text: str) -> None:
-    """Print `obj` as one JSON object, or `text`."""
-    print(json.dumps(obj) if as_json else text)
+    """Print `obj` as one JSON object (`jsonable`), or `text`."""
+    print(json.dumps(jsonable(obj), allow_nan=False) if as_json else text)
+
+
+def jsonable(obj):
+    """`obj` with NumPy arrays and scalars as Python values and NaN or infinity as `None`
+    (JSON's `null`: strict parsers refuse a bare `NaN`)."""
+    if isinstance(obj, dict):
+        return {k: jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if hasattr(obj, "tolist"):  # a NumPy array or scalar
+        return jsonable(obj.tolist())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
 
 
 def refuse_above(what: str, amount: float, limit: float, unit: str = "") -> None:

@@ -11,7 +11,7 @@ derivatives of the period, slip and stick times. Derivatives are per SI unit of 
 
 from __future__ import annotations
 
-from ._options import count, emit, figure_path, traced_checks
+from ._options import Joined, count, emit, figure_path, traced_checks
 from ._params import MODELS, add_options, given
 
 __all__ = ["add_arguments", "run"]
@@ -37,6 +37,7 @@ def add_arguments(p) -> None:
         q.add_argument(
             "--wrt",
             metavar="NAME[,NAME...]",
+            action=Joined,
             required=True,
             help=f"parameters to differentiate with respect to (of: {names})",
         )
@@ -49,8 +50,7 @@ def add_arguments(p) -> None:
                 help="solver differentiated",
             )
         elif name == "rope":
-            _rope_args(q)
-            q.set_defaults(method="exact")  # the averaged envelope has no turning points
+            _rope_args(q, ("exact", "smooth"))  # the averaged envelope has no turning points
         else:
             q.add_argument(
                 "--method",
@@ -179,8 +179,10 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     keep = len(got["times"])
     if args.model == "rope":  # the turning points up to --t1
         keep = int(np.sum(got["times"] <= args.t1))
+    # the smoothed solve differentiates by diffrax's adjoint, in reverse mode only
+    mode = "reverse" if method == "smooth" else "forward"
     with traced_checks():
-        d = vmj.sensitivity(decay, model, keys, a0=a0, n=n)
+        d = vmj.sensitivity(decay, model, keys, mode=mode, a0=a0, n=n)
     out = {
         "model": args.model,
         "method": method,

@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from ._options import (
+    Joined,
     count,
     figure_path,
     output_path,
@@ -185,6 +186,7 @@ def add_arguments(p) -> None:
         q.add_argument(
             "--set",
             metavar="NAME=VALUE,...",
+            action=Joined,
             help="fixed parameters"
             + (f" and the initial conditions ({', '.join(initial)})" if initial else "")
             + f", e.g. {how.example}",
@@ -323,6 +325,13 @@ def run(args) -> int:
 
     spec, how = MODELS[args.model], SWEEPS[args.model]
     scalars, axes = gather(spec, args, args.force)
+    if args.model == "rope" and args.method == "energy":
+        speeds = [u for u in axes.get("u", [scalars.get("u", 0.0)]) if u != 0]
+        if speeds:
+            raise ValueError(
+                "--method energy is the energy map of a rope of fixed length: it needs --u 0 "
+                f"(got {speeds[0]:g})"
+            )
     plots = getattr(args, "plot", None) or getattr(args, "error_plot", None)
     if plots and (list(axes)[:2] != ["eps", "mu"] or len(axes) > 3):
         raise ValueError(
@@ -407,10 +416,10 @@ def run(args) -> int:
     head = f"sweep: {points} points ({shape}), method {args.method}"
     if how.turning_points:
         head += f", {args.n} swings"
-    print(
-        "; ".join([f"{head}, {elapsed:.2f} s"] + summary)
-        + "".join(f"; wrote {p}" for p in (args.out, args.netcdf) if p)
-    )
+    written = [f"wrote {p}" for p in (args.out, args.netcdf) if p]
+    if not (written or plots or args.store):
+        written = ["nothing written (--out CSV, --netcdf NC, --plot PNG or --store keep it)"]
+    print("; ".join([f"{head}, {elapsed:.2f} s", *summary, *written]))
     codes, counts = np.unique(failed_codes, return_counts=True)
     for code, k in zip(codes, counts):
         print(f"  {k} points: {vmj.RESULTS(int(code)).message}")

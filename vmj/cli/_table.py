@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import json
-
-from ._options import figure_path
+from ._options import emit, figure_path
 
 __all__ = ["add_arguments", "run"]
 
@@ -44,7 +42,7 @@ def run(args) -> int:
             "exact_cm",
             "exact_crossed",
         )
-        print(json.dumps({"table": args.N, "rows": [{k: r[k] for k in keys} for r in rows]}))
+        emit({"table": args.N, "rows": [{k: r[k] for k in keys} for r in rows]}, True, "")
         return 0
     lines = [
         f"Table {args.N} (amplitudes in cm; * = the swing did not pass x = 0)",
