@@ -33,6 +33,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -82,7 +83,7 @@ def _check_inputs(space, free, shared, given, bounds, forward, loss, optimizer):
         raise ValueError(f"loss must be one of {list(LOSSES)} (got {loss!r})")
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {list(OPTIMIZERS)} (got {optimizer!r})")
-    free = tuple(free)
+    free = tuple(n.strip() for n in free.split(",")) if isinstance(free, str) else tuple(free)
     if not free:
         raise ValueError(
             "give at least one parameter to fit (--fit NAME[,NAME...]): with every "
@@ -817,6 +818,11 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
 def _parse_given(given, n):
     if given is None or isinstance(given, dict):
         return [dict(given or {})] * n
+    if isinstance(given, str) or not all(isinstance(g, dict) for g in given):
+        raise ValueError(
+            "given: a dict of parameter values, or a list of such dicts, one per record "
+            f"(got {given!r})"
+        )
     givens = [dict(g) for g in given]
     if len(givens) != n:
         raise ValueError(f"given: {len(givens)} dicts for {n} records")
@@ -837,7 +843,18 @@ def _settings(
     intervals,
     residuals,
     records,
+    outlier_sigma,
 ):
+    for name, value in (("max_steps", max_steps), ("adam_steps", adam_steps)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+            raise ValueError(f"{name} must be an integer >= 1 (got {value!r})")
+    if not (isinstance(outlier_sigma, numbers.Real) and math.isfinite(outlier_sigma)) or not (
+        outlier_sigma > 0
+    ):
+        raise ValueError(f"outlier_sigma must be a finite number > 0 (got {outlier_sigma!r})")
+    for name, pair in (bounds or {}).items():
+        if not (isinstance(pair, (tuple, list)) and len(pair) == 2):
+            raise ValueError(f"bounds[{name!r}] must be a pair (lo, hi) (got {pair!r})")
     bounds = {k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}
     for g in givens:
         free = _check_inputs(space, free, shared, g, bounds, forward, loss, optimizer)
@@ -926,6 +943,7 @@ def fit_batch(
         intervals,
         residuals,
         records,
+        outlier_sigma,
     )
     if chunk_size is not None or client is not None or store is not None:
         chunk = functools.partial(
@@ -1040,7 +1058,9 @@ def fit(
     if not records:
         raise ValueError("no records to fit")
     givens = _parse_given(given, len(records))
-    shared = tuple(shared)
+    shared = (
+        tuple(n.strip() for n in shared.split(",")) if isinstance(shared, str) else tuple(shared)
+    )
     if shared and len(records) < 2:
         raise ValueError("--shared needs several records")
     free, bounds, settings = _settings(
@@ -1057,6 +1077,7 @@ def fit(
         intervals,
         residuals,
         records,
+        outlier_sigma,
     )
     prob = _problem(space, records, givens, free, shared)
     return _run(space, [prob], free, bounds, settings, compare, outlier_sigma)[0]

@@ -37,6 +37,7 @@ SWEEP = [
     "--method",
     "energy",
 ]
+TABLE1 = os.path.join("fits", "data", "table1_mu9_eps0.csv")
 SENS = ["sensitivity", "variable-mass", *cli_args.VARIABLE_MASS, "--n", "3"]
 FIT = ["--model", "oscillator"]
 
@@ -601,7 +602,23 @@ API = [
         ),
         "'bogus' is not a parameter",
     ),
+    ("fit outlier_sigma", lambda: _fit(outlier_sigma=0.0), "outlier_sigma must be a finite number"),
+    ("fit max_steps", lambda: _fit(max_steps=0), "max_steps must be an integer >= 1"),
+    ("fit adam_steps", lambda: _fit(adam_steps=-1), "adam_steps must be an integer >= 1"),
+    ("fit bounds", lambda: _fit(bounds={"FT": 3.0}), "bounds['FT'] must be a pair"),
+    ("fit given", lambda: _fit(given=[1, 2]), "given: a dict of parameter values"),
+    ("fit free", lambda: _fit(free="mu,bogus"), "unknown parameter 'bogus'"),
 ]
+
+
+def _fit(**kw):
+    """`fits.fit` of the table-1 record with the keyword arguments `kw` (refused before any
+    computation)."""
+    import fits
+
+    record = fits.read_record(os.path.join(os.path.dirname(__file__), "..", TABLE1))
+    args = {"free": ("FT", "mu"), "given": dict(m0=5, c=4900, delta=3, eps=0), **kw}
+    return fits.fit(record, "variable-mass", args.pop("free"), **args)
 
 
 @pytest.mark.parametrize("name,call,message", API, ids=[a[0] for a in API])

@@ -59,7 +59,7 @@ def sensitivity(
     """
     if mode not in ("forward", "reverse"):
         raise ValueError(f"mode must be 'forward' or 'reverse' (got {mode!r})")
-    wrt = tuple(wrt)
+    wrt = tuple(w.strip() for w in wrt.split(",")) if isinstance(wrt, str) else tuple(wrt)
     if not wrt:
         raise ValueError("wrt must name at least one parameter")
     if len(set(wrt)) != len(wrt):
