@@ -815,6 +815,27 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     return results
 
 
+def _distinct(records) -> None:
+    """Refuse a record given twice to a joint fit (it would count its evidence twice and
+    shrink the shared parameters' uncertainties by about sqrt(2))."""
+    for j, b in enumerate(records):
+        for i, a in enumerate(records[:j]):
+            same = a is b or (
+                isinstance(a, Record)
+                and isinstance(b, Record)
+                and np.array_equal(a.k, b.k)
+                and np.array_equal(a.positions, b.positions)
+                and (a.times is None) == (b.times is None)
+                and (a.times is None or np.array_equal(a.times, b.times))
+            )
+            if same:
+                name = getattr(b, "source", "") or f"record {j}"
+                raise ValueError(
+                    f"{name} is given twice (records {i} and {j}): a joint fit would count "
+                    "its evidence twice"
+                )
+
+
 def _parse_given(given, n):
     if given is None or isinstance(given, dict):
         return [dict(given or {})] * n
@@ -1057,6 +1078,7 @@ def fit(
     records = list(record) if isinstance(record, (list, tuple)) else [record]
     if not records:
         raise ValueError("no records to fit")
+    _distinct(records)
     givens = _parse_given(given, len(records))
     shared = (
         tuple(n.strip() for n in shared.split(",")) if isinstance(shared, str) else tuple(shared)

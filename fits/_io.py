@@ -944,8 +944,8 @@ def read_signal(
       and `#` comments are skipped); UTF-8 with or without a byte-order mark, UTF-16 with
       one, Windows line ends.
     - `time_col`, `signal_col`: the columns, by name (a header name or its first word,
-      case-insensitive) or 0-based index. By default the signal is the last column and the
-      time the column named like a time (`time`, `timestamp`, `elapsed`, `t`, `... (s)`) or
+      case-insensitive) or 0-based index. By default the signal is the last column that is
+      not the time and the time the column named like a time (`time`, `timestamp`, `elapsed`, `t`, `... (s)`) or
       holding clock times `HH:MM:SS.mmm`, after a date or not (`2026-11-27T23:59:50.125`,
       `27.11.2026 23:59:50,125`, `11/27/2026 11:59:50.125 PM`, a time zone after it; the date
       is not read, a pass through midnight is unwrapped): of several
@@ -988,7 +988,15 @@ def read_signal(
     tab = _table(text, source)
     header, ncols = tab.header, tab.ncols
     names = _column_names(tab)
-    yi = ncols - 1 if signal_col is None else _pick(signal_col, header, ncols, "signal", source)
+    if signal_col is not None:
+        yi = _pick(signal_col, header, ncols, "signal", source)
+    else:  # the last column that is not the time (given, named like one or of clock times)
+        times = (
+            [_pick(time_col, header, ncols, "time", source)]
+            if time_col is not None
+            else _time_candidates(tab, None)
+        )
+        yi = max((i for i in range(ncols) if i not in times), default=ncols - 1)
     if time_col is not None:
         candidates = [_pick(time_col, header, ncols, "time", source)]
         if candidates[0] == yi:

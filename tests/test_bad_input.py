@@ -608,6 +608,7 @@ API = [
     ("fit bounds", lambda: _fit(bounds={"FT": 3.0}), "bounds['FT'] must be a pair"),
     ("fit given", lambda: _fit(given=[1, 2]), "given: a dict of parameter values"),
     ("fit free", lambda: _fit(free="mu,bogus"), "unknown parameter 'bogus'"),
+    ("fit twice", lambda: _fit(twice=True, shared=("FT", "mu")), "is given twice"),
 ]
 
 
@@ -618,7 +619,8 @@ def _fit(**kw):
 
     record = fits.read_record(os.path.join(os.path.dirname(__file__), "..", TABLE1))
     args = {"free": ("FT", "mu"), "given": dict(m0=5, c=4900, delta=3, eps=0), **kw}
-    return fits.fit(record, "variable-mass", args.pop("free"), **args)
+    records = [record, fits.read_record(record.source)] if args.pop("twice", False) else record
+    return fits.fit(records, "variable-mass", args.pop("free"), **args)
 
 
 @pytest.mark.parametrize("name,call,message", API, ids=[a[0] for a in API])

@@ -192,6 +192,18 @@ def test_peak_columns_by_their_names_first_word(tmp_path):
         fits.read_peaks(_write(tmp_path, "k,height\n0,1\n1,0.9\n"))
 
 
+def test_the_signal_is_the_last_column_that_is_not_the_time(tmp_path):
+    """A header `angle,time`: the signal is `angle`, by default and with the time named."""
+    t = np.arange(400) * 0.01
+    path = tmp_path / "swapped.csv"
+    rows = "\n".join(f"{np.cos(6.0 * x):.6f},{x:.2f}" for x in t)
+    path.write_text("angle,time\n" + rows + "\n")
+    for kw in ({}, {"time_col": "time"}):
+        sig = fits.read_signal(str(path), **kw)
+        assert (sig.signal_name, sig.time_name) == ("angle", "time")
+        np.testing.assert_allclose(sig.y, np.cos(6.0 * t), atol=1e-6)
+
+
 def test_raw_signal_or_peak_table_decided_from_the_file(tmp_path, capsys):
     """`read_record(path)` (and `vmj fit` without `--series`) reads a raw signal as one: a
     file without a header, without an amplitude or position column, or whose position or
