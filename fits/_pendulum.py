@@ -203,6 +203,12 @@ def _start(record: Record, given: dict, dec: dict) -> dict:
     amplitudes = np.abs(record.positions - offset) / (1 + asym * side)
     consecutive = record.k[-1] - record.k[0] == len(record) - 1
     a0 = float(amplitudes[0]) if record.k[0] == 0 else float(np.max(amplitudes))
+    if not a0 * u < math.pi:
+        raise ValueError(
+            f"{record.source or 'the record'}: its largest swing, {a0:.4g} signal units, is "
+            f"{a0 * u:.4g} rad with angle_unit {u:.4g} rad per unit, but a pendulum swings "
+            "below pi rad: check --angle-unit (the default is degrees)"
+        )
     losses = _losses(amplitudes) if consecutive else None
     dec = decrement(record, offset)
     if losses is None:

@@ -386,3 +386,12 @@ def test_80p_residuals_lose_their_structure(record_80p):
     assert pend.rms < 0.25 * plain.rms
     assert pend.converged
     assert pend.label.startswith("linear:viscous+coulomb"), pend.model_comparison
+
+
+def test_a_swing_beyond_pi_radians_is_refused():
+    """Angles in radians (`angle_unit` 1) of 10: no pendulum swings so far; the fit says so
+    before any computation instead of fitting the sine law to nonsense."""
+    k = np.arange(8)
+    record = fits.Record(k=k, positions=10.0 * (-1.0) ** (k + 1) * 0.95**k, times=0.5 * k)
+    with pytest.raises(ValueError, match="a pendulum swings below pi rad"):
+        fits.fit(record, "pendulum", ("omega", "zeta", "a0"), given={"angle_unit": 1.0})
