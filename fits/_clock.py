@@ -257,8 +257,9 @@ def recover_clock(
     ones; `None` for irregular stamps), `dropped` (samples missing between rows), `rows`,
     `column`, and a one-line `message`.
 
-    Raises `ValueError` for an unknown `clock`, a rate that is not a positive number, or a rate
-    given with `clock="stamps"`.
+    Raises `ValueError` for an unknown `clock`, a rate that is not a positive number, a rate
+    below the stamps' own (more rows than the rate allows in their time), or a rate given with
+    `clock="stamps"`.
     """
     if clock not in CLOCKS:
         raise ValueError(f"clock must be one of {', '.join(map(repr, CLOCKS))} (got {clock!r})")
@@ -311,6 +312,12 @@ def recover_clock(
     report["stamps"] = kind
     mean_step = (stamps[-1] - stamps[0]) / (n - 1)
     name = f"{column!r}" if column else "the time stamps"
+    if rate is not None and rate * mean_step < 0.95:  # (dropped samples lower the stamps' rate)
+        raise ValueError(
+            f"the given rate, {rate:g} Hz, is below that of {name} ({1 / mean_step:.4g} Hz: "
+            f"{n} rows in {stamps[-1] - stamps[0]:.4g} s), so the rows would not fit in their "
+            "time: give the file's sampling rate, or none"
+        )
 
     if kind == "arrival" and clock != "stamps":
         m, t0, period, jitter, dropped, bursts = _arrival(stamps, rate, mean_step)

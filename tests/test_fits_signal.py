@@ -136,6 +136,11 @@ def test_signal_file_errors(tmp_path):
         fits.read_signal(_write(tmp_path, "t,y\n0,1\n1,x\n2,3\n"))
     with pytest.raises(ValueError, match="non-decreasing"):
         fits.read_signal(_write(tmp_path, "t,y\n0,1\n2,2\n1,3\n"))
+    # a rate below the stamps' own: the rows would not fit in their time
+    rows = "".join(f"{0.01 * i:.2f},{i % 7}\n" for i in range(50))
+    with pytest.raises(ValueError, match=r"the given rate, 50 Hz, is below that of 't' \(100 Hz"):
+        fits.read_signal(_write(tmp_path, "t,y\n" + rows), rate=50)
+    assert fits.read_signal(_write(tmp_path, "t,y\n" + rows), rate=100).clock == "uniform"
 
 
 def test_too_few_points_and_no_decay(tmp_path):
