@@ -560,6 +560,12 @@ API = [
     ("g", lambda: vmj.MassProportional(0.3, 0.0), "g must be finite and > 0"),
     ("a0", lambda: vmj.turning_points(vmj.VariableMass(**_vm()), 0.0, 3), "a0 must be finite"),
     ("n", lambda: vmj.turning_points(vmj.VariableMass(**_vm()), 0.06, 0), "n must be an integer"),
+    (
+        "a0 complex",
+        lambda: vmj.turning_points(vmj.VariableMass(**_vm()), 1 + 1j, 3),
+        "a real number",
+    ),
+    ("a0 text", lambda: vmj.turning_points(vmj.VariableMass(**_vm()), "x", 3), "a0 must be"),
     ("Omega", lambda: vmj.StickSlip(6.3, 0.0), "Omega must be finite and > 0"),
     ("stick-slip eps", lambda: vmj.StickSlip(1.0, 1.0), "eps must be finite and > 1"),
     (

@@ -94,7 +94,12 @@ def check_all(items) -> list:
                 continue
             traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))), message))
             continue
-        arr = np.asarray(value, dtype=float)
+        if np.iscomplexobj(value):
+            raise ValueError(f"{message}, a real number (got {value!r})")
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{message}, a number (got {value!r})") from None
         if not (np.all(np.isfinite(arr)) and np.all(ok(arr))):
             shown = arr.item() if arr.ndim == 0 else arr
             raise ValueError(f"{message} (got {shown})")
