@@ -120,6 +120,11 @@ class FitResult:
         return text_report(self)
 
 
+#: a fit whose turning-point times miss the record's by more than this fraction of a
+#: half-swing (rms) gets a warning: its period is wrong, whatever its positions say
+TIME_OFF = 0.1
+
+
 # -- views of a solved job ---------------------------------------------------------------------
 def _slot_names(job) -> list:
     return [nm if r is None else f"{nm}[{r}]" for nm, r in job.slots]
@@ -515,6 +520,14 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         }
         one["rms"], one["rms_time"] = (_pooled_rms([one], kind) for kind in ("position", "time"))
         per_record.append(one)
+        if one["rms_time"] is not None and len(rec.k) > 2:
+            half = float(np.median(np.diff(rec.times) / np.diff(rec.k)))  # a half-swing [s]
+            if half > 0 and one["rms_time"] > TIME_OFF * half:
+                warn.append(
+                    f"the model's turning-point times miss the record's by {one['rms_time']:.3g}"
+                    f" s rms, {one['rms_time'] / half:.0%} of a half-swing ({half:.3g} s): the "
+                    "model's period is not the record's (check the fixed parameters, --set)"
+                )
     if structured and not series:
         warn += _sensor_hints(prob.records, per_record, space, job.free)
     top = [s for s, (nm, rr) in enumerate(job.slots) if rr is None]

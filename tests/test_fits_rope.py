@@ -57,3 +57,17 @@ def test_rope_cli(lowering, capsys):
     assert abs(out["params"]["T"] / T - 1) < 0.03 and out["converged"] is True
     assert main(["fit", path, "--model", "rope", "--fit", "T", "--set", "m=19.6"]) == 2
     assert "needs" in capsys.readouterr().err
+
+
+def test_a_wrong_fixed_stiffness_is_reported_by_the_times(lowering):
+    """With `e` four times too large the positions can still be fitted, but the turning-point
+    times miss the record's by several half-swings: the fit warns (the right `e`: it does not)."""
+    path, given, T = lowering
+    record = fits.read_peaks(path)
+    messages = {}
+    for scale in (1.0, 4.0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = fits.fit(record, "rope", ("T",), {**given, "e": scale * given["e"]}, compare=False)
+        messages[scale] = [w for w in r.warnings if "turning-point times miss" in w]
+    assert messages[1.0] == [] and len(messages[4.0]) == 1
