@@ -1960,6 +1960,18 @@ def read_record(
                 decay=decay,
             )
         except ValueError as err:
+            if series is None and raw_given and _reads_as_peaks(path, max_rows):
+                named = [n for n, v in zip(_RAW_OPTIONS, raw) if v is not None]
+                named += ["clock"] if clock != "auto" else []
+                flags = ", ".join("--" + n.replace("_", "-") for n in named)
+                several = len(named) > 1
+                source = path.source if isinstance(path, _Loaded) else os.fspath(path)
+                raise ValueError(
+                    f"{source}: a table of turning points, but the raw-signal option"
+                    f"{'s' if several else ''} {', '.join(named)} ({flags} on the command line) "
+                    f"{'were' if several else 'was'} given: leave {'them' if several else 'it'}"
+                    " out to read the table"
+                ) from None
             if not_peaks is None or path.text.count("\n") > _PEAK_TABLE_ROWS:
                 raise
             raise ValueError(
@@ -1971,6 +1983,18 @@ def read_record(
             "signals (series=True)"
         )
     return read_peaks(path, max_rows=max_rows)
+
+
+_RAW_OPTIONS = ("time_col", "signal_col", "rate", "time_unit", "window", "decay")
+
+
+def _reads_as_peaks(path, max_rows) -> bool:
+    """Whether `path` reads as a peak table (`read_peaks` without an error)."""
+    try:
+        read_peaks(path, max_rows=max_rows)
+    except (ValueError, _NotPeakTable):
+        return False
+    return True
 
 
 def read_decays(path: str | os.PathLike, **kwargs) -> list:

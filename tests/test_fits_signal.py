@@ -141,6 +141,11 @@ def test_signal_file_errors(tmp_path):
     with pytest.raises(ValueError, match=r"the given rate, 50 Hz, is below that of 't' \(100 Hz"):
         fits.read_signal(_write(tmp_path, "t,y\n" + rows), rate=50)
     assert fits.read_signal(_write(tmp_path, "t,y\n" + rows), rate=100).clock == "uniform"
+    # a raw-signal option on a table of turning points
+    peaks = _write(tmp_path, "k,amplitude\n0,10\n1,9.3\n2,8.62\n3,7.95\n4,7.3\n5,6.67\n")
+    with pytest.raises(ValueError, match="a table of turning points, but the raw-signal option"):
+        fits.read_record(peaks, rate=100)
+    assert len(fits.read_record(peaks)) == 6
 
 
 def test_too_few_points_and_no_decay(tmp_path):
