@@ -17,6 +17,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from vmj.cli._options import LARGEST
+
 from ._clock import CLOCKS, recover_clock
 
 __all__ = [
@@ -490,6 +492,12 @@ def _slow_columns(tab: _Table, cols: list, clock_cols: set, missing: bool = Fals
                     f"line {no}, column {names[c]!r}: {cell.strip()!r} is not a "
                     "finite number (NaN and infinity are not allowed)",
                 )
+            if abs(value) > LARGEST:
+                _fail(
+                    tab.source,
+                    f"line {no}, column {names[c]!r}: {cell.strip()!r} is beyond the largest "
+                    f"magnitude read, {LARGEST:g}: rescale the column",
+                )
             out[j].append(value)
     return [np.asarray(v, dtype=float) for v in out]
 
@@ -531,6 +539,8 @@ def _fast_columns(tab: _Table, body: str, first: list, cols: list, missing: bool
     # (NaN is a missing value where those are allowed; infinity never)
     if not all(np.all(~np.isinf(v) if missing else np.isfinite(v)) for v in out):
         raise ValueError("not finite")
+    if any(np.any(np.abs(v) > LARGEST) for v in out):
+        raise ValueError("too large")
     return out
 
 

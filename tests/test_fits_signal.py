@@ -146,6 +146,8 @@ def test_signal_file_errors(tmp_path):
     with pytest.raises(ValueError, match="a table of turning points, but the raw-signal option"):
         fits.read_record(peaks, rate=100)
     assert len(fits.read_record(peaks)) == 6
+    with pytest.raises(ValueError, match="beyond the largest magnitude read, 1e"):
+        fits.read_record(_write(tmp_path, "k,amplitude\n0,1e300\n1,9e299\n2,8e299\n"))
 
 
 def test_too_few_points_and_no_decay(tmp_path):
