@@ -447,7 +447,24 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
         return _Table(text, source, hdr, sep, ncols, start, no, cells)
     if not texts:
         _fail(source, "the file is empty")
+    for line in texts[1:]:  # rows of numbers and words: a column of text
+        cells = [c.strip('"') for c in re.split(r"[,;\t]|\s+", line.strip()) if c]
+        words = [c for c in cells if not _is_number(c)]
+        if words and len(words) < len(cells):
+            _fail(
+                source,
+                f"no row of numbers only: {line.strip()!r} holds text ({words[0]!r}); the "
+                "columns must be numbers (remove a column of notes)",
+            )
     _fail(source, "the file has a header but no data rows")
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def _column_names(tab: _Table) -> list:

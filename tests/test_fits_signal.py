@@ -146,6 +146,8 @@ def test_signal_file_errors(tmp_path):
     with pytest.raises(ValueError, match="a table of turning points, but the raw-signal option"):
         fits.read_record(peaks, rate=100)
     assert len(fits.read_record(peaks)) == 6
+    with pytest.raises(ValueError, match="holds text \\('ok'\\); the columns must be numbers"):
+        fits.read_record(_write(tmp_path, "k,amplitude,note\n0,10,ok\n1,9.3,ok\n2,8.6,ok\n"))
     with pytest.raises(ValueError, match="beyond the largest magnitude read, 1e"):
         fits.read_record(_write(tmp_path, "k,amplitude\n0,1e300\n1,9e299\n2,8e299\n"))
 
