@@ -459,14 +459,6 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
     _fail(source, "the file has a header but no data rows")
 
 
-def _is_number(cell: str) -> bool:
-    try:
-        float(cell)
-    except ValueError:
-        return False
-    return True
-
-
 def _column_names(tab: _Table) -> list:
     return list(tab.header) if tab.header else [f"column {i}" for i in range(tab.ncols)]
 
