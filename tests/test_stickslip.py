@@ -210,6 +210,45 @@ def test_cli_json_shape(capsys, method):
     assert out["period"] == pytest.approx(ref[4], rel=REL)
 
 
+# a fast drive: the stick (and the short slip intervals) shrink like 1/Omega, and the velocity
+# zero lies within ~1/Omega of the end of a half period. The event is solved for as that
+# distance (relative precision at any Omega); a Newton start in the middle of the quarter,
+# clipped to bisection by the bracket, left the cycle wrong from Omega ~ 1e5 (the stick time
+# 7 % off at 3e6, a reversal lost at 1e7, negative intervals at 1e8).
+@pytest.mark.parametrize("Omega", [1e-6, 1e-3, 1e5, 3e6, 1e7, 1e8, 1e10, 1e12, 1e15])
+@pytest.mark.parametrize("eps", [1.5, 4.0, 5.0 - 1e-9, 6.3, 7.0 + 1e-4, 12.7])
+def test_exact_matches_closed_form_at_extreme_drive_speeds(eps, Omega):
+    a, b = exact_jit(eps, Omega), closed_jit(eps, Omega)
+    assert int(a.result) == int(b.result) == 0
+    assert int(a.reversals) == int(b.reversals) and int(a.count) == int(b.count)
+    for name in ("period", "slip_time", "stick_time"):
+        x, y = float(getattr(a, name)), float(getattr(b, name))
+        assert x > 0 and abs(x - y) <= 1e-12 * y, (name, x, y)
+    n = int(a.count)
+    taus, ref = np.asarray(a.slip_intervals)[:n], np.asarray(b.slip_intervals)[:n]
+    assert np.all(taus > 0)
+    np.testing.assert_allclose(taus, ref, rtol=1e-9)  # intervals ~ 1/Omega included
+    np.testing.assert_allclose(a.positions[:n], b.positions[:n], rtol=1e-12, atol=1e-12)
+
+
+def test_stick_time_gradient_at_a_fast_drive():
+    stick = lambda cyc: lambda e, o: cyc(vmj.StickSlip(e, o)).stick_time  # noqa: E731
+    for eps, Omega in [(4.6, 1e7), (6.3, 1e10)]:
+        g = jax.grad(stick(vmj.stick_slip_cycle), argnums=1)(eps, Omega)
+        ref = jax.grad(stick(vmj.stick_slip_closed_form), argnums=1)(eps, Omega)
+        assert float(g) == pytest.approx(float(ref), rel=1e-9)
+
+
+def test_cli_fast_drive_matches_closed_form(capsys):
+    argv = ["stick-slip", "--eps", "6.3", "--Omega", "1e7", "--json"]
+    exact = _cli_json(capsys, argv)
+    closed = _cli_json(capsys, [*argv, "--method", "closed"])
+    assert exact["reversals"] == closed["reversals"] == 2
+    assert exact["period"] == pytest.approx(closed["period"], rel=1e-12)
+    assert exact["stick_time"] == pytest.approx(closed["stick_time"], rel=1e-12)
+    assert exact["stick_time"] > 0
+
+
 @pytest.mark.parametrize(
     "argv",
     [

@@ -43,7 +43,7 @@ __all__ = ["StickSlip", "StickSlipCycle", "MAX_REVERSALS"]
 #: paper's formula (16) uses, k* = floor((eps - 1)/2 - 1e-5), so that eps = 3, 5, 7, ... give
 #: the same k* in every solver.
 REVERSAL_MARGIN = 2e-5
-NEWTON = 7  #: Newton iterations per velocity zero (cubic convergence: 5 suffice in float64)
+NEWTON = 7  #: Newton iterations per velocity zero, at most (started at the root: 1 is taken)
 MAX_REVERSALS = 10  #: default static bound on reversals per cycle (eps below 23)
 
 
@@ -102,9 +102,7 @@ class StickSlip(AbstractLimitCycle):
     def slip_phase(self, xi0, s, tau):
         """Analytic solution of `xi'' + xi = -s` from rest of the disk (`xi' = -Omega`) at
         `xi = xi0`: returns `(xi, xi')` after the local time `tau`."""
-        a = xi0 + s
-        cos, sin = jnp.cos(tau), jnp.sin(tau)
-        return -s + a * cos - self.Omega * sin, -a * sin - self.Omega * cos
+        return _phase_state(self, xi0, s, jnp.cos(tau), jnp.sin(tau))
 
     def acceleration(self, t, x, v, sgn):
         """`xi''` at `xi = x`, `xi' = v`, with `sgn` standing for `sign(xi' + Omega)` (exactly
@@ -303,6 +301,13 @@ def _sample(cycle, n_save, periods, physical):
 
 
 # -- exact event-driven solver -------------------------------------------------------------------
+def _phase_state(model, xi0, s, cos_tau, sin_tau):
+    """`(xi, xi')` of the slip phase from rest at `xi0` (friction sign `s`) at the local time
+    whose cosine and sine are given: `xi = -s + (xi0 + s) cos tau - Omega sin tau`."""
+    a = xi0 + s
+    return -s + a * cos_tau - model.Omega * sin_tau, -a * sin_tau - model.Omega * cos_tau
+
+
 def _velocity_zero(model, xi0, s):
     """First velocity zero of the disk (`xi' = -Omega`) after it starts from rest at `xi0` moving
     in direction `s` (= sign(-xi0), |xi0| > 1). Returns `(tau, xi)` at the zero.
@@ -310,34 +315,38 @@ def _velocity_zero(model, xi0, s):
     With `a = xi0 + s` the disk velocity of the phase is
     `u(tau) = Omega (1 - cos tau) - a sin tau = 2 sin(tau/2) h(tau/2)`,
     `h(x) = Omega sin x - a cos x`. The factor `sin(tau/2)` is the start's own zero, so the event
-    is the root of `h` in `(0, pi/2)` (`s = -1`) or `(pi/2, pi)` (`s = +1`, as `s a < 0`). `h` is
-    a sinusoid `R sin(x - x*)`, on which Newton's iteration maps the error `e` to `e - tan e`:
-    started at the middle of the quarter period (`|e| <= pi/4`) it converges cubically, to
-    float64 precision within 5 steps (the shared safeguarded Newton keeps it in the bracket).
-    The last step is taken with gradients (implicit-function theorem), so `tau`
-    differentiates in eps and Omega.
+    is the root of `h` in `(0, pi/2)` (`s = -1`) or `(pi/2, pi)` (`s = +1`, as `s a < 0`).
+
+    The root is sought as its distance `y` from the nearer end of the half period,
+    `tau = 2 y` (`s = -1`) or `tau = 2 pi - 2 y` (`s = +1`): both cases become the root in
+    `(0, pi/2)` of `g(y) = b cos y - Omega sin y`, `b = -s a = |xi0| - 1 > 0`, which lies at
+    `y* = arctan(b/Omega)`. For a fast drive `y*` ~ `b/Omega` shrinks with the stick interval
+    (like `1/Omega`); written as `y`, it keeps float64's relative precision at any `Omega`,
+    where `tau` near `2 pi` would keep only an absolute `1e-15` (a stick-time error
+    ~ `Omega 1e-15`). The state at the event is evaluated from `cos 2y`, `sin 2y` for the same
+    reason. Newton starts at `atan2(b, Omega)` (a start in the middle of the quarter, as before,
+    is thrown back to bisection by the bracket when `y*` is near either end, and 7 iterations then
+    left `tau` wrong for `Omega` above about `1e5`); the shared safeguarded Newton confirms the
+    root in one step, and its last step is taken with gradients (implicit-function theorem), so
+    `tau` differentiates in eps and Omega.
     """
 
-    def f(x, a, Om):  # s h(x), h(x) = Om sin x - a cos x: > 0 before the root, <= 0 after
-        return s * (Om * jnp.sin(x) - a * jnp.cos(x))
+    def g(y, b, Om):  # > 0 before the root (the disk still moves in direction s), <= 0 after
+        cos, sin = jnp.cos(y), jnp.sin(y)
+        return b * cos - Om * sin, -b * sin - Om * cos
 
-    def fprime(x, a, Om):
-        return s * (Om * jnp.cos(x) + a * jnp.sin(x))
-
-    a_ng, Om_ng = lax.stop_gradient(xi0 + s), lax.stop_gradient(model.Omega)
-    quarter = 0.5 * jnp.pi * jnp.ones_like(a_ng)
-    lo = jnp.where(s > 0, quarter, 0.0)
-    x = bracketed_newton(
-        lambda x: (f(x, a_ng, Om_ng), fprime(x, a_ng, Om_ng)),
-        lo,
-        lo + quarter,
-        lo + 0.5 * quarter,
+    b = -s * (xi0 + s)
+    b_ng, Om_ng = lax.stop_gradient(b), lax.stop_gradient(model.Omega)
+    y = bracketed_newton(
+        lambda y: g(y, b_ng, Om_ng),
+        jnp.zeros_like(b_ng),
+        0.5 * jnp.pi * jnp.ones_like(b_ng),
+        jnp.arctan2(b_ng, Om_ng),
         NEWTON,
     )
-    a = xi0 + s
-    x = implicit_step(lambda x: (f(x, a, model.Omega), fprime(x, a, model.Omega)), x)
-    tau = 2.0 * x
-    xi, _ = model.slip_phase(xi0, s, tau)
+    y = implicit_step(lambda y: g(y, b, model.Omega), y)
+    tau = jnp.pi * (1.0 + s) - 2.0 * s * y
+    xi, _ = _phase_state(model, xi0, s, jnp.cos(2.0 * y), -s * jnp.sin(2.0 * y))
     return tau, xi
 
 
