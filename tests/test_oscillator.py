@@ -223,6 +223,89 @@ def test_smoothed_model_sticks_with_the_static_level():
     np.testing.assert_allclose(sm.positions, ex.positions, rtol=2e-4)
 
 
+# -- a pendulum released near the upright position ----------------------------------------------
+UPRIGHT = dict(zeta=0.01, xF=0.001)
+
+
+@pytest.mark.parametrize("a0", [2.8, 3.0, 3.1, 3.14])
+def test_pendulum_near_upright_by_default(a0):
+    """The documented release range `(0, pi)`: the default exact solver reaches every turning
+    point near the separatrix (with 12 substeps of `0.3 K'/omega` it stopped at 2.8 rad with
+    "no velocity zero within the step limit"), to SciPy's accuracy (measured: 2e-13 in
+    position, 9e-13 in time)."""
+    seq = vmj.turning_points(vmj.Oscillator.pendulum(1.0, **UPRIGHT), a0, 6)
+    assert int(seq.result) == 0, seq.message
+    rt, rx = oscillator_turning_points(1.0, a0, 6, "sine", rtol=1e-13, **UPRIGHT)
+    np.testing.assert_allclose(np.asarray(seq.positions), rx, rtol=1e-11)
+    np.testing.assert_allclose(np.asarray(seq.times), rt, rtol=1e-11)
+
+
+def test_pendulum_near_upright_other_solvers_and_damping():
+    """Up to `pi - 1e-4` without friction (the undamped pendulum returns to the hilltop every
+    half-swing: exact times `2 K(k) j/omega`, to the conditioning, ~1e-16/(pi - a0)), and
+    with damping or drag up to 3.14 rad; the smoothed solver reaches the same turning
+    points."""
+    from scipy.special import ellipkm1
+
+    a0 = jnp.array([3.0, 3.1, 3.14, np.pi - 1e-4])
+    undamped = jax.vmap(lambda a: vmj.turning_points(vmj.Oscillator.pendulum(2.0), a, 4))(a0)
+    assert not np.any(np.asarray(undamped.failed))
+    quarter = ellipkm1(np.cos(np.asarray(a0) / 2) ** 2)  # K(k), k = sin(a0/2)
+    times = 2 * quarter[:, None] * np.arange(1, 5) / 2.0
+    np.testing.assert_allclose(undamped.times, times, rtol=2e-5)
+    np.testing.assert_allclose(undamped.times[:2], times[:2], rtol=1e-10)
+    signs = (-1.0) ** np.arange(4)
+    np.testing.assert_allclose(undamped.positions, np.asarray(a0)[:, None] * signs, rtol=1e-8)
+    for kw in (dict(zeta=0.2), dict(cq=0.1), dict(zeta=0.05, xF=0.001, cq=0.05)):
+        seq = vmj.turning_points(vmj.Oscillator.pendulum(1.0, **kw), 3.14, 4)
+        assert int(seq.result) == 0, (kw, seq.message)
+        rt, rx = oscillator_turning_points(1.0, 3.14, 4, "sine", rtol=1e-13, **kw)
+        np.testing.assert_allclose(np.asarray(seq.positions), rx, rtol=1e-11, err_msg=str(kw))
+        np.testing.assert_allclose(np.asarray(seq.times), rt, rtol=1e-11, err_msg=str(kw))
+    osc = vmj.Oscillator.pendulum(1.0, **UPRIGHT)
+    ex, sm = vmj.turning_points(osc, 3.1, 6), vmj.turning_points(osc, 3.1, 6, vmj.Smoothed())
+    assert int(sm.result) == 0
+    np.testing.assert_allclose(sm.positions, ex.positions, rtol=1e-8)
+    np.testing.assert_allclose(sm.times, ex.times, rtol=1e-4)  # (measured 1.6e-5)
+
+
+def test_pendulum_near_upright_trajectory_and_derivatives():
+    """`vmj.decay_trajectory` samples the same substeps (against SciPy's dense output), and the
+    derivatives run the bounded loop, nested in blocks of 8 substeps, to the same values as
+    the early-exit one and central differences."""
+    from scipy_oscillator import motion
+
+    osc = vmj.Oscillator.pendulum(1.0, **UPRIGHT)
+    segments = []
+    rt, rx = oscillator_turning_points(
+        1.0, 3.1, 4, "sine", rtol=1e-13, segments=segments, **UPRIGHT
+    )
+    ts = np.linspace(0.0, 0.999 * rt[-1], 1501)
+    traj = vmj.decay_trajectory(osc, 3.1, ts, 4)
+    assert int(traj.result) == 0
+    np.testing.assert_allclose(traj.xs, motion(segments, 3.1, ts, rx[-1]), atol=1e-10)
+
+    def f(p, derivatives):
+        zeta, xF = p
+        seq = vmj.turning_points(
+            vmj.Oscillator.pendulum(1.0, zeta=zeta, xF=xF),
+            3.1,
+            4,
+            vmj.Exact(derivatives=derivatives),
+        )
+        return jnp.concatenate([seq.positions, seq.times])
+
+    p = jnp.array([0.01, 0.001])
+    bounded = np.asarray(jax.jacfwd(lambda q: f(q, "any"))(p))
+    early = np.asarray(jax.jacfwd(lambda q: f(q, "forward"))(p))
+    np.testing.assert_allclose(bounded, early, rtol=1e-10)
+    h = 1e-7
+    for i in range(2):
+        step = jnp.zeros(2).at[i].set(h)
+        fd = (f(p + step, "forward") - f(p - step, "forward")) / (2 * h)
+        np.testing.assert_allclose(bounded[:, i], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+
+
 # -- gradients ----------------------------------------------------------------------------------
 NAMES = ("omega", "zeta", "xF", "cq", "b2", "b3", "a0")
 

@@ -50,7 +50,9 @@ def zeros_of_lanes(x, dtype=None):
     return jnp.where(x == x, 0, 0).astype(dtype)
 
 
-def early_exit_loop(cond, body, init, max_steps: int, buffers=None, kind: str = "bounded"):
+def early_exit_loop(
+    cond, body, init, max_steps: int, buffers=None, kind: str = "bounded", base: int | None = None
+):
     """`lax.while_loop(cond, body, init)` for at most `max_steps` steps. With
     `kind="bounded"` (equinox's bounded loop: a scan of conditionals, which skip the remaining
     steps once `cond` is False) both `jax.grad` (reverse mode) and `jax.jacfwd` differentiate
@@ -60,10 +62,13 @@ def early_exit_loop(cond, body, init, max_steps: int, buffers=None, kind: str = 
     `vmap`ped batch (`equinox.internal.unvmap_any` of the lanes' own conditions), and `body`
     must leave lanes that are done unchanged itself: the loop then stops as soon as every lane
     is done, and no lane's result depends on the others in its batch. `buffers` as in
-    `equinox.internal.while_loop` (arrays written once per index, without copies)."""
+    `equinox.internal.while_loop` (arrays written once per index, without copies). `base`:
+    the bounded loop's block of steps (default: one level of conditionals up to 64 steps, else
+    blocks of 16); reverse mode runs every step of a block that is entered, skipped or not."""
     if kind == "lax":  # (`cond` bounds the steps itself; buffers are updated in place)
         return lax.while_loop(cond, body, init)
-    base = max_steps if max_steps <= 64 else 16  # one level of conditionals up to 64 steps
+    if base is None:
+        base = max_steps if max_steps <= 64 else 16
     return eqxi.while_loop(
         cond, body, init, max_steps=max_steps, buffers=buffers, kind="bounded", base=max(base, 2)
     )
