@@ -440,3 +440,13 @@ def test_sweep_reaches_the_laws_parameters():
 def test_exact_solver_settings_are_checked(kw, message):
     with pytest.raises(ValueError, match=message):
         vmj.Exact(**kw)
+
+
+def test_the_energy_map_reports_a_swing_at_the_separatrix():
+    """Near the upright position the averaged map's chord-swing time diverges: a failure named
+    as such (it returned infinite times as a success), where the exact solver goes on."""
+    model = vmj.Oscillator.pendulum(1.0, zeta=0.01, xF=0.001)
+    seq = vmj.turning_points(model, 3.14, 3, vmj.EnergyBalance())
+    assert int(seq.result) == vmj.RESULTS.map_diverged and "separatrix" in seq.message
+    assert np.all(np.isfinite(np.asarray(seq.times)))
+    assert int(vmj.turning_points(model, 3.14, 3).count) == 3

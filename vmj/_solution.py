@@ -34,6 +34,7 @@ class RESULTS(enum.IntEnum):
     too_many_reversals = 7  #: a stick-slip cycle with more reversals than `max_reversals`
     no_cycle = 8  #: the smoothed stick-slip model did not settle into a cycle
     beyond_turning_points = 9  #: a time past the last computed turning point of a moving mass
+    map_diverged = 10  #: the energy map's half-swing time diverges (a swing at the separatrix)
 
     @property
     def message(self) -> str:
@@ -83,6 +84,8 @@ _MESSAGES = {
     "simulated periods; try a smaller smoothing",
     RESULTS.beyond_turning_points: "a requested time lies past the last computed turning point "
     "of a mass that still moves: raise n",
+    RESULTS.map_diverged: "the energy-balance map's half-swing time diverges (a swing at the "
+    "separatrix, where the averaged map does not hold): use vmj.Exact()",
 }
 #: the messages indexed by code (for `equinox.branched_error_if` and tables)
 RESULTS.messages = tuple(_MESSAGES[r] for r in RESULTS)

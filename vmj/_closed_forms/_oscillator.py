@@ -108,6 +108,10 @@ def energy_map_sequence(model, a0, n: int):
             x1, ok = _averaged_end(model, x, s, x1, kinetic, drag)
             found = found & ok
         time = chord_swing(law, omega, jnp.minimum(x, x1), jnp.maximum(x, x1))[3]
-        return found, jnp.where(bounded, RESULTS.step_limit, RESULTS.unbounded), t + time, x1
+        finite = jnp.isfinite(time)  # (a swing at the separatrix: its quadrature diverges)
+        code = jnp.where(
+            bounded, jnp.where(finite, RESULTS.step_limit, RESULTS.map_diverged), RESULTS.unbounded
+        )
+        return found & finite, code, t + time, x1
 
     return decay_scan(model, a0, n, swing)
