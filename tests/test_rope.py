@@ -305,3 +305,12 @@ def test_a_swing_over_the_potential_barrier_is_refused():
     assert int(seq.result) == vmj.RESULTS.unbounded and int(seq.count) == 0
     # below the barrier the same rope has turning points
     assert int(vmj.turning_points(fixed, 0.05, 5, method="energy").count) > 0
+
+
+def test_a_rope_run_out_says_so():
+    """Hoisted at 3 m/s the 10 m rope's length reaches zero at t = 10/3 s: the swings there
+    shrink with the length, and the solve ends with `length_exhausted` (it said "no velocity
+    zero within the step limit")."""
+    seq = vmj.turning_points(vmj.Rope.paper(u=3.0, T=4.0), 0.04, 6000)
+    assert int(seq.result) == vmj.RESULTS.length_exhausted
+    assert 3.3333 < float(np.asarray(seq.times)[int(seq.count) - 1]) < 10 / 3

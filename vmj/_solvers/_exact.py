@@ -189,9 +189,12 @@ def march_to_velocity_zero(
     # pendulum's `jax.grad` over 20 half-swings from 0.5 rad, 4 substeps each: 19 ms at a limit
     # of 12, 59 ms at 48 in one level; 17 ms at the oscillator's 24 in blocks of 8)
     block = SUBSTEP_BLOCK if max_substeps > NESTED_ABOVE else None
-    _, _, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
+    _, reached, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
         cond, body, init, max_substeps, kind=kind, base=block
     )
+    # substeps that crowd against the model's lifetime (a rope's length running out, whose
+    # substeps shrink with it) end the model, not the step budget
+    limited = limited | (lax.stop_gradient(reached) >= (1 - 1e-6) * model.lifetime())
     t_guess = t0 + model.half_period(t0, scale)
     t1, x1 = _velocity_zero(model, t, x, v, s, h, t_guess, one_lane)
     return found & jnp.logical_not(inaccurate), limited, t1, x1
