@@ -8,11 +8,10 @@ imports JAX before `run` (`vmj fit --help` stays fast).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 
-from vmj.cli import Joined, figure_path, input_file, number, parse_set
+from vmj.cli import Joined, emit, figure_path, input_file, number, parse_set
 
 __all__ = ["add_arguments", "run", "MODELS", "TIME_UNITS", "MAX_ROWS"]
 
@@ -326,7 +325,7 @@ def run(args) -> int:
     if args.plot:
         fits.plot_fit(result, args.plot)
     if args.json:
-        print(json.dumps(result.to_json()))
+        emit(result.to_json(), True, "")
         for w in result.warnings:
             print(f"vmj: warning: {w}", file=sys.stderr)
         if result.outliers:

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import vmj
+from vmj.cli import name_list
 
 from ._decrement import decrement, starting_guess
 from ._io import EDGE_RELEASE, HELD_RELEASE, Record, extract_turning_points, sample_window
@@ -83,7 +84,7 @@ def _check_inputs(space, free, shared, given, bounds, forward, loss, optimizer):
         raise ValueError(f"loss must be one of {list(LOSSES)} (got {loss!r})")
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {list(OPTIMIZERS)} (got {optimizer!r})")
-    free = tuple(n.strip() for n in free.split(",")) if isinstance(free, str) else tuple(free)
+    free = name_list(free)
     if not free:
         raise ValueError(
             "give at least one parameter to fit (--fit NAME[,NAME...]): with every "
@@ -1080,9 +1081,7 @@ def fit(
         raise ValueError("no records to fit")
     _distinct(records)
     givens = _parse_given(given, len(records))
-    shared = (
-        tuple(n.strip() for n in shared.split(",")) if isinstance(shared, str) else tuple(shared)
-    )
+    shared = name_list(shared)
     if shared and len(records) < 2:
         raise ValueError("--shared needs several records")
     free, bounds, settings = _settings(

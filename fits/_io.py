@@ -448,7 +448,7 @@ def _table(text: str, source: str, *, need_header: bool = False) -> _Table:
     if not texts:
         _fail(source, "the file is empty")
     for line in texts[1:]:  # rows of numbers and words: a column of text
-        cells = [c.strip('"') for c in re.split(r"[,;\t]|\s+", line.strip()) if c]
+        cells = [c for c in _splitter(_data_cells(line)[0])(line) if c]
         words = [c for c in cells if not _is_number(c)]
         if words and len(words) < len(cells):
             _fail(
@@ -1953,8 +1953,15 @@ def read_record(
     cross their median all along the file, rows apart, as samples of an oscillation do;
     a peak table's rows alternate about it or follow its envelope), else a peak table.
     """
-    raw = (time_col, signal_col, rate, time_unit, window, decay)
-    raw_given = any(v is not None for v in raw) or clock != "auto"
+    raw = dict(
+        time_col=time_col,
+        signal_col=signal_col,
+        rate=rate,
+        time_unit=time_unit,
+        window=window,
+        decay=decay,
+    )
+    raw_given = any(v is not None for v in raw.values()) or clock != "auto"
     not_peaks = None
     if series is None and not raw_given:
         path = _Loaded(*_text(path, max_rows))
@@ -1980,7 +1987,7 @@ def read_record(
             )
         except ValueError as err:
             if series is None and raw_given and _reads_as_peaks(path, max_rows):
-                named = [n for n, v in zip(_RAW_OPTIONS, raw) if v is not None]
+                named = [n for n, v in raw.items() if v is not None]
                 named += ["clock"] if clock != "auto" else []
                 flags = ", ".join("--" + n.replace("_", "-") for n in named)
                 several = len(named) > 1
@@ -2002,9 +2009,6 @@ def read_record(
             "signals (series=True)"
         )
     return read_peaks(path, max_rows=max_rows)
-
-
-_RAW_OPTIONS = ("time_col", "signal_col", "rate", "time_unit", "window", "decay")
 
 
 def _reads_as_peaks(path, max_rows) -> bool:

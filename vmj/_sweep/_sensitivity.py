@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._checks import _float
+from ..cli._options import name_list
 from ._grid import Grid
 from ._tree import _get, resolve_field
 
@@ -59,7 +60,7 @@ def sensitivity(
     """
     if mode not in ("forward", "reverse"):
         raise ValueError(f"mode must be 'forward' or 'reverse' (got {mode!r})")
-    wrt = tuple(w.strip() for w in wrt.split(",")) if isinstance(wrt, str) else tuple(wrt)
+    wrt = name_list(wrt)
     if not wrt:
         raise ValueError("wrt must name at least one parameter")
     if len(set(wrt)) != len(wrt):

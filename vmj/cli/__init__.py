@@ -21,6 +21,7 @@ from ._options import (
     figure_path,
     input_file,
     jsonable,
+    name_list,
     number,
     output_path,
     parse_axis,
@@ -41,5 +42,6 @@ __all__ = [
     "figure_path",
     "emit",
     "jsonable",
+    "name_list",
     "Joined",
 ]
