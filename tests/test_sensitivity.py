@@ -115,3 +115,15 @@ def test_other_models_stick_slip_period_and_stick_time():
     swept = vmj.sweep(period_and_stick, vmj.grid(m, eps=[2.0, 3.0], Omega=[0.5, 1.0]))
     one = period_and_stick(vmj.StickSlip(eps=3.0, Omega=1.0))
     np.testing.assert_allclose(swept.values["period"][1, 1], one["period"], rtol=1e-12)
+
+
+def test_forward_mode_through_a_reverse_only_solve_says_which_mode():
+    """The smoothed solve differentiates through diffrax's adjoint (reverse mode only): forward
+    mode is refused with the mode to use, not JAX's traceback about custom_vjp."""
+    model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
+
+    def fn(m, a0, n):
+        return vmj.turning_points(m, a0, n, vmj.Smoothed()).amplitudes
+
+    with pytest.raises(ValueError, match="use mode='reverse'"):
+        vmj.sensitivity(fn, model, ["mu"], a0=0.06, n=2)

@@ -96,7 +96,17 @@ def sensitivity(
                 f"{jnp.shape(v)}); use vmj.sweep or jax.vmap over a batch"
             )
 
-    out = _sensitivity(fn, model, tuple(paths), tuple(field_names), wrt, mode, theta0, solver_args)
+    try:
+        out = _sensitivity(
+            fn, model, tuple(paths), tuple(field_names), wrt, mode, theta0, solver_args
+        )
+    except TypeError as err:
+        if "custom_vjp" not in str(err):
+            raise
+        raise ValueError(
+            "mode='forward' cannot differentiate fn: it solves by reverse mode only (e.g. "
+            "vmj.Smoothed(), through diffrax's adjoint): use mode='reverse'"
+        ) from None
     return {w: out[w] for w in wrt}
 
 

@@ -179,7 +179,8 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     keep = len(got["times"])
     if args.model == "rope":  # the turning points up to --t1
         keep = int(np.sum(got["times"] <= args.t1))
-    # the smoothed solve differentiates by diffrax's adjoint, in reverse mode only
+    # the smoothed solve differentiates by diffrax's adjoint, in reverse mode only (in
+    # forward mode vmj.sensitivity says so)
     mode = "reverse" if method == "smooth" else "forward"
     with traced_checks():
         d = vmj.sensitivity(decay, model, keys, mode=mode, a0=a0, n=n)
