@@ -435,3 +435,15 @@ def test_sweep_store_and_resume(tmp_path, capsys):
     other = base[:2] + ["--eps", "0:1:4"] + base[4:]
     assert main(other + ["--store", store, "--resume"]) == 2
     assert "holds a different sweep" in capsys.readouterr().err
+
+
+def test_linear_undamped_resonance_is_explained(capsys):
+    """c = 0 and p = sqrt(k/m): forced_amplitude inf with the reason, the free part finite."""
+    one = run_json(capsys, ["linear", "--m", "1", "--c", "0", "--k", "16", "--F0", "1", "--p", "4"])
+    assert one["forced_amplitude"] is None and one["free_amplitude"] == pytest.approx(1 / 32)
+    assert main(["linear", "--m", "1", "--c", "0", "--k", "16", "--F0", "1", "--p", "4"]) == 0
+    assert "D = inf" in capsys.readouterr().out
+    argv = ["sweep", "linear", "--c", "0,0.1", "--p", "3:5:3", "--set", "m=1,k=16,F0=1"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "forced_amplitude inf: 1;" in out and "undamped resonance (c = 0" in out

@@ -111,6 +111,13 @@ def test_amplification_and_phase():
     assert float(und.response(2 * np.pi * 10, 0.0, 0.0)[0]) == pytest.approx(
         -1.0 / (2 * 4.0) * 2 * np.pi * 10, rel=1e-10
     )
+    # ... and its free part is defined: A sin(w t + alpha) - t cos(p t)/(2 m p) is the response
+    ts = np.linspace(0.0, 7.0, 29)
+    A, alpha = und.transient(0.01, 0.3)
+    x, _ = und.response(ts, 0.01, 0.3)
+    np.testing.assert_allclose(
+        float(A) * np.sin(4.0 * ts + float(alpha)) - ts * np.cos(4.0 * ts) / 8.0, x, atol=1e-15
+    )
     # the peak of the amplification curve is at r = sqrt(1 - 2 eta^2)
     r = np.linspace(0.9, 1.05, 30001)
     amp = np.asarray(osc.amplification(r * 5.0))

@@ -155,12 +155,16 @@ class LinearOscillator(AbstractAnalytic):
 
     def transient(self, x0, v0):
         """Free-vibration part `(A, alpha)` of the full response `x = A e^{-b t} sin(omega_3 t +
-        alpha) + D sin(p t - beta)` with `x(0) = x0`, `x'(0) = v0` (under-damped)."""
-        D, beta = self.forced_response()
-        p = self.forcing.complex_amplitude(self)[1]
-        x0_free = x0 - D * jnp.sin(-beta)
-        v0_free = v0 - D * p * jnp.cos(-beta)
-        return self.free_amplitude(x0_free, v0_free)
+        alpha) + x_p(t)` with `x(0) = x0`, `x'(0) = v0` (under-damped); `x_p` is the steady
+        response `D sin(p t - beta)`, or at undamped resonance the secular one (`response`), so
+        that the free part is defined there too."""
+        return self.free_amplitude(*self._free_start(x0, v0))
+
+    def _free_start(self, x0, v0):
+        """The free part's initial state: `(x0 - x_p(0), v0 - x_p'(0))` [m, m/s]."""
+        Q, p = self.forcing.complex_amplitude(self)
+        H, _, G = self._receptance(Q, p)
+        return x0 - jnp.imag(H), v0 - jnp.imag(1j * p * H) - jnp.imag(G)
 
     def settling_time(self, x0, v0, fraction=0.01):
         """Time [s] after which the transient's envelope `A e^{-b t}` stays below `fraction`
@@ -181,8 +185,7 @@ class LinearOscillator(AbstractAnalytic):
         e_ipt = jnp.exp(1j * p * t)
         xp = jnp.imag(H * e_ipt) + jnp.imag(G * t * e_ipt)
         vp = jnp.imag(1j * p * H * e_ipt) + jnp.imag(G * (1 + 1j * p * t) * e_ipt)
-        y0 = x0 - jnp.imag(H)  # homogeneous initial state
-        w0 = v0 - jnp.imag(1j * p * H) - jnp.imag(G)
+        y0, w0 = self._free_start(x0, v0)  # homogeneous initial state
         b = self.decay_rate
         disc = self.natural_frequency**2 - b**2  # > 0: under-damped
         wd = jnp.sqrt(jnp.abs(disc) + 0j)

@@ -53,6 +53,13 @@ def characteristics(osc, x0, v0, forced: bool) -> dict:
     return out
 
 
+#: what a forced amplitude of `inf` means (`vmj linear` and `vmj sweep linear`)
+RESONANCE = (
+    "undamped resonance (c = 0, p = sqrt(k/m)): no steady state, the forced response grows as "
+    "|Q| t/(2 m p); the free part is taken against it"
+)
+
+
 def _finite(x):
     x = float(x)
     return x if math.isfinite(x) else None
@@ -75,10 +82,13 @@ def run(args) -> int:
         f"A = {fmt(A, 'm')}, alpha = {fmt(alpha, 'rad')}",
     ]
     if forced:
+        D = float(got["forced_amplitude"])
         lines.append(
             "forced response x = D sin(p t - beta): "
-            f"D = {fmt(out['forced_amplitude'], 'm')}, "
-            f"beta = {fmt(out['forced_phase'], 'rad')}"
+            + (f"D = {fmt(out['forced_amplitude'], 'm')}, " if math.isfinite(D) else "D = inf, ")
+            + f"beta = {fmt(out['forced_phase'], 'rad')}"
         )
+        if not math.isfinite(D):
+            lines.append(RESONANCE)
     emit(out, args.json, "\n".join(lines))
     return 0

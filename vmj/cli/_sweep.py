@@ -130,7 +130,9 @@ def _cycle_summary(args, result):
     import vmj
 
     if not hasattr(result.values, "result"):  # the linear oscillator's closed forms
-        return [], np.array([], dtype=int)
+        D = result.values.get("forced_amplitude")
+        k = 0 if D is None else int(np.sum(np.isinf(np.asarray(D))))
+        return ([f"forced_amplitude inf: {k}"] if k else []), np.array([], dtype=int)
     codes = np.asarray(result.values.result)
     failed = vmj.RESULTS.failed(codes)
     return [f"failed: {int(np.sum(failed))}"], codes[failed]
@@ -423,4 +425,8 @@ def run(args) -> int:
     codes, counts = np.unique(failed_codes, return_counts=True)
     for code, k in zip(codes, counts):
         print(f"  {k} points: {vmj.RESULTS(int(code)).message}")
+    if any(s.startswith("forced_amplitude inf") for s in summary):
+        from ._linear import RESONANCE
+
+        print(f"  forced_amplitude inf: {RESONANCE}")
     return 0
