@@ -985,7 +985,8 @@ def read_signal(
       the samples within it are kept (one decay of several in a file, a part without a
       disturbance); their times stay on the whole file's clock.
 
-    Rows sharing a stamp are averaged where the stamps are kept. A row whose time or signal
+    Rows sharing a stamp are averaged where the stamps are kept (`clock_report` counts them).
+    A row whose time or signal
     is missing (an empty cell, `NaN`, `NA`, `N/A`, `null` or `none`: a logger's dropped sample)
     is left out; on a clock made from `rate` the other rows keep their places. The result's
     `clock_report` says what was done.
@@ -1050,8 +1051,12 @@ def read_signal(
     report["message"] += ignored
     if t is None:  # stamps kept
         t, inverse = np.unique(stamps, return_inverse=True)
-        y = np.bincount(inverse, weights=y) / np.bincount(inverse)
+        counts = np.bincount(inverse)
+        y = np.bincount(inverse, weights=y) / counts
         kind = "stamps"
+        shared = counts[counts > 1]
+        if shared.size:
+            report["message"] += f"; {shared.sum()} rows sharing {shared.size} time stamps averaged"
     else:
         kind = "uniform"
     t = t - t[0]

@@ -345,6 +345,12 @@ def test_rows_without_a_value_are_left_out(tmp_path):
     kept = np.arange(400) % 37 != 0
     np.testing.assert_allclose(sig.t, (np.arange(400)[kept] - 1) / 100.0)  # from the first
     np.testing.assert_allclose(sig.y, np.round(y[kept], 6))
+    # rows sharing a stamp: averaged, and the report says how many (5 rows at 2 stamps)
+    t = np.repeat(np.arange(40.0), [3 if i == 4 else 2 if i == 9 else 1 for i in range(40)])
+    rows = "\n".join(f"{a:g},{i}" for i, a in enumerate(t))
+    sig = fits.read_signal(_write(tmp_path, "t,y\n" + rows + "\n"), clock="stamps")
+    assert sig.t.size == 40 and sig.y[4] == 5.0 and sig.y[9] == 11.5
+    assert "5 rows sharing 2 time stamps averaged" in sig.clock_report["message"]
     with pytest.raises(ValueError, match="not a number"):  # other words stay errors
         fits.read_signal(_write(tmp_path, "t,y\n0,1\n1,missing\n2,3\n3,4\n"))
 
@@ -355,7 +361,9 @@ def test_pendulum_format_and_clock(tmp_path):
     assert sig.clock == "uniform"  # bursty arrival stamps: samples taken as equally spaced
     assert 29.0 < sig.t[-1] < 29.7 and sig.t.size == 7625
     stamps = fits.read_signal(P80, clock="stamps")
-    assert stamps.t.size < sig.t.size  # repeated stamps averaged
+    assert stamps.t.size < sig.t.size  # repeated stamps averaged, and said so
+    assert "time stamps averaged" in stamps.clock_report["message"]
+    assert "averaged" not in sig.clock_report["message"]
     with pytest.raises(ValueError, match="clock"):
         fits.read_signal(P80, clock="wall")
 

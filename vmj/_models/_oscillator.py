@@ -72,7 +72,7 @@ class Oscillator(AbstractEnergyMap):
     #: substeps per half-swing of a pendulum (measured): 4 to 11 released at up to 2.8 rad,
     #: 12 to 15 at 3.1, 15 to 21 at 3.14 (zeta <= 0.2, cq <= 0.1), 17 to 23 at pi - 1e-4
     #: (179.994 deg; zeta, cq <= 0.05); a larger limit costs little where the swings need
-    #: fewer, except in `vmj.decay_trajectory`, which samples every substep up to the limit
+    #: fewer
     exact_substeps: ClassVar[int] = 24
 
     def __check_init__(self):

@@ -5,8 +5,10 @@ exact solver integrates by Taylor polynomials (`model.taylor`) over substeps
 (`model.substep`). Given the turning points, each half-swing's substeps are marched again from
 its turning point (the same substeps as the solver's), and their polynomials are kept in a table
 of `(n + 1) x K` series; a time is evaluated by locating its half-swing and substep and summing
-one polynomial. The table is a fixed-length scan (`jax.grad` and `jax.jacfwd` both differentiate
-it); derivatives with respect to the parameters flow through the turning points' times and
+one polynomial. The table is filled by a bounded loop that ends with the longest half-swing
+(`early_exit_loop`; `jax.grad` and `jax.jacfwd` both differentiate it; `vmj.decay_trajectory` of
+the linear oscillator, 30 turning points, 1201 times: 1.11 -> 0.60 ms, its `jax.grad` 4.9 ->
+3.3 ms, against a scan over the step limit of 24); derivatives with respect to the parameters flow through the turning points' times and
 positions (the implicit-function derivatives of [`vmj.Exact`][]) and through the series.
 """
 
@@ -14,11 +16,12 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from jax import lax
+from equinox.internal import unvmap_any
 
+from .._numerics._scan import early_exit_loop, zeros_of_lanes
 from .._numerics._series import horner_and_derivative
 from .._solution import RESULTS, Trajectory
-from ._exact import ORDER
+from ._exact import NESTED_ABOVE, ORDER, SUBSTEP_BLOCK
 
 __all__ = ["decay_motion"]
 
@@ -26,21 +29,35 @@ __all__ = ["decay_motion"]
 def _half_swing(model, t_go, x_start, s, t_end, substeps: int):
     """Start times `(K,)` and Taylor coefficients `(K, ORDER + 1)` of the substeps of the
     half-swing that leaves rest at `(t_go, x_start)` with friction sign `s` and ends at its
-    velocity zero `t_end`; substeps past the end start at `inf`."""
+    velocity zero `t_end`; substeps past the end start at `inf`. The substeps end as soon as
+    every half-swing of the `vmap`ped table has reached its end (the table costs the substeps
+    taken, not the step limit)."""
     scale = model.swing_scale(t_go, x_start)
 
-    def body(carry, _):
-        t, x, v, done = carry
+    def cond(carry):
+        k, done = carry[0], carry[4]
+        return (k < substeps) & unvmap_any(jnp.logical_not(done))
+
+    def body(carry):
+        k, t, x, v, done, (starts, coefs) = carry
         h, _, t_next = model.substep(t, scale)
         cs = model.taylor(t, x, v, s, ORDER)
         x1, v1 = horner_and_derivative(cs, h)
-        start = jnp.where(done, jnp.inf, t)
+        table = (starts.at[k].set(jnp.where(done, jnp.inf, t)), coefs.at[k].set(jnp.stack(cs)))
         after = done | (t_next >= t_end)
         t, x, v = (jnp.where(after, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))
-        return (t, x, v, after), (start, jnp.stack(cs))
+        return k + 1, t, x, v, after, table
 
-    init = (t_go, x_start, jnp.zeros_like(x_start), jnp.asarray(False))
-    _, (starts, coefs) = lax.scan(body, init, None, length=substeps)
+    zero = zeros_of_lanes(x_start)
+    table = (
+        jnp.full((substeps,), jnp.inf, zero.dtype) + zero,
+        jnp.zeros((substeps, ORDER + 1)) + zero,
+    )
+    init = (jnp.array(0), t_go, x_start, zero, zeros_of_lanes(x_start, bool), table)
+    block = SUBSTEP_BLOCK if substeps > NESTED_ABOVE else None
+    *_, (starts, coefs) = early_exit_loop(
+        cond, body, init, substeps, buffers=lambda carry: carry[5], base=block
+    )
     return starts, coefs
 
 
@@ -56,7 +73,9 @@ def decay_motion(model, a0, seq, ts, substeps: int) -> Trajectory:
     T = jnp.concatenate([jnp.zeros((1,), a0.dtype), seq.times])  # (n + 1,)
     X = jnp.concatenate([-a0[None], seq.positions])
     s, t_go, stuck = jax.vmap(model.rest)(T, X)
-    t_end = jnp.concatenate([seq.times, jnp.full((1,), jnp.inf, a0.dtype)])
+    # the last row is never evaluated in motion (past the n-th turning point a time is the
+    # rest position or NaN): one substep
+    t_end = jnp.concatenate([seq.times, jnp.full((1,), -jnp.inf, a0.dtype)])
     starts, coefs = jax.vmap(lambda *a: _half_swing(model, *a, substeps))(t_go, X, s, t_end)
     last = T[seq.count]  # the last turning point reached; past it only a stopped mass is known
 

@@ -60,8 +60,7 @@ class Exact(AbstractSolver):
       near the upright position more of them: up to 23 at `pi - 1e-4` rad). A half-swing that
       needs more reports `RESULTS.step_limit` (overdamped or creeping motion, or one that does
       not turn back). The loops end with the last lane's velocity zero, so a large limit
-      costs little where the swings need fewer substeps (but `vmj.decay_trajectory` samples
-      every substep up to the limit).
+      costs little where the swings need fewer substeps (`vmj.decay_trajectory`'s table too).
     - `derivatives`: `"any"` (default): `jax.grad` (reverse mode) and `jax.jacfwd` both
       differentiate the turning points, the derivatives running every step of bounded loops.
       `"forward"`: forward mode only (`jax.jvp`, `jax.jacfwd`), through the same early-exit
