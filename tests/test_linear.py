@@ -118,6 +118,11 @@ def test_amplification_and_phase():
     np.testing.assert_allclose(
         float(A) * np.sin(4.0 * ts + float(alpha)) - ts * np.cos(4.0 * ts) / 8.0, x, atol=1e-15
     )
+    assert np.isnan(float(und.settling_time(0.01, 0.3)))  # no steady state to settle to
+    # undamped off resonance: the transient never decays (inf) or is below from the start (0)
+    off = vmj.LinearOscillator(1.0, 0.0, 16.0, vmj.HarmonicForce(1.0, 3.0))
+    assert float(off.settling_time(0.0, 0.0)) == np.inf
+    assert float(off.settling_time(0.0, 0.0, fraction=0.9)) == 0.0
     # the peak of the amplification curve is at r = sqrt(1 - 2 eta^2)
     r = np.linspace(0.9, 1.05, 30001)
     amp = np.asarray(osc.amplification(r * 5.0))

@@ -169,10 +169,12 @@ class LinearOscillator(AbstractAnalytic):
     def settling_time(self, x0, v0, fraction=0.01):
         """Time [s] after which the transient's envelope `A e^{-b t}` stays below `fraction`
         of the forced amplitude `D`: `t_y = ln(A / (fraction D)) / b` (the paper's
-        `ln(100 A/D)/b`)."""
+        `ln(100 A/D)/b`), `0` where it is below from the start, `inf` where it never gets
+        there (undamped), NaN at undamped resonance (no steady state)."""
         A, _ = self.transient(x0, v0)
         D, _ = self.forced_response()
-        return jnp.log(A / (fraction * D)) / self.decay_rate
+        t = jnp.maximum(jnp.log(A / (fraction * D)) / self.decay_rate, 0.0)
+        return jnp.where(jnp.isinf(D), jnp.nan, t)
 
     @eqx.filter_jit
     def response(self, t, x0, v0):
