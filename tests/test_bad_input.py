@@ -87,7 +87,7 @@ def parameter_cases():
         "--eps": ["-0.1", "1.5", "nan", "inf", "1e300"],
         "--mu": ["-1", "nan", "inf", "1e300"],
         "--FT": ["-1", "NaN", "inf", "1e300"],
-        "--a0": ["0", "-0.06", "nan", "inf", "1e300"],
+        "--a0": ["0", "-0.06", "nan", "inf", "1e300", "1e-300"],
     }.items():
         for value in values:
             try:
@@ -100,6 +100,8 @@ def parameter_cases():
                 want = ["argument " + flag, "not a finite number"]
             elif abs(number) > 1e20:
                 want = ["argument " + flag, "magnitude at most 1e+20"]
+            elif 0 < abs(number) < 1e-20:
+                want = ["argument " + flag, "must be 0 or a number of magnitude at least 1e-20"]
             else:
                 want = [flag + " must be finite and " + RANGE[flag[2:]]]
             cases.append((f"vm{flag}={value}", put(VM, flag, value), want))
@@ -215,6 +217,11 @@ CASES = parameter_cases() + [
         "sweep axis huge value",
         put(SWEEP, "--mu", "0,1e300"),
         ["--mu: must be a number of magnitude at most 1e+20"],
+    ),
+    (
+        "sweep axis tiny value",
+        put(SWEEP, "--mu", "0,1e-300"),
+        ["--mu: must be 0 or a number of magnitude at least 1e-20"],
     ),
     (
         "sweep axis out of range",

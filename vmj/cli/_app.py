@@ -17,7 +17,7 @@ import sys
 from dataclasses import dataclass
 
 from .._exported import enable_exported_cache, exported_cache_directory
-from ._options import LARGEST, HelpFormatter
+from ._options import LARGEST, SMALLEST, HelpFormatter
 
 __all__ = ["COMMANDS", "main", "build_parser", "cache_directory"]
 
@@ -81,7 +81,8 @@ Compiled and traced programs are kept in a persistent cache, so that a repeated 
 Commands run on the CPU (a single solve or fit is faster there than on a GPU); 'vmj sweep'
   on JAX's default device, a GPU where there is one. {PLATFORMS_ENV}=cuda (or cpu) decides
   for every command.
-Numbers must be finite, of magnitude at most {LARGEST:g}, in the units shown in brackets.
+Numbers must be finite, 0 or of magnitude {SMALLEST:g} to {LARGEST:g}, in the units shown in
+  brackets.
 Bad input prints one line 'vmj: error: ...' and exits with status 2.
 Run 'vmj COMMAND --help' for the options of a command (units in brackets)."""
 

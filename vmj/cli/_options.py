@@ -60,10 +60,13 @@ class Joined(argparse.Action):
 #: largest magnitude of a number on the command line: far beyond any physical parameter in SI
 #: units, and small enough that the solvers' products of a few parameters stay finite
 LARGEST = 1e20
+#: smallest magnitude of a nonzero number on the command line (`1 / LARGEST`): products and
+#: quotients of a few parameters stay normal numbers (`--k 1e-320` gave omega_c 0 and NaN)
+SMALLEST = 1 / LARGEST
 
 
 def number(text: str) -> float:
-    """A finite float of magnitude at most `LARGEST` (argparse type)."""
+    """A finite float, 0 or of magnitude within `[SMALLEST, LARGEST]` (argparse type)."""
     try:
         value = float(text)
     except (TypeError, ValueError):
@@ -73,6 +76,10 @@ def number(text: str) -> float:
     if abs(value) > LARGEST:
         raise argparse.ArgumentTypeError(
             f"must be a number of magnitude at most {LARGEST:g} (got {text!r})"
+        )
+    if 0 < abs(value) < SMALLEST:
+        raise argparse.ArgumentTypeError(
+            f"must be 0 or a number of magnitude at least {SMALLEST:g} (got {text!r})"
         )
     return value
 
