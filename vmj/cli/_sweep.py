@@ -81,18 +81,26 @@ def _turning_points(args, g, scalars, method=None):
     )
 
 
-def _decay_summary(args, result) -> tuple:
+def _failures(codes) -> tuple:
+    """`(count of failed points, one line per failure status with its count)`."""
     import numpy as np
 
     import vmj
 
+    failed = np.asarray(codes)[vmj.RESULTS.failed(np.asarray(codes))]
+    statuses, counts = np.unique(failed, return_counts=True)
+    lines = [f"  {k} points: {vmj.RESULTS(int(c)).message}" for c, k in zip(statuses, counts)]
+    return failed.size, lines
+
+
+def _decay_summary(args, result) -> tuple:
+    """`(summary items, lines below the summary)` of a turning-point sweep."""
+    import numpy as np
+
     seq = result.values
-    codes = np.asarray(seq.result)
-    failed = vmj.RESULTS.failed(codes)
-    return [
-        f"stopped within {args.n} swings: {int(np.sum(np.asarray(seq.stopped)))}",
-        f"failed: {int(np.sum(failed))}",
-    ], codes[failed]
+    failed, lines = _failures(seq.result)
+    stopped = int(np.sum(np.asarray(seq.stopped)))
+    return [f"stopped within {args.n} swings: {stopped}", f"failed: {failed}"], lines
 
 
 def _stick_slip_eval(args, g, scalars):
@@ -125,17 +133,19 @@ def _linear_eval(args, g, scalars):
 
 
 def _cycle_summary(args, result):
+    """`(summary items, lines below the summary)` of a limit-cycle or closed-form sweep."""
     import numpy as np
 
-    import vmj
-
     if not hasattr(result.values, "result"):  # the linear oscillator's closed forms
+        from ._linear import RESONANCE
+
         D = result.values.get("forced_amplitude")
         k = 0 if D is None else int(np.sum(np.isinf(np.asarray(D))))
-        return ([f"forced_amplitude inf: {k}"] if k else []), np.array([], dtype=int)
-    codes = np.asarray(result.values.result)
-    failed = vmj.RESULTS.failed(codes)
-    return [f"failed: {int(np.sum(failed))}"], codes[failed]
+        if not k:
+            return [], []
+        return [f"forced_amplitude inf: {k}"], [f"  forced_amplitude inf: {RESONANCE}"]
+    failed, lines = _failures(result.values.result)
+    return [f"failed: {failed}"], lines
 
 
 SWEEPS = {
@@ -414,7 +424,7 @@ def run(args) -> int:
                     for m in ("exact", "energy")
                 }
             plot_energy_error(other["exact"], other["energy"], scalars["a0"], args.error_plot)
-    summary, failed_codes = (_decay_summary if how.turning_points else _cycle_summary)(args, result)
+    summary, lines = (_decay_summary if how.turning_points else _cycle_summary)(args, result)
     head = f"sweep: {points} points ({shape}), method {args.method}"
     if how.turning_points:
         head += f", {args.n} swings"
@@ -422,11 +432,6 @@ def run(args) -> int:
     if not (written or plots or args.store):
         written = ["nothing written (--out CSV, --netcdf NC, --plot PNG or --store keep it)"]
     print("; ".join([f"{head}, {elapsed:.2f} s", *summary, *written]))
-    codes, counts = np.unique(failed_codes, return_counts=True)
-    for code, k in zip(codes, counts):
-        print(f"  {k} points: {vmj.RESULTS(int(code)).message}")
-    if any(s.startswith("forced_amplitude inf") for s in summary):
-        from ._linear import RESONANCE
-
-        print(f"  forced_amplitude inf: {RESONANCE}")
+    for line in lines:
+        print(line)
     return 0
