@@ -231,7 +231,8 @@ def add_arguments(p):
     p.add_argument(
         "--angle-unit",
         choices=tuple(_ANGLE_UNITS),
-        help="unit of an angle signal, for models with an angle_unit parameter (default: deg)",
+        help="unit of an angle signal, for models with an angle_unit parameter (default: the "
+        "unit the signal column's name ends with, as in 'Angle(rad)' or angle_deg, else deg)",
     )
     p.add_argument(
         "--forward",
@@ -274,7 +275,8 @@ def run(args) -> int:
     if shared and len(args.FILE) < 2 and args.decay != "all":
         raise ValueError("--shared needs several FILEs (or --decay all)")
     if "angle_unit" in space.names:
-        given["angle_unit"] = _ANGLE_UNITS[args.angle_unit or "deg"]
+        if args.angle_unit is not None:  # else the signal column's name, or degrees
+            given["angle_unit"] = _ANGLE_UNITS[args.angle_unit]
     elif args.angle_unit is not None:
         raise ValueError(
             f"--angle-unit applies only to models with an angle_unit parameter "

@@ -699,7 +699,7 @@ def _extracted_for(space, rec: Record, given: dict) -> Record:
     that unit (the dry-friction level from a pendulum's decrements, `fits._io._dry_level`)."""
     if "angle_unit" not in space.names or rec.signal is None or "min_amplitude" not in rec.meta:
         return rec
-    unit = float(given.get("angle_unit", space.defaults["angle_unit"]))
+    unit = float(given.get("angle_unit", space.default("angle_unit", rec)))
     if rec.meta["angle_unit"] == unit:
         return rec
     return extract_turning_points(

@@ -9,6 +9,7 @@ over the seeds: one compiled solve for every law set.
 """
 
 import collections
+import dataclasses
 import math
 import os
 import time
@@ -20,7 +21,7 @@ import pytest
 
 import fits
 import vmj
-from fits._pendulum import DEGREE, FREE, PENDULUM
+from fits._pendulum import DEGREE, FREE, PENDULUM, named_angle_unit
 
 FS = 259.6  #: the logger's sampling rate [Hz]
 RELEASE = 27.0  #: release amplitude of the simulations [deg]
@@ -395,3 +396,37 @@ def test_a_swing_beyond_pi_radians_is_refused():
     record = fits.Record(k=k, positions=10.0 * (-1.0) ** (k + 1) * 0.95**k, times=0.5 * k)
     with pytest.raises(ValueError, match="a pendulum swings below pi rad"):
         fits.fit(record, "pendulum", ("omega", "zeta", "a0"), given={"angle_unit": 1.0})
+
+
+def test_the_angle_unit_is_read_from_the_signal_columns_name(tmp_path):
+    """A record in radians whose column says so (`Angle(rad)`) is read in radians without
+    `--angle-unit`: the sine law's frequency and its even term come out right. Read as degrees
+    (the default before), this record's omega was 4.346 [4.341, 4.350] rad/s for 4.4, and on
+    80P.txt in radians `b2` was -13.19 1/rad for -0.230."""
+    truth = {"omega": 4.4, "zeta": 0.005, "b2": -0.2}
+    model = vmj.Oscillator(
+        truth["omega"], vmj.SineRestoring(truth["b2"], 0.0), (vmj.ViscousDamping(truth["zeta"]),)
+    )
+    ts = np.arange(0.0, 12.0, 1 / 250.0)
+    with vmj.assume_valid():
+        angle = np.asarray(vmj.decay_trajectory(model, 0.45, ts, 40).xs)
+    rng = np.random.default_rng(3)
+    reading = 0.02 + angle + rng.normal(0.0, 0.001, ts.size)
+    path = tmp_path / "rad.csv"
+    np.savetxt(
+        path, np.column_stack([ts, reading]), delimiter=",", header="t,Angle(rad)", comments=""
+    )
+    record = fits.read_record(path, series=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = fits.fit(
+            record, "pendulum", ("omega", "zeta", "b2", "a0", "offset"), compare=False
+        )
+    assert result.fixed["angle_unit"] == 1.0
+    for name in ("omega", "zeta", "b2"):
+        lo, hi = result.intervals[name]
+        assert lo <= truth[name] <= hi, (name, result.params[name], lo, hi)
+    names = {"theta_deg": DEGREE, "phi [mrad]": 1e-3, "Angle (radians)": 1.0, "angle": DEGREE}
+    for name, unit in names.items():
+        signal = fits.Signal(t=ts, y=reading, signal_name=name)
+        assert named_angle_unit(dataclasses.replace(record, signal=signal)) == unit, name
