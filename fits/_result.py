@@ -382,6 +382,46 @@ def _sensor_hints(records, per_record, space, free) -> list:
     return out
 
 
+def _holds_laws_of(a, b) -> bool:
+    """Whether law set `a` is `b` with some of its laws held: `a`'s free parameters among
+    `b`'s, the parameters fixed in both at the same values (a held value on `b`'s bound, such
+    as a drag held at 0, included)."""
+    return set(a.free) <= set(b.free) and all(
+        a.fixed[r].get(name) == v for r, fb in enumerate(b.fixed) for name, v in fb.items()
+    )
+
+
+#: the BIC weight of the chosen law set below which it is not decided by the data
+DECIDED = 0.95
+
+
+def _undecided(job, mine, prob, N) -> list:
+    """A warning where the data do not decide between the chosen law set (`job`, of a space
+    that selects among its variants) and law sets that are neither nested in it nor contain
+    it (another mechanism: Coulomb instead of viscous damping, a linear restoring law instead
+    of the sine): the chosen one's BIC weight `exp(-BIC/2)` among them below `DECIDED` (95 %),
+    where its 95 % intervals, which hold for it alone, say more than the data do."""
+    own = _information(job, prob, N)["bic"]
+    rivals = {
+        j.label: _information(j, prob, N)["bic"]
+        for j in mine
+        if j is not job and not _holds_laws_of(j, job) and not _holds_laws_of(job, j)
+    }
+    rivals = {k: v for k, v in rivals.items() if math.isfinite(v)}
+    if not rivals or not math.isfinite(own):
+        return []
+    weight = 1.0 / (1.0 + sum(math.exp(-(v - own) / 2) for v in rivals.values()))
+    if weight >= DECIDED:
+        return []
+    label = min(rivals, key=rivals.get)
+    return [
+        f"the law set is not decided by the data: {label} is {rivals[label] - own:.1f} above "
+        f"{job.label} in BIC (the chosen set's BIC weight {weight:.0%} against the law sets "
+        f"of another mechanism, below {DECIDED:.0%}); the values and intervals hold for "
+        f"{job.label} alone (see model_comparison)"
+    ]
+
+
 def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     """The [`fits.FitResult`][] of an assessed job; `ends`: its profile-likelihood interval
     ends (`fits._solve._profiles`; None where they were not computed)."""
@@ -570,6 +610,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         labels = [j.label for j in mine]
         comparison["best_aic"] = min(labels, key=lambda k: comparison[k]["aic"])
         comparison["best_bic"] = min(labels, key=lambda k: comparison[k]["bic"])
+        if any(j.headline and j.space.select for j in mine):  # the chosen law set reported
+            warn += _undecided(job, mine, prob, N)
     rec0 = (prob.turning or prob.records)[0]
     dec = prob.decs[0]
     corr_top = corr[np.ix_(top, top)] if top else np.zeros((0, 0))
