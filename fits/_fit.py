@@ -485,10 +485,12 @@ def _reweight(prob, job, loss, N):
         if _timed(prob, rec):
             rt = r_all[i, 1, :m] / np.where(wt > 0, wt, 1.0) * prob.tw[i][:m]  # in units of st
             prob.st[i] = _block_scale(rt[wt > 0], lev[i, 1, :m][wt > 0], 1e-9, prob.st[i])
-        if loss != "l2":
-            prob.robust_x[i][:m] = np.nan_to_num(_psi_weight(loss, rx / prob.sx[i]), nan=0.0)
+        if loss != "l2":  # (the loss's scale is the residuals' own, as its tuning assumes)
+            sx = _robust_scale(rx[wx > 0], 1e-6 * amp)
+            prob.robust_x[i][:m] = np.nan_to_num(_psi_weight(loss, rx / sx), nan=0.0)
             if _timed(prob, rec):
-                prob.robust_t[i][:m] = np.nan_to_num(_psi_weight(loss, rt / prob.st[i]), nan=0.0)
+                st = _robust_scale(rt[wt > 0], 1e-9)
+                prob.robust_t[i][:m] = np.nan_to_num(_psi_weight(loss, rt / st), nan=0.0)
     _set_weights(prob, N)
 
 
