@@ -125,6 +125,17 @@ class Space:
         model, a0, u = self.model(theta)
         return vmj.decay_trajectory(model, a0, ts, n, self.solvers[forward]()).xs / u
 
+    def extremum_shift(self, theta: dict, times, positions, slope):
+        """How far [s] the extremum of the motion plus a line of `slope` [signal units/s] lies
+        from each turning point `(times [s], positions [signal units])`: `-slope / x''`, `x''`
+        the model's acceleration there with the velocity's sign at the extremum
+        (`-sign(slope)`); 0 where `x''` is 0. (A reading whose zero drifts turns where the
+        drift and the motion's velocity cancel, not at the motion's velocity zero.)"""
+        model, _, u = self.model(theta)
+        x = positions * u
+        acc = model.acceleration(times, x, jnp.zeros_like(x), -jnp.sign(slope)) / u
+        return jnp.where(acc != 0, -slope / jnp.where(acc != 0, acc, 1.0), 0.0)
+
     def index(self, name: str) -> int:
         return self.names.index(name)
 

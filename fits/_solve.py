@@ -117,16 +117,23 @@ def _residual(space, forward, n, theta, d: _Data):
         th = theta_dict(space, th_row)
         if space.series:
             y = space.motion(th, t - th["t0"], n, forward)
-            dt = jnp.zeros_like(t)
         else:
             times, y = space.predict(th, n, forward)
-            y, dt = y[k], times[k] - t
+            y, tk = y[k], times[k]
         oy = orient * y
-        dev = oy * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else oy
+        gain = orient * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else orient
+        dev = gain * y
         offset = th["offset"] if "offset" in th else 0.0
         if "drift" in th:  # the sensor's zero drifting, on the record's clock
             offset = offset + th["drift"] * t
         px = jnp.where(absval > 0, jnp.abs(dev), offset + dev)
+        if space.series:
+            dt = jnp.zeros_like(t)
+        else:
+            if "drift" in th:  # the reading turns where drift + gain y' = 0, not where y' = 0
+                slope = th["drift"] / jnp.where(gain != 0, gain, 1.0)
+                tk = tk + space.extremum_shift(th, tk, y, slope)
+            dt = tk - t
         return jnp.concatenate([wx * (px - x), wt * dt])
 
     rows = (theta, d.k, d.x, d.t, d.wx, d.wt, d.orient, d.absval)
