@@ -64,12 +64,17 @@ _PLAIN_CLOCK = re.compile(r"^(?:\d+:)?\d+:\d+(?:\.\d*)?$")
 _TIME_NAME = re.compile(
     r"time|stamp|elapsed|zeit|^t$|^t[\s(\[_/]|^sec|[(\[](?:s|ms|us|µs|ns|min)[)\]]", re.IGNORECASE
 )
-#: a time column's unit at the end of its name: `time_ms`, `t [ms]`, `Time (us)`, `t/min`
-_TIME_UNIT = re.compile(
-    r"(?:^|[\s_(\[/,-])(?:in\s+)?(ns|us|µs|μs|usec|ms|msec|s|sec|secs|seconds?|min|minutes?)"
-    r"\s*[)\]]?\s*$",
-    re.IGNORECASE,
-)
+
+
+def unit_at_end(spellings: str) -> re.Pattern:
+    """The pattern of a unit, one of the `|`-separated regular-expression `spellings`, at the
+    end of a column's name (`time_ms`, `t [ms]`, `Time (us)`, `t/min`, `Angle(rad)`, `x in
+    deg`); its group 1 is the spelling found."""
+    return re.compile(rf"(?:^|[\s_(\[/,-])(?:in\s+)?({spellings})\s*[)\]]?\s*$", re.IGNORECASE)
+
+
+#: a time column's unit at the end of its name
+_TIME_UNIT = unit_at_end("ns|us|µs|μs|usec|ms|msec|s|sec|secs|seconds?|min|minutes?")
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0}
 """Units of a raw signal's time column, in seconds (`read_signal`'s `time_unit`)."""
 _UNIT_SPELLINGS = {

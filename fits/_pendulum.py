@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import re
 
 import jax.numpy as jnp
 import numpy as np
@@ -47,7 +46,7 @@ import numpy as np
 import vmj
 
 from ._decrement import decrement
-from ._io import Record
+from ._io import Record, unit_at_end
 from ._models import Space, Variant, first_amplitude, record_centre
 from ._sensor import _opposite, sensor_start
 
@@ -55,9 +54,7 @@ __all__ = ["PENDULUM", "DEGREE", "DISSIPATION_SETS", "FREE"]
 
 DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: degrees
 #: an angle unit at the end of a column's name: `Angle(rad)`, `theta_deg`, `phi [mrad]`
-_ANGLE_UNIT = re.compile(
-    r"(?:^|[\s_(\[/,-])(?:in\s+)?(mrad|rad|radians?|deg|degrees?|°)\s*[)\]]?\s*$", re.IGNORECASE
-)
+_ANGLE_UNIT = unit_at_end("mrad|rad|radians?|deg|degrees?|°")
 
 
 def named_angle_unit(record: Record) -> float:

@@ -395,15 +395,16 @@ def _holds_laws_of(a, b) -> bool:
 DECIDED = 0.95
 
 
-def _undecided(job, mine, prob, N) -> list:
+def _undecided(job, mine, bic: dict) -> list:
     """A warning where the data do not decide between the chosen law set (`job`, of a space
     that selects among its variants) and law sets that are neither nested in it nor contain
     it (another mechanism: Coulomb instead of viscous damping, a linear restoring law instead
-    of the sine): the chosen one's BIC weight `exp(-BIC/2)` among them below `DECIDED` (95 %),
-    where its 95 % intervals, which hold for it alone, say more than the data do."""
-    own = _information(job, prob, N)["bic"]
+    of the sine): the chosen one's BIC weight `exp(-BIC/2)` among them (`bic`: each law set's,
+    by label) below `DECIDED` (95 %), where its 95 % intervals, which hold for it alone, say
+    more than the data do."""
+    own = bic[job.label]
     rivals = {
-        j.label: _information(j, prob, N)["bic"]
+        j.label: bic[j.label]
         for j in mine
         if j is not job and not _holds_laws_of(j, job) and not _holds_laws_of(job, j)
     }
@@ -611,7 +612,7 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         comparison["best_aic"] = min(labels, key=lambda k: comparison[k]["aic"])
         comparison["best_bic"] = min(labels, key=lambda k: comparison[k]["bic"])
         if any(j.headline and j.space.select for j in mine):  # the chosen law set reported
-            warn += _undecided(job, mine, prob, N)
+            warn += _undecided(job, mine, {k: comparison[k]["bic"] for k in labels})
     rec0 = (prob.turning or prob.records)[0]
     dec = prob.decs[0]
     corr_top = corr[np.ix_(top, top)] if top else np.zeros((0, 0))

@@ -6,10 +6,11 @@ exact solver integrates by Taylor polynomials (`model.taylor`) over substeps
 its turning point (the same substeps as the solver's), and their polynomials are kept in a table
 of `(n + 1) x K` series; a time is evaluated by locating its half-swing and substep and summing
 one polynomial. The table is filled by a bounded loop that ends with the longest half-swing
-(`early_exit_loop`; `jax.grad` and `jax.jacfwd` both differentiate it; `vmj.decay_trajectory` of
-the linear oscillator, 30 turning points, 1201 times: 1.11 -> 0.60 ms, its `jax.grad` 4.9 ->
-3.3 ms, against a scan over the step limit of 24); derivatives with respect to the parameters flow through the turning points' times and
-positions (the implicit-function derivatives of [`vmj.Exact`][]) and through the series.
+(`early_exit_loop`; `jax.grad` and `jax.jacfwd` both differentiate it; `vmj.decay_trajectory`
+of the linear oscillator, 30 turning points, 1201 times: 1.11 -> 0.60 ms, its `jax.grad` 4.9
+-> 3.3 ms, against a scan over the step limit of 24); derivatives with respect to the
+parameters flow through the turning points' times and positions (the implicit-function
+derivatives of [`vmj.Exact`][]) and through the series.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from equinox.internal import unvmap_any
 from .._numerics._scan import early_exit_loop, zeros_of_lanes
 from .._numerics._series import horner_and_derivative
 from .._solution import RESULTS, Trajectory
-from ._exact import NESTED_ABOVE, ORDER, SUBSTEP_BLOCK
+from ._exact import ORDER, substep_block
 
 __all__ = ["decay_motion"]
 
@@ -54,9 +55,8 @@ def _half_swing(model, t_go, x_start, s, t_end, substeps: int):
         jnp.zeros((substeps, ORDER + 1)) + zero,
     )
     init = (jnp.array(0), t_go, x_start, zero, zeros_of_lanes(x_start, bool), table)
-    block = SUBSTEP_BLOCK if substeps > NESTED_ABOVE else None
     *_, (starts, coefs) = early_exit_loop(
-        cond, body, init, substeps, buffers=lambda carry: carry[5], base=block
+        cond, body, init, substeps, buffers=lambda carry: carry[5], base=substep_block(substeps)
     )
     return starts, coefs
 

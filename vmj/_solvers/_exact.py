@@ -46,6 +46,15 @@ TAIL_TOLERANCE = 1e-9  #: largest relative size of a substep series' last two te
 NESTED_ABOVE, SUBSTEP_BLOCK = 12, 8
 
 
+def substep_block(max_substeps: int) -> int | None:
+    """`early_exit_loop`'s `base` for a loop over at most `max_substeps` substeps: nested blocks
+    of `SUBSTEP_BLOCK` above `NESTED_ABOVE`, so that its cost follows the substeps taken rather
+    than the limit (a pendulum's `jax.grad` over 20 half-swings from 0.5 rad, 4 substeps each:
+    19 ms at a limit of 12, 59 ms at 48 in one level; 17 ms at the oscillator's 24 in blocks of
+    8); one level below."""
+    return SUBSTEP_BLOCK if max_substeps > NESTED_ABOVE else None
+
+
 class Exact(AbstractSolver):
     """Exact solution of the non-smooth decay: each half-swing is integrated with a fixed
     friction sign to its velocity zero by Taylor polynomials of degree 26, then the model's
@@ -183,13 +192,8 @@ def march_to_velocity_zero(
 
     false = zeros_of_lanes(x0, bool)
     init = (jnp.array(0), t0, x0, zero, jnp.logical_not(moving), false, false, (t0, x0, zero, zero))
-    # a bounded (differentiable) loop longer than `NESTED_ABOVE` nests blocks of
-    # `SUBSTEP_BLOCK`, so that its cost follows the substeps taken rather than the limit (a
-    # pendulum's `jax.grad` over 20 half-swings from 0.5 rad, 4 substeps each: 19 ms at a limit
-    # of 12, 59 ms at 48 in one level; 17 ms at the oscillator's 24 in blocks of 8)
-    block = SUBSTEP_BLOCK if max_substeps > NESTED_ABOVE else None
     _, reached, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
-        cond, body, init, max_substeps, kind=kind, base=block
+        cond, body, init, max_substeps, kind=kind, base=substep_block(max_substeps)
     )
     # substeps that crowd against the model's lifetime (a rope's length running out, whose
     # substeps shrink with it) end the model, not the step budget
