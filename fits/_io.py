@@ -1205,6 +1205,11 @@ def _zigzag(y, h):
 _LINE = 300.0
 #: the swing's harmonics that are its shape, not another oscillation (`_faster_period`)
 _HARMONICS = 9
+#: the weakest faster oscillation taken for one, in amplitude relative to the swing's spectral
+#: peak (`_faster_period`): a sinusoid this small moves a turning point by less than 1e-4 of
+#: the swing; on a signal without noise (a simulation's output) the swing's higher harmonics
+#: stand far above the empty bins around them, at 1e-6 to 3e-5 of its peak
+_LINE_FLOOR = 1e-4
 
 
 def _faster_period(t, y) -> tuple | None:
@@ -1215,8 +1220,10 @@ def _faster_period(t, y) -> tuple | None:
     frequency, a spectral line (a local peak `_LINE` times the median of the bins around it:
     white noise's highest bin is some 15 times it) is such an oscillation, away from the
     swing's own harmonics (up to the `_HARMONICS`-th, +-0.15 of the swing's frequency, and
-    their skirts: the shape of a pendulum's large swings, not another oscillation). A decaying
-    higher mode whose power is spread over a band is not found."""
+    their skirts: the shape of a pendulum's large swings, not another oscillation) and at
+    least `_LINE_FLOOR` of the swing's peak in amplitude (else, on a signal without noise, a
+    higher harmonic of a kinked or chirping swing would be taken for one). A decaying higher
+    mode whose power is spread over a band is not found."""
     dt = float(np.median(np.diff(t)))
     window = np.hanning(y.size)
     n = 1 << (y.size - 1).bit_length()  # (a fast length: zeros after the data)
@@ -1226,6 +1233,7 @@ def _faster_period(t, y) -> tuple | None:
     if slow.size < 16:
         return None
     main_half = 1 / (2 * f[slow[np.argmax(power[slow])]] * dt)  # [samples]
+    floor = _LINE_FLOOR**2 * float(np.max(power[slow]))
     rest = y - _smooth(y, max(2, int(main_half // 4)))
     power = np.abs(np.fft.rfft((rest - rest.mean()) * window, n)) ** 2
     ratio = f * (2 * main_half * dt)  # (multiples of the swing's frequency)
@@ -1241,7 +1249,7 @@ def _faster_period(t, y) -> tuple | None:
         around = np.r_[max(k - 16 * lobe, 0) : k - lobe, k + lobe + 1 : k + 16 * lobe + 1]
         around = around[around < f.size]
         around = around[usable[around]]
-        if around.size >= 4 and power[k] >= _LINE * np.median(power[around]):
+        if around.size >= 4 and power[k] >= max(_LINE * np.median(power[around]), floor):
             break
     else:
         return None

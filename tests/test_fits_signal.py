@@ -569,6 +569,32 @@ def test_mains_hum_on_the_signal(per_period, hum, spikes):
         assert np.sqrt(np.mean((ys - clean) ** 2)) < 0.03 * hum * 2.0
 
 
+@pytest.mark.parametrize("per_period", [30, 100])
+def test_a_signal_without_noise_has_no_faster_oscillation(per_period):
+    """A simulation's output, without noise (dry friction only, so the swing is kinked where it
+    turns): its 11th harmonic stood far above the empty bins around it and was reported as "a
+    faster oscillation" of 14.3 Hz and 1.7 % of a0 (measured, at 30 to 400 samples per period);
+    its amplitude is 1.6e-5 of the swing's peak, below `_LINE_FLOOR`. Hum of 1e-3 of a0 on the
+    same signal is still found (17.3 Hz: below half the sampling rate at 30 per period)."""
+    t, y, truth = _oscillator_signal(
+        2 * np.pi * 1.3,
+        0.0,
+        0.001,
+        0.1,
+        0.01,
+        15.0,
+        0,
+        n_spikes=0,
+        noise=0.0,
+        per_period=per_period,
+    )
+    rec = fits.extract_turning_points(fits.Signal(t=t, y=y, clock="stamps"))
+    assert "faster" not in rec.meta
+    hummed = y + 1e-4 * np.sin(2 * np.pi * 17.3 * t)
+    rec = fits.extract_turning_points(fits.Signal(t=t, y=hummed, clock="stamps"))
+    assert abs(rec.meta["faster"]["period"] * 17.3 - 1) < 1e-3
+
+
 def test_a_noisy_signal_is_averaged_to_find_its_turning_points():
     """Noise of 2 % of a0 at 200 samples per period: the noise floor (swings down to 90 noise
     sd) would have cut the decay above its start (refused: "fewer than 3 turning points above
