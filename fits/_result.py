@@ -123,6 +123,9 @@ class FitResult:
 #: a fit whose turning-point times miss the record's by more than this fraction of a
 #: half-swing (rms) gets a warning: its period is wrong, whatever its positions say
 TIME_OFF = 0.1
+#: kept irregular stamps that scatter about a uniform clock by more than this fraction of a
+#: half-swing (rms) get a warning naming the clock (`fits._clock._near_uniform`)
+STAMPS_OFF = 0.02
 
 
 # -- views of a solved job ---------------------------------------------------------------------
@@ -568,6 +571,16 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                     f"the model's turning-point times miss the record's by {one['rms_time']:.3g}"
                     f" s rms, {one['rms_time'] / half:.0%} of a half-swing ({half:.3g} s): the "
                     "model's period is not the record's (check the fixed parameters, --set)"
+                )
+            clock = rec.clock or {}
+            if half > 0 and clock.get("uniform_rms_s", 0.0) > STAMPS_OFF * half:
+                warn.append(
+                    f"the record's time stamps are irregular and scatter by "
+                    f"{clock['uniform_rms_s'] * 1e3:.3g} ms rms "
+                    f"({clock['uniform_rms_s'] / half:.0%} of a half-swing) about a uniform "
+                    f"clock at {clock['uniform_rate_hz']:.6g} Hz: if the device samples "
+                    "uniformly they are not the sample times (arrival times of thinned rows?) "
+                    "and the turning points' times scatter as much; give the rate (--rate HZ)"
                 )
     if structured and not series:
         warn += _sensor_hints(prob.records, per_record, space, job.free)

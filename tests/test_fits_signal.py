@@ -595,6 +595,27 @@ def test_a_signal_without_noise_has_no_faster_oscillation(per_period):
     assert abs(rec.meta["faster"]["period"] * 17.3 - 1) < 1e-3
 
 
+def test_thinned_arrival_stamps_warn_and_name_the_clock(tmp_path):
+    """Every 10th row of 80P.txt: its arrival stamps, thinned, no longer come in bursts and are
+    kept as irregular; they scatter by 19 ms rms about the sampler's 26 Hz clock, 13 % of a
+    half-swing. The fit says so and names the rate; given that rate, the warning goes."""
+    lines = open(P80).read().splitlines()
+    path = tmp_path / "thinned.txt"
+    path.write_text("\n".join(lines[:2] + lines[2::10]) + "\n")
+    rec = fits.read_record(path, series=True)
+    rate = rec.clock["uniform_rate_hz"]
+    assert abs(rate - 25.96) < 0.01
+
+    def warned(record):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = fits.fit(record, "oscillator", FREE, compare=False, intervals=False)
+        return any("time stamps are irregular and scatter by" in w for w in r.warnings)
+
+    assert warned(rec)
+    assert not warned(fits.read_record(path, series=True, rate=rate))
+
+
 def test_a_noisy_signal_is_averaged_to_find_its_turning_points():
     """Noise of 2 % of a0 at 200 samples per period: the noise floor (swings down to 90 noise
     sd) would have cut the decay above its start (refused: "fewer than 3 turning points above

@@ -190,6 +190,23 @@ def test_irregular_stamps_are_kept_or_lined_up_on_request():
     assert report["stamps"] == "none" and np.allclose(t, np.arange(5) / 100.0)
 
 
+def test_thinned_arrival_stamps_are_irregular_with_a_hint_of_their_clock():
+    """Every 10th row of arrival stamps: 1-2 rows of each packet are left, so the stamps no
+    longer come in bursts and are kept as irregular; they stay within a few intervals of the
+    sampler's clock (a genuinely irregular sampler's wander like a random walk), so the report
+    names that clock and how to use it. Irregular intervals (uniform or exponential) get no
+    such hint."""
+    s, stamps, _ = arrival_stamps(8000, RATE, 7)
+    t, report = fits.recover_clock(stamps[::10])
+    assert t is None and report["stamps"] == "irregular"
+    assert abs(report["uniform_rate_hz"] / (RATE / 10) - 1) < 1e-3
+    assert report["uniform_max_s"] < 5 * 10 / RATE and "--rate HZ" in report["message"]
+    rng = np.random.default_rng(3)
+    for intervals in (rng.uniform(0.5e-3, 6e-3, 3000), rng.exponential(4e-3, 764)):
+        _, report = fits.recover_clock(np.cumsum(intervals))
+        assert report["stamps"] == "irregular" and "uniform_rate_hz" not in report
+
+
 def test_given_rate_on_arrival_stamps():
     s, stamps, _ = arrival_stamps(6000, RATE, 4)
     t, report = fits.recover_clock(stamps, rate=RATE)
