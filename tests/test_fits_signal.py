@@ -448,10 +448,12 @@ def test_a_drifting_zero_moves_the_turning_points_of_the_reading():
     """The reading `offset + drift t + y(t)` turns where `drift + y' = 0`, off the model's
     velocity zero by `-drift / y''` (here about 2e-4 s, alternating with the swing). Compared
     at the velocity zero, the times' residuals alternated (lag-1 -0.84, RMS 2.0e-4 s, and "the
-    model does not explain the data"); at the reading's turning points they are noise (lag-1
-    0.05, RMS 4.4e-5 s; without drift 2.7e-5 s), and omega's standard error 1.5e-4 -> 2.6e-5.
-    (omega is still 8e-5 rad/s off, 3.3 of its standard errors at this noise of 2e-4 of a0,
-    against 0.9 without drift: a smaller bias of the drifting reading remains, not modelled.)"""
+    model does not explain the data"); at the reading's turning points they are noise (the
+    fit's lag-1 -0.07, RMS 4.1e-5 s; without drift 2.7e-5 s), and omega's standard error 1.5e-4 -> 2.6e-5.
+    omega was still 3.3 of its standard errors off (-2.1 to -3.7 over six seeds, -0.4 to 2.0
+    without drift): the dry-friction level of the extraction's kink was measured about a fixed
+    centre, 0.045 at the maxima and 0.055 at the minima for 0.05 (`_dry_level`); about the
+    drifting centre omega is 1.3 of them off (0.3 to 2.1 over the six seeds)."""
     drift = 0.05 * TRUE["a0"] / 8.0  # [signal units / s]
     t, y, _ = _oscillator_signal(
         **TRUE, t_end=8.0, seed=11, n_spikes=0, noise=2e-4, per_period=400.0
@@ -463,8 +465,14 @@ def test_a_drifting_zero_moves_the_turning_points_of_the_reading():
     times = np.asarray(r.residuals["time"], float)
     times = times[np.isfinite(times)]
     assert np.sqrt(np.mean(times**2)) < 1e-4
-    assert abs(np.corrcoef(times[:-1], times[1:])[0, 1]) < 0.5
-    assert r.stderr["omega"] < 5e-5 and abs(r.params["omega"] - TRUE["omega"]) < 1e-4
+    # (the fit's own lag-1, of the residuals weighed by their noise: the last few small
+    # swings' times are noisier by up to 20 x and alternate by chance)
+    assert abs(r.diagnostics["lag1"]) < 0.3 and not any("does not explain" in w for w in r.warnings)
+    assert r.stderr["omega"] < 5e-5
+    assert abs(r.params["omega"] - TRUE["omega"]) < 2 * r.stderr["omega"]
+    # the dry-friction level at both sides, about the drifting centre
+    kinks = np.asarray(rec.meta["kink"])
+    assert np.all(np.abs(kinks / TRUE["xF"] - 1) < 0.04), kinks
 
 
 def test_a_drifting_sensor_zero_is_fitted():
