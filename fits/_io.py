@@ -1488,28 +1488,15 @@ def _dry_level(t, x, peak, angle_unit=None) -> list:
     The centre is the least-squares line through the local centres (`_local_centres`) over
     the extrema's times `t` [s]: a sensor's zero that drifts by `d` [signal units/s] lowers
     one side's decrements by `d T` and raises the other's (`T` the period), and about a fixed
-    centre took `d T / 4` from the level at the maxima and gave it to the minima. Measured on
-    synthetic signals (`xF` 0.05 of a0 10 at 20 rad/s, noise 2e-4 of a0, 400 samples per
-    period, the fit's omega in its standard errors): a drift of 5 % of a0 over 8 s, levels
-    0.045 / 0.055 -> 0.050 / 0.050, omega -2.1 to -3.7 -> 0.3 to 2.1 (six seeds); a sensor
-    whose gain is 10 % larger on one side, levels 0.050 / 0.040 -> 0.043 / 0.057 (0.055 /
-    0.045 would be its own), omega -2.6 to -4.4 -> 0.9 to 1.4 (five seeds; the timing follows
-    the two sides' mean level, which is now right, while a level wrong by opposite amounts
-    on the two sides moves alternate turning points each way); neither, unchanged (-0.4 to
-    2.0). A side's gain and a drift both move the local centres with time, and the extrema
+    centre took `d T / 4` from the level at the maxima and gave it to the minima (the fit's
+    omega 2-4 of its standard errors off: docs/signals.md, "The level under a drifting
+    zero"). A side's gain and a drift both move the local centres with time, and the extrema
     alone cannot always tell them apart (the amplitude falls linearly under dry friction
     alone); the fit can, with `asym` and `drift`."""
-    t, x, peak = (
-        np.asarray(t, dtype=float)[1:],
-        np.asarray(x, dtype=float)[1:],
-        np.asarray(peak)[1:],
-    )
+    t, x, peak = np.asarray(t, float)[1:], np.asarray(x, float)[1:], np.asarray(peak)[1:]
     c = np.zeros_like(x)
-    if x.size >= 3:
-        local = _local_centres(x)
-        c = np.full_like(x, np.median(local))
-        if local.size >= 3:
-            c = np.polyval(np.polyfit(t[1:-1], local, 1), t)
+    if x.size >= 5:  # (a line through at least 3 local centres)
+        c = np.polyval(np.polyfit(t[1:-1], _local_centres(x), 1), t)
     out = []
     for side in (peak, ~peak):
         a = np.abs(x[side] - c[side])

@@ -450,10 +450,9 @@ def test_a_drifting_zero_moves_the_turning_points_of_the_reading():
     at the velocity zero, the times' residuals alternated (lag-1 -0.84, RMS 2.0e-4 s, and "the
     model does not explain the data"); at the reading's turning points they are noise (the
     fit's lag-1 -0.07, RMS 4.1e-5 s; without drift 2.7e-5 s), and omega's standard error 1.5e-4 -> 2.6e-5.
-    omega was still 3.3 of its standard errors off (-2.1 to -3.7 over six seeds, -0.4 to 2.0
-    without drift): the dry-friction level of the extraction's kink was measured about a fixed
-    centre, 0.045 at the maxima and 0.055 at the minima for 0.05 (`_dry_level`); about the
-    drifting centre omega is 1.3 of them off (0.3 to 2.1 over the six seeds)."""
+    omega was then still 3.3 of its standard errors off: the extraction's dry-friction level
+    was measured about a fixed centre (`_dry_level`; docs/signals.md, "The level under a
+    drifting zero"); about the drifting centre, 1.3."""
     drift = 0.05 * TRUE["a0"] / 8.0  # [signal units / s]
     t, y, _ = _oscillator_signal(
         **TRUE, t_end=8.0, seed=11, n_spikes=0, noise=2e-4, per_period=400.0
