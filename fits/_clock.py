@@ -230,22 +230,18 @@ _BOUNDED = 5.0
 _BOUNDED_ROWS = 100
 
 
-def _near_uniform(stamps, mean_step, name) -> dict:
-    """For irregular stamps kept as they are: if they stay within `_BOUNDED` mean intervals of
-    their least-squares uniform clock, the clock (`uniform_rate_hz`) and the stamps' rms and
-    largest distance from it (`uniform_rms_s`, `uniform_max_s`) and the message's hint. Such
-    stamps are what arrival times become when the rows are thinned (every 10th row of the
-    public pendulum records: 1-2 rows left of each burst, classified irregular, scattered by
-    19 ms rms about the sampler's true 26 Hz clock), or a jittery timer's true sample times;
-    the stamps alone cannot tell which."""
-    n = stamps.size
-    m = np.arange(n, dtype=float)
-    t0, period = _line(m, stamps)
-    dev = stamps - (t0 + period * m)
+def _near_uniform(dev, rms, period, mean_step, name) -> dict:
+    """For irregular stamps kept as they are, `dev` [s] (rms `rms`) from their least-squares
+    uniform clock of `period` [s]: if they stay within `_BOUNDED` mean intervals of it, the
+    clock (`uniform_rate_hz`) and the stamps' rms and largest distance from it
+    (`uniform_rms_s`, `uniform_max_s`) and the message's hint. Such stamps are what arrival
+    times become when the rows are thinned (every 10th row of the public pendulum records:
+    1-2 rows left of each burst, classified irregular, scattered by 19 ms rms about the
+    sampler's true 26 Hz clock), or a jittery timer's true sample times; the stamps alone
+    cannot tell which."""
     largest = float(np.max(np.abs(dev)))
-    if n < _BOUNDED_ROWS or largest > _BOUNDED * mean_step:
+    if dev.size < _BOUNDED_ROWS or largest > _BOUNDED * mean_step:
         return {}
-    rms = float(np.sqrt(np.mean(dev**2)))
     return {
         "uniform_rate_hz": 1.0 / period,
         "uniform_rms_s": rms,
@@ -407,8 +403,17 @@ def recover_clock(
         )
         return t0 + period * m, report
 
-    # irregular (or arrival stamps kept on request)
+    # irregular (or arrival stamps kept on request): the uniform clock through them (a rate is
+    # never given where they are kept)
     report["rate_hz"] = 1.0 / mean_step
+    m = np.arange(n, dtype=float)
+    if rate is not None:
+        period = 1.0 / rate
+        t0 = float(np.mean(stamps - period * m))
+    else:
+        t0, period = _line(m, stamps)
+    dev = stamps - (t0 + period * m)
+    rms = float(np.sqrt(np.mean(dev**2)))
     if clock == "stamps" or (clock == "auto" and rate is None):
         what = (
             "are arrival times (bursts), kept as the sample times on request"
@@ -421,23 +426,16 @@ def recover_clock(
             message=f"{name} {what} (mean rate {_fmt_rate(1 / mean_step)}): kept",
         )
         if kind == "irregular":
-            report.update(_near_uniform(stamps, mean_step, name))
+            report.update(_near_uniform(dev, rms, period, mean_step, name))
         return None, report
-    m = np.arange(n, dtype=float)
-    if rate is not None:
-        period = 1.0 / rate
-        t0 = float(np.mean(stamps - period * m))
-    else:
-        t0, period = _line(m, stamps)
-    dev = stamps - (t0 + period * m)
     report.update(
         method="rate" if rate is not None else "line",
         rate_hz=1.0 / period,
         t0=t0,
-        jitter_s=float(np.sqrt(np.mean(dev**2))),
+        jitter_s=rms,
         message=f"{name} are irregular; samples taken as equally spaced at "
         f"{_fmt_rate(1 / period)}"
         + (" (given)" if rate is not None else " (least-squares line)")
-        + f", rms deviation {np.sqrt(np.mean(dev**2)) * 1e3:.3g} ms",
+        + f", rms deviation {rms * 1e3:.3g} ms",
     )
     return t0 + period * m, report

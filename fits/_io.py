@@ -1232,8 +1232,9 @@ def _faster_period(t, y) -> tuple | None:
     slow = np.flatnonzero(f > 2 / (y.size * dt))  # (not a drift)
     if slow.size < 16:
         return None
-    main_half = 1 / (2 * f[slow[np.argmax(power[slow])]] * dt)  # [samples]
-    floor = _LINE_FLOOR**2 * float(np.max(power[slow]))
+    main = slow[np.argmax(power[slow])]  # the swing's bin
+    main_half = 1 / (2 * f[main] * dt)  # [samples]
+    floor = _LINE_FLOOR**2 * float(power[main])
     rest = y - _smooth(y, max(2, int(main_half // 4)))
     power = np.abs(np.fft.rfft((rest - rest.mean()) * window, n)) ** 2
     ratio = f * (2 * main_half * dt)  # (multiples of the swing's frequency)
