@@ -516,7 +516,7 @@ def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
     real = sweep_module.chunk_bytes
     monkeypatch.setattr(sweep_module, "chunk_bytes", spy)
     memory = [1e12]
-    monkeypatch.setattr(sweep_module, "available_memory", lambda device: memory[0])
+    monkeypatch.setattr(sweep_module, "available_memory", lambda device, enough: memory[0])
     g = vmj.grid(paper_model(), eps=[0.0, 0.5, 1.0, 0.25], mu=[2.0, 9.0])
     vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
     per_point = seen[-1]

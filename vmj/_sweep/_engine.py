@@ -44,12 +44,14 @@ def _kept_thread(inbox: queue.SimpleQueue) -> None:
         inbox.get()()
 
 
-def _on_threads(task: Callable[[], None], n: int) -> Callable[[], None]:
+def _on_threads(task: Callable[[], None], n: int, inline: bool = False) -> Callable[[], None]:
     """Start `task()` on `n` threads and return a function that waits until all have
     returned, and raises what one of them raised. The threads are kept for the next sweep:
     starting two per sweep and joining them cost 0.5-1 ms, a tenth of a 4096-point sweep of
     exact turning points. A thread is started where none is idle (a sweep inside another's
-    chunk never waits for a thread)."""
+    chunk never waits for a thread). With `inline`, the calling thread is one of the `n`: it
+    runs `task()` itself when it first waits (what that raises is raised at once; a second
+    call waits for the others)."""
     done = queue.SimpleQueue()  # None, or what a thread raised
 
     def run(inbox):
@@ -62,7 +64,7 @@ def _on_threads(task: Callable[[], None], n: int) -> Callable[[], None]:
             _IDLE.append(inbox)
         done.put(raised)
 
-    for _ in range(n):
+    for _ in range(n - inline):
         with _IDLE_LOCK:
             inbox = _IDLE.pop() if _IDLE else None
         if inbox is None:
@@ -70,10 +72,13 @@ def _on_threads(task: Callable[[], None], n: int) -> Callable[[], None]:
             threading.Thread(target=_kept_thread, args=(inbox,), daemon=True).start()
         inbox.put(functools.partial(run, inbox))
 
-    left, first = n, None  # threads not yet returned; what the first failing one raised
+    left, first = n - inline, None  # threads not yet returned; what the first failing one raised
 
     def wait():  # (again after it returned or raised: at once)
-        nonlocal left, first
+        nonlocal left, first, inline
+        if inline:
+            inline = False
+            task()
         while left:
             e = done.get()
             left -= 1
@@ -329,7 +334,8 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
             else:
                 finished.put((c, out, None))
 
-    wait = _on_threads(work, max(1, min(threads, len(todo))))
+    # with sink_in_thread this thread is one of the threads (one fewer to wake and to wait for)
+    wait = _on_threads(work, max(1, min(threads, len(todo))), inline=sink_in_thread)
     try:
         if sink_in_thread:
             wait()

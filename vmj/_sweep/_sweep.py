@@ -41,7 +41,7 @@ from ._engine import (
 from ._grid import Grid
 from ._result import SweepResult, export_names
 from ._store import ChunkStore, describe_fn, digest
-from ._tree import _field_paths, _get, _short_name
+from ._tree import _get, named_paths
 
 __all__ = ["sweep", "SweepError"]
 
@@ -52,6 +52,11 @@ DEFAULT_CHUNK = 16384
 ACCELERATOR_CHUNK = 1 << 20
 #: the share of the available memory that the chunks evaluated side by side may take
 MEMORY_FRACTION = 0.25
+#: on one CPU, a model's and arguments' arrays of at most this many bytes in all are handed to
+#: every chunk as NumPy arrays (`jax.jit` copies them, 13 us per call for a 4096-point sweep's
+#: three parameters) instead of being put on the device once (`jax.device_put`'s own cost,
+#: 120-450 us for the same, was the largest part of the sweep's fixed cost of about 1 ms)
+PASSED_BYTES = 1 << 18
 #: traces of the chunk function in this process (each worker of a cluster should trace once)
 _TRACES = 0
 #: what this process knows of the compiled chunks of recent sweeps (see `_SweepJob.known`)
@@ -138,19 +143,25 @@ def chunk_options(devices) -> dict:
     return {"xla_cpu_prefer_vector_width": 512} if _avx512() else {}
 
 
-def _chunk_function(
-    fn,
-    static_kwargs,
-    kwargs_def,
-    static_model,
-    model_def,
-    swept,
-    shape,
-    size,
-    sharding,
-    output,
-    options,
-):
+def _split(tree):
+    """`(arrays, static)`: the array leaves of `tree` and the rest of it, hashable where its
+    other leaves are (`_join(static, arrays)` rebuilds it). A flattening of the tree, where
+    `equinox.partition` and `equinox.combine` walked it in Python (of a sweep's fixed cost of
+    about a millisecond, 4096 points, two such walks took about 0.1 ms)."""
+    leaves, treedef = jax.tree.flatten(tree)
+    is_array = tuple(eqx.is_array(x) for x in leaves)
+    rest = tuple(x for x, a in zip(leaves, is_array) if not a)
+    return [x for x, a in zip(leaves, is_array) if a], (treedef, is_array, rest)
+
+
+def _join(static, arrays):
+    """The tree that `_split` took apart into `arrays` and `static`."""
+    treedef, is_array, rest = static
+    arrays, rest = iter(arrays), iter(rest)
+    return jax.tree.unflatten(treedef, [next(arrays) if a else next(rest) for a in is_array])
+
+
+def _chunk_function(fn, static_kwargs, static_model, swept, shape, size, sharding, output, options):
     """The compiled function of a sweep's chunks, `(model arrays, kwargs arrays, start) -> fn`
     at the points `start ... start + size` (flat, C order; indices past the last point repeat
     it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`, its result
@@ -164,8 +175,8 @@ def _chunk_function(
     def run(model_arrays, kwargs_arrays, start):
         global _TRACES
         _TRACES += 1
-        model = eqx.combine(jax.tree.unflatten(model_def, model_arrays), static_model)
-        kwargs = eqx.combine(jax.tree.unflatten(kwargs_def, kwargs_arrays), static_kwargs)
+        model = _join(static_model, model_arrays)
+        kwargs = _join(static_kwargs, kwargs_arrays)
         leaves, treedef = jax.tree.flatten(model)
         idx = jnp.minimum(start + jnp.arange(size), math.prod(shape) - 1)
         part = [_take(x, shape, idx) if s else x for x, s in zip(leaves, swept)]
@@ -241,7 +252,7 @@ class _SweepJob:
         self._lock = threading.Lock()
         self._on_device = None
         self._known = {}  # chunk size -> what `known` says (the shared entry, or the job's own)
-        self._split = None  # what `_parts` returns, worked out once
+        self._parted = None  # what `_parts` returns, worked out once
         self._functions = {}  # chunk size -> compiled chunk function
         self._output = None  # (host_output's answer,), worked out once
 
@@ -253,7 +264,7 @@ class _SweepJob:
             sharding=None,
             _on_device=None,
             _known={},
-            _split=None,
+            _parted=None,
             _functions={},
             _output=None,
         )
@@ -265,24 +276,14 @@ class _SweepJob:
         self._lock = threading.Lock()
 
     def _parts(self):
-        """(arrays, static part, treedef of the arrays) of the model and of the arguments."""
-        if self._split is None:
-            model_arrays, static_model = eqx.partition(self.model, eqx.is_array)
-            kwargs_arrays, static_kwargs = eqx.partition(self.kwargs, eqx.is_array)
-            model_leaves, model_def = jax.tree.flatten(model_arrays)
-            kwargs_leaves, kwargs_def = jax.tree.flatten(kwargs_arrays)
-            self._split = (
-                model_leaves,
-                static_model,
-                model_def,
-                kwargs_leaves,
-                static_kwargs,
-                kwargs_def,
-            )
-        return self._split
+        """(arrays, static part) of the model and of the arguments (`_split`'s)."""
+        if self._parted is None:
+            self._parted = (*_split(self.model), *_split(self.kwargs))
+        return self._parted
 
     def on_device(self):
-        """The model's and the arguments' arrays on the device(s), put there once."""
+        """The model's and the arguments' arrays on the device(s), put there once; on one CPU,
+        arrays of `PASSED_BYTES` at most in all are passed to each chunk as they are."""
         if self._on_device is not None:
             return self._on_device
         with self._lock:
@@ -295,9 +296,13 @@ class _SweepJob:
                     place = jax.sharding.NamedSharding(
                         self.sharding.mesh, jax.sharding.PartitionSpec()
                     )
-                model_leaves, _, _, kwargs_leaves, _, _ = self._parts()
-                put = lambda xs: tuple(jax.device_put(list(xs), place))  # noqa: E731
-                self._on_device = (put(model_leaves), put(kwargs_leaves))
+                model_leaves, _, kwargs_leaves, _ = self._parts()
+                small = sum(np.asarray(x).nbytes for x in model_leaves + kwargs_leaves)
+                if len(devs or ()) == 1 and devs[0].platform == "cpu" and small <= PASSED_BYTES:
+                    self._on_device = (tuple(model_leaves), tuple(kwargs_leaves))
+                else:
+                    put = lambda xs: tuple(jax.device_put(list(xs), place))  # noqa: E731
+                    self._on_device = (put(model_leaves), put(kwargs_leaves))
             return self._on_device
 
     def output(self):
@@ -316,16 +321,12 @@ class _SweepJob:
 
     def key(self, chunk: int):
         """What the compiled chunk depends on, hashable (None if it cannot be hashed)."""
-        model_leaves, static_model, model_def, kwargs_leaves, static_kwargs, kwargs_def = (
-            self._parts()
-        )
+        model_leaves, static_model, kwargs_leaves, static_kwargs = self._parts()
         try:
             key = (
                 self.fn,
                 static_model,
-                model_def,
-                tuple(sorted(static_kwargs.items())),
-                kwargs_def,
+                static_kwargs,
                 tuple((np.shape(x), np.result_type(x).str) for x in model_leaves + kwargs_leaves),
                 self.swept,
                 self.shape,
@@ -366,13 +367,11 @@ class _SweepJob:
         known = self.known(chunk)
         with _KNOWN_LOCK:
             if "function" not in known:
-                _, static_model, model_def, _, static_kwargs, kwargs_def = self._parts()
+                _, static_model, _, static_kwargs = self._parts()
                 known["function"], known["axes"] = _chunk_function(
                     self.fn,
                     static_kwargs,
-                    kwargs_def,
                     static_model,
-                    model_def,
                     self.swept,
                     self.shape,
                     chunk,
@@ -434,15 +433,23 @@ def chunk_plan(n: int, limit: int, lanes: int, multiple: int = 1) -> int:
     return -(-chunk // multiple) * multiple
 
 
-def available_memory(device) -> int | None:
+def available_memory(device, enough: float = math.inf) -> int | None:
     """Bytes of memory free for new buffers on `device` (the host's available memory for a
-    CPU), or None if unknown."""
+    CPU), or None if unknown. On a CPU, the host's free memory (less than what it has available)
+    when that is `enough` already (one system call: reading `/proc/meminfo` is a file's
+    opening, 17-140 us of a sweep's fixed cost)."""
     if device.platform != "cpu":
         try:
             stats = device.memory_stats() or {}
             return int(stats["bytes_limit"] - stats.get("bytes_in_use", 0))
         except Exception:
             return None
+    try:
+        free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        if free >= enough:
+            return free
+    except (ValueError, OSError, AttributeError):
+        pass
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
@@ -491,11 +498,16 @@ def default_chunk(devices) -> int:
 def _sized(job, n, chunk_size, lanes, multiple, memory, concurrent, limit=DEFAULT_CHUNK) -> int:
     """The chunk size: `chunk_size` points at most (default `limit`), `lanes` chunks at
     least, and small enough that `concurrent` chunks side by side need at most
-    `MEMORY_FRACTION` of `memory` bytes. An explicit `chunk_size` is kept unless its chunks do
-    not fit in `memory` at all (refused, with the size that fits); the default shrinks."""
+    `MEMORY_FRACTION` of the `memory(enough)` bytes available (`memory`: None where the size is
+    not to be checked; `enough`, the bytes that would do). An explicit `chunk_size` is kept
+    unless its chunks do not fit in memory at all (refused, with the size that fits); the
+    default shrinks."""
     chunk = chunk_plan(n, chunk_size or limit, lanes, multiple)
-    need = chunk_bytes(job, chunk) if memory else None
+    need = chunk_bytes(job, chunk) if memory is not None else None
     if need is None:
+        return chunk
+    memory = memory(need * concurrent / (1.0 if chunk_size is not None else MEMORY_FRACTION))
+    if not memory:
         return chunk
     per_point = need / chunk
     if chunk_size is not None:
@@ -536,11 +548,10 @@ def _layout(model):
     if not grid:
         dims = ("point",) if len(shape) == 1 else tuple(f"point_{i}" for i in range(len(shape)))
         coords = {}
-        paths = _field_paths(model)
-        for path in paths:
+        for path, name in named_paths(model):
             value = np.asarray(_get(model, path))
             if value.ndim:
-                coords[_short_name(paths, path)] = value
+                coords[name] = value
     return tuple(dims), dict(coords), model, shape, grid
 
 
@@ -641,7 +652,12 @@ def sweep(
             # compiles a chunk to size it only when no chunk_size is given
             memory = None
             if chunk_size is None:
-                memory = worker_memory(cl) or available_memory(devs[0])
+                per_worker = worker_memory(cl)
+                memory = (
+                    functools.partial(available_memory, devs[0])
+                    if per_worker is None
+                    else (lambda enough: per_worker)
+                )
             concurrent = 1
         else:
             devs = _devices(devices)
@@ -652,7 +668,7 @@ def sweep(
                 sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
             lanes = chunk_lanes(devs)
             threads = CORES if nd == 1 else 1
-            memory = available_memory(devs[0])
+            memory = functools.partial(available_memory, devs[0])
             concurrent = threads
         job = _SweepJob(
             fn,
