@@ -698,11 +698,13 @@ def sweep(
         # the output's structure, without evaluating anything
         spec = job.spec()
         spec_leaves, out_def = jax.tree.flatten(spec)
-        names, kdims, kcoords = export_names(
-            spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"}
-        )
         axes = job.known(chunk)["axes"]
         out = [point_array(n, s.shape[1:], s.dtype, a) for s, a in zip(spec_leaves, axes)]
+        names = None  # (the fields' names in a store)
+        if store is not None:
+            names, kdims, kcoords = export_names(
+                spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"}
+            )
         if store is not None and st is None:
             plan = {
                 "n": n,
