@@ -12,6 +12,9 @@ import time
 import numpy as np
 
 REPEAT = 5  #: repetitions on each side of a comparison (at least)
+#: `interleaved(..., warm_up=True)`: each turn's untimed calls last this long [s] (one call at
+#: least; `VMJ_BENCH_WARM=0` in the environment: one call, as before the twenty-first stop)
+WARM_UP_S = float(os.environ.get("VMJ_BENCH_WARM", "0.1"))
 
 
 def set_up_jax() -> bool:
@@ -78,16 +81,22 @@ def interleaved(*measurements, rounds: int = REPEAT, warm_up: bool = False) -> l
     """Wall times of several measurements taken in turns, so that a change of the machine's speed
     during the run (on the shared development machine, up to 2 x within minutes) reaches each of
     them alike: each of `rounds` rounds makes `calls` calls of every `(fn, calls)`, one
-    measurement after the other. With `warm_up`, each measurement's turn starts with a call that
-    is not timed, so that every timed call finds the caches as its own last call left them, as
-    in a run of `repeat` (the energy-balance sweep straight after the NumPy version, whose
-    arrays had taken the caches: 50-69 ms against 47-52 ms). Returns one `Timing` per
-    measurement, of every timed call."""
+    measurement after the other. With `warm_up`, each measurement's turn starts with calls that
+    are not timed, for `WARM_UP_S` seconds (one call at least), so that every timed call finds
+    the machine as its own calls left it, as in a run of `repeat`: the energy-balance sweep
+    straight after the NumPy version, whose arrays had taken the caches, took 50-69 ms against
+    47-52 ms; on this 2-core virtual machine the 4096-point exact sweep (4-5 ms a call) took
+    1.4-1.7 us per point in its first four calls after the 0.45 s single-threaded SciPy loop
+    and the multiply-add kernel, 0.9-1.0 us from the sixth on (five turns, medians per call).
+    Returns one `Timing` per measurement, of every timed call."""
     times = [[] for _ in measurements]
     for _ in range(rounds):
         for out, (fn, calls) in zip(times, measurements):
             if warm_up:
+                t_warm = time.perf_counter()
                 fn()
+                while time.perf_counter() - t_warm < WARM_UP_S:
+                    fn()
             for _ in range(calls):
                 t0 = time.perf_counter()
                 result = fn()
