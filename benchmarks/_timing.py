@@ -87,7 +87,7 @@ def interleaved(*measurements, rounds: int = REPEAT, warm_up: bool = False) -> l
     straight after the NumPy version, whose arrays had taken the caches, took 50-69 ms against
     47-52 ms; on this 2-core virtual machine the 4096-point exact sweep (4-5 ms a call) took
     1.4-1.7 us per point in its first four calls after the 0.45 s single-threaded SciPy loop
-    and the multiply-add kernel, 0.9-1.0 us from the sixth on (five turns, medians per call).
+    and the multiply-add kernel, 0.9-1.2 us from the fifth on (five turns, medians per call).
     Returns one `Timing` per measurement, of every timed call."""
     times = [[] for _ in measurements]
     for _ in range(rounds):

@@ -297,8 +297,8 @@ class _SweepJob:
                         self.sharding.mesh, jax.sharding.PartitionSpec()
                     )
                 model_leaves, _, kwargs_leaves, _ = self._parts()
-                small = sum(np.asarray(x).nbytes for x in model_leaves + kwargs_leaves)
-                if len(devs or ()) == 1 and devs[0].platform == "cpu" and small <= PASSED_BYTES:
+                one_cpu = len(devs or ()) == 1 and devs[0].platform == "cpu"
+                if one_cpu and sum(x.nbytes for x in model_leaves + kwargs_leaves) <= PASSED_BYTES:
                     self._on_device = (tuple(model_leaves), tuple(kwargs_leaves))
                 else:
                     put = lambda xs: tuple(jax.device_put(list(xs), place))  # noqa: E731
