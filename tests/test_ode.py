@@ -62,6 +62,32 @@ def test_step_size_controller_takes_the_steps_of_diffraxs_pid_controller():
     assert np.all(np.abs(np.asarray(ours.ys - theirs.ys)) < 1e-12 * scale)
 
 
+def test_step_size_limit_shortens_steps_and_keeps_the_solution():
+    """A `limit` on the next step (here 1 ms; the free steps reach 1.5 ms) makes the controller's steps no longer than it,
+    more of them, and the same solution within the solve's tolerance."""
+    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
+    w = 1e-3 * float(model.velocity_scale(0.06))
+
+    def solve(limit):
+        return ode_solve(
+            lambda t, y, args: model.vector_field(t, y, w),
+            jnp.array([-0.06, 0.0]),
+            0.5,
+            dfx.SaveAt(steps=True),
+            rtol=1e-10,
+            atol=1e-12,
+            max_steps=2000,
+            limit=limit,
+        )
+
+    free, held = solve(None), solve(lambda t0, t1, y0, y1: jnp.asarray(1e-3))
+    steps = lambda sol: np.diff(np.asarray(sol.ts)[: int(sol.stats["num_accepted_steps"])])  # noqa: E731
+    assert steps(free).max() > 1.4e-3 and steps(held).max() <= 1e-3 * (1 + 1e-12)
+    assert int(held.stats["num_accepted_steps"]) > int(free.stats["num_accepted_steps"])
+    end = lambda sol: np.asarray(sol.ys)[int(sol.stats["num_accepted_steps"]) - 1]  # noqa: E731
+    np.testing.assert_allclose(end(held), end(free), rtol=0, atol=1e-8 * np.abs(end(free)).max())
+
+
 def test_recording_keeps_the_accepted_steps_and_stays_put_when_done():
     """A memo carried through the solve sees every accepted step and no rejected one; from the
     step where `record` says done, the state stays where that step ended."""
