@@ -86,6 +86,18 @@ def test_exact_matches_scipy_event_integration():
     assert np.any(p["delta"] < 0) and np.any(p["delta"] > 0) and np.any(p["use_f"])
 
 
+@pytest.mark.parametrize("delta,eps,mu", [(3.0, 0.0, 2.0), (-3.0, 1.0, 10.0), (0.0, 0.5, 0.0)])
+def test_exact_half_swing_is_one_substep(delta, eps, mu):
+    """A substep is `3.5/omega` long, longer than a half-swing's `pi/omega`: with one substep
+    per half-swing the turning points are those of the default limit (8), to rounding. (At
+    `2/omega`, two substeps per half-swing, one substep found no velocity zero.)"""
+    m = model(delta=delta, eps=eps, mu=mu)
+    one, default = (vmj.turning_points(m, A0, 12, vmj.Exact(max_substeps=k)) for k in (1, 8))
+    assert int(one.result) == int(default.result) and bool(vmj.RESULTS.okay(one.result))
+    assert int(one.count) == int(default.count) >= 6
+    np.testing.assert_allclose(one.positions, default.positions, rtol=0, atol=1e-15 * A0)
+
+
 def test_constant_mass_coulomb_decrement_is_exactly_2F_over_c():
     m = model(delta=0.0, mu=0.0)
     for method in ("exact", "energy"):

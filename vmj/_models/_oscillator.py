@@ -22,7 +22,8 @@ from ._base import AbstractEnergyMap
 
 __all__ = ["Oscillator"]
 
-ENTIRE = 2.0  #: substep in units of 1/omega where the series is entire (as the variable mass)
+ENTIRE = 3.5  #: substep in units of 1/omega where the series is entire (as the variable mass:
+#: one substep for a half-swing of pi/omega)
 RHO = 0.3  #: substep as a fraction of the bound on the series' radius of convergence
 FAST_MARGIN = 0.5  #: margin [1/omega] of the estimated fast passage of a pendulum, undamped
 AGM_STEPS = 12  #: arithmetic-geometric mean steps for K(k): enough down to k' = 1e-300
@@ -228,7 +229,7 @@ class Oscillator(AbstractEnergyMap):
         return [xs[j] for j in range(k)]
 
     def substep(self, t, scale):
-        """`min(2/omega, 0.3 R)`, `R` the smallest bound on the series' radius of convergence
+        """`min(3.5/omega, 0.3 R)`, `R` the smallest bound on the series' radius of convergence
         that the laws give for a swing of amplitude `scale[0]` (the sine's `K'(k)/omega`, the
         polynomial's shrinking with amplitude, quadratic drag's `1/(cq v_max)`). The results do
         not depend on where the substeps end: no gradient flows through it.

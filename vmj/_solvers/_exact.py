@@ -12,7 +12,7 @@ In a batch the values that several kernels read (a substep's end and its guard, 
 and slope) are `computed_once`: XLA's CPU kernels would each recompute the series.
 
 Every loop ends as soon as its work is done for every lane of a `vmap`ped batch: the substeps
-when each lane has found its velocity zero (about two per half-swing), the Newton iterations
+when each lane has found its velocity zero (about one per half-swing), the Newton iterations
 when each has converged, the swings when each has stuck or failed. Values come from plain
 `lax.while_loop`s; derivatives (`jax.jacfwd`, reverse-mode `jax.grad`) from the same code with
 bounded loops (`early_exit_loop`: a scan of conditionals) through a custom JVP, the same
