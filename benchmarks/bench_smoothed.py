@@ -1,6 +1,6 @@
 """The smoothed solver over the sweep grid of the command line's example: eps 0:1:11, mu
 0:10:21 kg/s, delta -3:3:7 kg/s (1617 points), 12 turning points from a0 = 6 cm, every setting
-at its default (`vmj.Smoothed()`: w = 1e-4 of the velocity scale, Tsit5, rtol 1e-10), against
+at its default (`vmj.Smoothed()`: w = 1e-4 of the velocity scale, Dopri8, rtol 1e-10), against
 the exact solver over the same grid (goal: completes, within 20 x of the exact sweep), the two
 measured in turns (`interleaved`); the turning points of the two compared.
 

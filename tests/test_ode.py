@@ -1,11 +1,11 @@
-"""vmj's default ODE solver: diffrax's Tsit5 with its stages written out."""
+"""vmj's default ODE solver: diffrax's Dopri8 with its stages written out."""
 
 import diffrax as dfx
 import jax.numpy as jnp
 import numpy as np
 
 import vmj
-from vmj._numerics._ode import ode_solve, recording, step_size_controller, tsit5
+from vmj._numerics._ode import dopri8, ode_solve, recording, step_size_controller
 
 
 def _solve(solver, saveat=None):
@@ -23,16 +23,31 @@ def _solve(solver, saveat=None):
     )
 
 
-def test_tsit5_takes_the_steps_of_diffrax_tsit5():
-    ours, theirs = _solve(tsit5()), _solve(dfx.Tsit5())
+def test_dopri8_steps_as_diffrax_dopri8():
+    """The same tableau and error estimate as diffrax's `Dopri8`: one step from the same state
+    gives the same end and error estimate (to the order of the additions), and a whole solve
+    about the same steps and the same solution within its tolerance. (The error estimate is a
+    difference of nearly equal sums over 14 stages: summed in another order it moves by about
+    1e-8 relative, which moves later steps by as much; measured 157 + 62 steps against
+    159 + 62, the solutions 4.6e-9 of each component's scale apart.)"""
+    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
+    w = 1e-3 * float(model.velocity_scale(0.06))
+    term = dfx.ODETerm(lambda t, y, args: model.vector_field(t, y, w))
+    y0, t0, t1 = jnp.array([-0.05, 0.002]), 0.0, 4e-4  # (into the tanh layer: a large error)
+    steps = []
+    for solver in (dopri8(), dfx.Dopri8()):
+        state = solver.init(term, t0, t1, y0, None)
+        steps.append(solver.step(term, t0, t1, y0, None, state, False)[:2])
+    (y1, e1), (y2, e2) = steps
+    np.testing.assert_allclose(y1, y2, rtol=0, atol=1e-15 * float(jnp.abs(y2).max()))
+    assert float(jnp.abs(e2).max()) > 1e-7
+    np.testing.assert_allclose(e1, e2, rtol=0, atol=1e-12 * float(jnp.abs(e2).max()))
+    ours, theirs = _solve(dopri8()), _solve(dfx.Dopri8())
     assert ours.result == dfx.RESULTS.successful
-    # the same tableau, error estimate and step-size control: the same steps, and the same
-    # solution up to the order of the additions (measured: 4e-14 of each component's scale;
-    # the solve's own tolerance is 1e-10)
-    assert int(ours.stats["num_steps"]) == int(theirs.stats["num_steps"]) > 100
-    assert int(ours.stats["num_rejected_steps"]) == int(theirs.stats["num_rejected_steps"])
+    n, m = int(ours.stats["num_steps"]), int(theirs.stats["num_steps"])
+    assert n > 100 and abs(n - m) <= 0.03 * m
     scale = np.abs(np.asarray(theirs.ys)).max(axis=0)
-    assert np.all(np.abs(np.asarray(ours.ys - theirs.ys)) < 1e-12 * scale)
+    assert np.all(np.abs(np.asarray(ours.ys - theirs.ys)) < 3e-8 * scale)
 
 
 def test_step_size_controller_takes_the_steps_of_diffraxs_pid_controller():
@@ -101,27 +116,28 @@ def test_recording_keeps_the_accepted_steps_and_stays_put_when_done():
         memo = (steps + 1, jnp.where(first, t1, t_done), jnp.where(first, y_end, y_done))
         return memo, done
 
-    plain = _solve(tsit5(), dfx.SaveAt(t1=True))
+    plain = _solve(dopri8(), dfx.SaveAt(t1=True))
     memo = (jnp.array(0), jnp.array(-1.0), jnp.zeros(2))
-    sol = _solve(recording(tsit5(), record, memo), dfx.SaveAt(t1=True, solver_state=True))
+    sol = _solve(recording(dopri8(), record, memo), dfx.SaveAt(t1=True, solver_state=True))
     steps, t_done, y_done = sol.solver_state[1]
     assert sol.result == dfx.RESULTS.successful and 0.2 <= float(t_done) < 0.5
     # the accepted steps up to t_done, and a few free of error to t1 afterwards
-    ts = _solve(tsit5(), dfx.SaveAt(steps=True)).ts
+    ts = _solve(dopri8(), dfx.SaveAt(steps=True)).ts
     assert int(steps) == int(np.sum(np.asarray(ts) <= float(t_done)))
     assert int(sol.stats["num_accepted_steps"]) <= int(steps) + 8
     assert int(plain.stats["num_accepted_steps"]) > int(steps) + 20
-    np.testing.assert_allclose(np.asarray(sol.ys[-1]), np.asarray(y_done), rtol=1e-14)
+    np.testing.assert_allclose(np.asarray(sol.ys[-1]), np.asarray(y_done), rtol=1e-13)
 
 
-def test_dense_output_and_its_derivative_are_diffrax_tsit5s():
-    """vmj's Tsit5 dense output (its weights multiplied out into a quartic) and its time
-    derivative against diffrax's `Tsit5` interpolation on the same step: to 1e-13."""
+def test_dense_output_and_its_derivative_are_diffrax_dopri8s():
+    """vmj's Dopri8 dense output (its weights multiplied out into a polynomial of degree 6)
+    and its time derivative against diffrax's `Dopri8` interpolation on the same step: to
+    1e-13."""
     model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
     w = 1e-3 * float(model.velocity_scale(0.06))
     term = dfx.ODETerm(lambda t, y, args: model.vector_field(t, y, w))
     y0, t0, t1 = jnp.array([-0.06, 0.0]), 0.0, 0.01
-    ours, theirs = tsit5(), dfx.Tsit5()
+    ours, theirs = dopri8(), dfx.Dopri8()
     *_, dense, _, _ = ours.step(term, t0, t1, y0, None, ours.init(term, t0, t1, y0, None), False)
     *_, dense_d, _, _ = theirs.step(
         term, t0, t1, y0, None, theirs.init(term, t0, t1, y0, None), False

@@ -176,12 +176,13 @@ def test_smoothed_steps_towards_a_reversal_are_limited():
     """Towards each reversal the smoothed solve's steps are limited to reach the `tanh` layer's
     edge in one step and to cross the layer in steps of 0.4 of the time to the velocity's zero
     (the step-size controller alone grew steps of small error tenfold into the layer, and most
-    were rejected). delta = eps = mu = 0: 749 steps for its 10 turning points, 875 without the
-    limit; within 68 steps per half-swing (816 in all) it completes, with the exact turning
-    points before the rest to 1e-6 a0 (at the rest the smoothed mass creeps on to `20 w`)."""
+    were rejected). delta = eps = mu = 0: 241 steps (15 rejected) for its 10 turning points,
+    436 (169 rejected) without the limit; within 26 steps per half-swing (312 in all) it
+    completes, with the exact turning points before the rest to 1e-6 a0 (at the rest the
+    smoothed mass creeps on to `20 w`)."""
     m = model(delta=0.0, mu=0.0)
     exact = vmj.turning_points(m, A0, 12)
-    smooth = vmj.turning_points(m, A0, 12, vmj.Smoothed(max_steps=68))
+    smooth = vmj.turning_points(m, A0, 12, vmj.Smoothed(max_steps=26))
     assert int(exact.count) == int(smooth.count) == 10
     assert int(smooth.result) == vmj.RESULTS.stopped
     np.testing.assert_allclose(smooth.positions[:9], exact.positions[:9], rtol=0, atol=1e-6 * A0)

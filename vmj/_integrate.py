@@ -319,7 +319,7 @@ def simulate(
       [`vmj.LinearOscillator`][], [`vmj.StickSlip`][] (dimensionless `xi`, `xi'`).
     - `x0`, `v0`: initial position [m] and velocity [m/s] at `t = 0`.
     - `t1`: final time [s], `> 0`, below the model's lifetime (zero mass, zero rope length).
-    - `solver`: [`vmj.Smoothed`][] (default; `sign(v)` replaced by `tanh(v/w)`, diffrax Tsit5,
+    - `solver`: [`vmj.Smoothed`][] (default; `sign(v)` replaced by `tanh(v/w)`, diffrax Dopri8,
       rtol 1e-10) or [`vmj.ClosedForm`][] (the analytic response of the linear oscillator).
     - `smoothing`: the older spelling of `vmj.Smoothed(smoothing=w)`: the smoothing velocity
       `w` [m/s], `> 0`; default `1e-4` of the velocity scale `|x0| sqrt(c/m0) + |v0|`, with
@@ -357,7 +357,7 @@ def linear_simulate(
     rtol: float = 1e-12,
     throw: bool = False,
 ) -> Trajectory:
-    """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Tsit5) from `x(0) = x0` [m],
+    """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Dopri8) from `x(0) = x0` [m],
     `x'(0) = v0` [m/s] to `t1` [s] `> 0`: `vmj.simulate(osc, x0, v0, t1,
     vmj.Smoothed(rtol=rtol))`. `rtol` is the relative tolerance (the absolute one is `rtol`
     times the motion's length scale). **Returns:** a [`vmj.Trajectory`][]."""

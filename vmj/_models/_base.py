@@ -51,7 +51,7 @@ class AbstractModel(AbstractParams):
     smoothed_rtol: ClassVar[float] = 1e-10
     #: step limit of the smoothed ODE solve
     smoothed_max_steps: ClassVar[int] = 200_000
-    #: whether the smoothed ODE is stiff (an implicit solver, Kvaerno5, instead of Tsit5)
+    #: whether the smoothed ODE is stiff (an implicit solver, Kvaerno5, instead of Dopri8)
     smoothed_stiff: ClassVar[bool] = False
     #: the status reported when a solve runs into the model's lifetime
     exhausted: ClassVar[RESULTS] = RESULTS.mass_exhausted

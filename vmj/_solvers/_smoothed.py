@@ -13,7 +13,7 @@ from jaxtyping import Array
 
 from .._checks import _float, _is_traced, check, positive
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
-from .._numerics._ode import ode_solve, recording, tsit5
+from .._numerics._ode import dopri8, ode_solve, recording
 from .._numerics._roots import bracketed_newton, implicit_step
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
@@ -47,7 +47,7 @@ class Smoothed(AbstractSolver):
     - `max_steps`: diffrax step limit (default: the model's), per half-swing for the turning
       points (`n` of them: one solve of at most `n * max_steps` steps) and per saved interval
       for a trajectory.
-    - `ode_solver`: a diffrax solver (default: Tsit5, as `diffrax.Tsit5()` with its stages
+    - `ode_solver`: a diffrax solver (default: Dopri8, as `diffrax.Dopri8()` with its stages
       written out, which is faster on CPUs; `Kvaerno5()` for stiff models such as stick-slip).
     """
 
@@ -105,7 +105,7 @@ class Smoothed(AbstractSolver):
 
         ode = self.ode_solver
         if ode is None:
-            ode = dfx.Kvaerno5() if model.smoothed_stiff else tsit5()
+            ode = dfx.Kvaerno5() if model.smoothed_stiff else dopri8()
         return rtol, steps, ode
 
     # -- the one diffrax call ------------------------------------------------------------------
@@ -319,20 +319,19 @@ def _components(model, x0, v0, w):
 def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
     """Time and position where `g(y(t))` falls through zero within a step from `t0` to `t1`
     (`g0 > 0 >= g1` at its ends, where `found`), `y(t)` the step's dense output: vmj's root
-    finder on the step's fraction, one bracketed Newton step from the secant's root written
-    out, then one with gradients (the implicit function's derivative). A step accepted at the
-    solve's tolerance makes the secant's root close, and the error of Newton's method squares
-    at each step: over a 809-point chunk of the benchmark grid, the turning points are within
-    7.5e-11 s and 1.3e-13 m of those of three steps (three and six steps agree to the last bit;
-    with the implicit step alone, 1.1e-6 s and 4.1e-9 m), below the dense output's own error
-    (the smoothed and the exact turning points agree to 4.5e-8 relative, median, either way),
-    for a step 3-7 % faster (in turns, medians of 8 rounds: 43.2 -> 39.9 and 41.4 -> 40.0 ms).
+    finder on the step's fraction, three bracketed Newton steps from the secant's root written
+    out, then one with gradients (the implicit function's derivative). Dopri8's steps are long
+    (a tenth of a period where the motion is smooth), and where the event function is curved
+    over the step the secant's root is far from the root: the arrest of a last swing whose
+    speed only just exceeds `CREEP w` lies on a flat peak, where one Newton step (enough for
+    Tsit5's steps, a third as long) left the time 1.1e-4 off (relative, against a solve at rtol
+    1e-13), two about 1e-5, three 1.7e-8 (over the benchmark grid: amplitudes to 5.6e-8 at most).
 
     Computed only in a step where some lane of a `vmap`ped batch has found its turning point,
     in a `lax.cond`: XLA's CPU backend has no multi-output fusion, and recomputed the
     iterations in each of the half-dozen kernels that read the result otherwise (808 lanes:
     about 60 us per step, as much as the step itself)."""
-    at = getattr(interpolation, "at_fraction", None)  # (vmj's Tsit5: a quartic in it)
+    at = getattr(interpolation, "at_fraction", None)  # (vmj's Dopri8: a polynomial in it)
     if at is None:
 
         def at(u):
@@ -346,7 +345,7 @@ def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
         fs = lambda u: lax.stop_gradient(f(u))  # noqa: E731
         secant = jnp.clip(g0 / jnp.where(g0 > g1, g0 - g1, 1.0), 0.0, 1.0)
         zero = jnp.zeros_like(secant)
-        u = bracketed_newton(fs, zero, zero + 1.0, lax.stop_gradient(secant), 1, unrolled=True)
+        u = bracketed_newton(fs, zero, zero + 1.0, lax.stop_gradient(secant), 3, unrolled=True)
         u = implicit_step(f, u)
         return t0 + (t1 - t0) * u, position(at(u))
 
