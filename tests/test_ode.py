@@ -7,12 +7,18 @@ import numpy as np
 import vmj
 from vmj._numerics._ode import dopri8, ode_solve, recording, step_size_controller
 
+MODEL = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
+W = 1e-3 * float(MODEL.velocity_scale(0.06))  #: the smoothing velocity of every solve here
 
-def _solve(solver, saveat=None):
-    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
-    w = 1e-3 * float(model.velocity_scale(0.06))
+
+def _field(t, y, args):
+    return MODEL.vector_field(t, y, W)
+
+
+def _solve(solver=None, saveat=None, limit=None):
+    """From x = -6 cm at rest to t = 0.5 s, rtol 1e-10, atol 1e-12."""
     return ode_solve(
-        lambda t, y, args: model.vector_field(t, y, w),
+        _field,
         jnp.array([-0.06, 0.0]),
         0.5,
         saveat or dfx.SaveAt(ts=jnp.linspace(0.0, 0.5, 41)),  # dense output between the steps
@@ -20,6 +26,7 @@ def _solve(solver, saveat=None):
         atol=1e-12,
         max_steps=100_000,
         solver=solver,
+        limit=limit,
     )
 
 
@@ -30,9 +37,7 @@ def test_dopri8_steps_as_diffrax_dopri8():
     difference of nearly equal sums over 14 stages: summed in another order it moves by about
     1e-8 relative, which moves later steps by as much; measured 157 + 62 steps against
     159 + 62, the solutions 4.6e-9 of each component's scale apart.)"""
-    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
-    w = 1e-3 * float(model.velocity_scale(0.06))
-    term = dfx.ODETerm(lambda t, y, args: model.vector_field(t, y, w))
+    term = dfx.ODETerm(_field)
     y0, t0, t1 = jnp.array([-0.05, 0.002]), 0.0, 4e-4  # (into the tanh layer: a large error)
     steps = []
     for solver in (dopri8(), dfx.Dopri8()):
@@ -53,12 +58,10 @@ def test_dopri8_steps_as_diffrax_dopri8():
 def test_step_size_controller_takes_the_steps_of_diffraxs_pid_controller():
     """vmj's controller computes diffrax's step factor with `exp` and `log` instead of XLA's
     `power`: the same steps, accepted and rejected, and the same solution to rounding."""
-    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
-    w = 1e-3 * float(model.velocity_scale(0.06))
 
     def solve(controller):
         return dfx.diffeqsolve(
-            dfx.ODETerm(lambda t, y, args: model.vector_field(t, y, w)),
+            dfx.ODETerm(_field),
             dfx.Tsit5(),
             0.0,
             0.5,
@@ -78,29 +81,20 @@ def test_step_size_controller_takes_the_steps_of_diffraxs_pid_controller():
 
 
 def test_step_size_limit_shortens_steps_and_keeps_the_solution():
-    """A `limit` on the next step (here 1 ms; the free steps reach 1.5 ms) makes the controller's steps no longer than it,
-    more of them, and the same solution within the solve's tolerance."""
-    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
-    w = 1e-3 * float(model.velocity_scale(0.06))
+    """A `limit` on the next step (here 1 ms; the free steps reach 1.5 ms) makes the
+    controller's steps no longer than it, more of them, and the same solution within the
+    solve's tolerance."""
+    every = dfx.SaveAt(steps=True)
+    free, held = _solve(saveat=every), _solve(saveat=every, limit=lambda *_: jnp.asarray(1e-3))
 
-    def solve(limit):
-        return ode_solve(
-            lambda t, y, args: model.vector_field(t, y, w),
-            jnp.array([-0.06, 0.0]),
-            0.5,
-            dfx.SaveAt(steps=True),
-            rtol=1e-10,
-            atol=1e-12,
-            max_steps=2000,
-            limit=limit,
-        )
+    def accepted(sol):  # (the steps' ends, and the state at the last)
+        n = int(sol.stats["num_accepted_steps"])
+        return np.asarray(sol.ts)[:n], np.asarray(sol.ys)[n - 1]
 
-    free, held = solve(None), solve(lambda t0, t1, y0, y1: jnp.asarray(1e-3))
-    steps = lambda sol: np.diff(np.asarray(sol.ts)[: int(sol.stats["num_accepted_steps"])])  # noqa: E731
-    assert steps(free).max() > 1.4e-3 and steps(held).max() <= 1e-3 * (1 + 1e-12)
-    assert int(held.stats["num_accepted_steps"]) > int(free.stats["num_accepted_steps"])
-    end = lambda sol: np.asarray(sol.ys)[int(sol.stats["num_accepted_steps"]) - 1]  # noqa: E731
-    np.testing.assert_allclose(end(held), end(free), rtol=0, atol=1e-8 * np.abs(end(free)).max())
+    (ts_free, end_free), (ts_held, end_held) = accepted(free), accepted(held)
+    assert np.diff(ts_free).max() > 1.4e-3 and np.diff(ts_held).max() <= 1e-3 * (1 + 1e-12)
+    assert ts_held.size > ts_free.size
+    np.testing.assert_allclose(end_held, end_free, rtol=0, atol=1e-8 * np.abs(end_free).max())
 
 
 def test_recording_keeps_the_accepted_steps_and_stays_put_when_done():
@@ -133,9 +127,7 @@ def test_dense_output_and_its_derivative_are_diffrax_dopri8s():
     """vmj's Dopri8 dense output (its weights multiplied out into a polynomial of degree 6)
     and its time derivative against diffrax's `Dopri8` interpolation on the same step: to
     1e-13."""
-    model = vmj.VariableMass(5.0, 4900.0, 1.0, 0.5, 2.0, vmj.Coulomb(14.7))
-    w = 1e-3 * float(model.velocity_scale(0.06))
-    term = dfx.ODETerm(lambda t, y, args: model.vector_field(t, y, w))
+    term = dfx.ODETerm(_field)
     y0, t0, t1 = jnp.array([-0.06, 0.0]), 0.0, 0.01
     ours, theirs = dopri8(), dfx.Dopri8()
     *_, dense, _, _ = ours.step(term, t0, t1, y0, None, ours.init(term, t0, t1, y0, None), False)

@@ -51,22 +51,11 @@ def _dopri8_class():
             del y1  # (as diffrax's: the stages hold the step's end)
             self.t0, self.t1, self.y0, self.k = t0, t1, y0, k
 
-        def evaluate(self, t0, t1=None, left=True):
+        def evaluate(self, t0, t1=None, left=True):  # (its derivative: diffrax's, a `jvp`)
             if t1 is not None:
                 return self.evaluate(t1) - self.evaluate(t0)
-            return self.at_fraction(self._fraction(t0)[0])
-
-        def derivative(self, t, left=True):
-            u, span = self._fraction(t)
-            slope = jax.jvp(self.at_fraction, (u,), (jnp.ones_like(u),))[1]
-            return jax.tree.map(lambda d: d / span, slope)
-
-        def _fraction(self, t):
-            """`(u, span)`: `t` as the fraction `u` of the step, and the step's length (1 for
-            an empty step)."""
             span = self.t1 - self.t0
-            span = jnp.where(span == 0, 1.0, span)
-            return (t - self.t0) / span, span
+            return self.at_fraction((t0 - self.t0) / jnp.where(span == 0, 1.0, span))
 
         def at_fraction(self, u):
             """The state at `t0 + u (t1 - t0)`."""

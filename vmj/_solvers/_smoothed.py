@@ -231,8 +231,9 @@ class Smoothed(AbstractSolver):
             velocity's mean slope over that step): `max(0.9 (|v| - 5 w), 0.4 (|v| + w)) / |a|`,
             to just outside the `tanh` layer in one step, within it 0.4 of the time to the
             velocity's zero. (diffrax's controller grows a step by up to 10 after one of small
-            error; towards a reversal that overshot into the layer and was rejected, 13.7
-            rejected steps per turning point over the benchmark grid, 5.6 with this limit.)"""
+            error; towards a reversal that overshot into the layer and was rejected: the ten
+            turning points of delta = eps = mu = 0, 436 steps, 169 rejected, against 241 and
+            15 with this limit.)"""
             v_0, v_1 = model.observe(unpack(y0))[1], model.observe(unpack(y1))[1]
             a = (v_1 - v_0) / jnp.where(t1 > t0, t1 - t0, 1.0)
             falls = v_1 * a < 0
