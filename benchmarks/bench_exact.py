@@ -148,8 +148,10 @@ def _replay_swing(model, t, x, active):
         h, _, t_next = model.substep(tt, scale)
         cs = model.taylor(tt, xx, vv, s, _exact.ORDER)
         x1, v1 = horner_and_derivative(cs, h)
-        hit = jnp.logical_not(found) & (v1 * s <= 0)
-        start = tuple(jnp.where(hit, a, b) for a, b in zip((tt, xx, vv, h), start))
+        early = horner(derivative(cs), 0.5 * h) * s <= 0
+        hit = jnp.logical_not(found) & (early | (v1 * s <= 0))
+        held = (tt, xx, vv, jnp.where(early, 0.5 * h, h))
+        start = tuple(jnp.where(hit, a, b) for a, b in zip(held, start))
         substeps = substeps + jnp.logical_not(found)
         found = found | hit
         tt, xx, vv = (jnp.where(found, a, b) for a, b in ((tt, t_next), (xx, x1), (vv, v1)))

@@ -72,6 +72,20 @@ def test_decay_bad_input_exits_2_with_one_line(capsys, flag, value, name):
     assert err.count("\n") == 1 and err.startswith(f"vmj: error: {name} must be")
 
 
+def test_max_substeps_reaches_a_fast_growing_mass(capsys):
+    """A mass growing by 300 kg/s needs more than the default 8 substeps in its first swing:
+    the status names the option, which the exact solver takes and the others refuse."""
+    fast = with_value(ARGS, "--delta", "300") + ["--n", "12", "--json"]
+    code, out, _ = run(capsys, fast)
+    data = json.loads(out)
+    assert code == 0 and data["times"] == [] and "raise --max-substeps" in data["message"]
+    code, out, _ = run(capsys, fast + ["--max-substeps", "16"])
+    data = json.loads(out)
+    assert code == 0 and len(data["times"]) == 12 and "message" not in data
+    code, out, err = run(capsys, fast + ["--max-substeps", "16", "--method", "smooth"])
+    assert code == 2 and err.startswith("vmj: error: --max-substeps applies to --method exact")
+
+
 def test_nan_argument_exits_2(capsys):
     with pytest.raises(SystemExit) as e:
         main(with_value(ARGS, "--mu", "nan"))

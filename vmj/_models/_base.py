@@ -147,8 +147,10 @@ class AbstractDecayModel(AbstractModel):
     @abc.abstractmethod
     def substep(self, t, scale):
         """`(h, limited, t_next)`: the substep length from `t` (well inside the Taylor series'
-        radius of convergence), whether it is limited by the approach of the model's lifetime,
-        and where the substep ends (`t + h`, or a breakpoint of a piecewise model)."""
+        radius of convergence, and shorter than twice the shortest time between two velocity
+        zeros: the exact solver tests the velocity's sign at mid-substep and at its end),
+        whether it is limited by the approach of the model's lifetime, and where the substep
+        ends (`t + h`, or a breakpoint of a piecewise model)."""
 
     @abc.abstractmethod
     def half_period(self, t, scale) -> Array:

@@ -8,6 +8,13 @@ bracketed Newton, and makes its time differentiable by one final Newton step tak
 gradients (the implicit-function theorem). A guard on each series' last terms turns any loss of
 accuracy into a reported failure instead of a wrong answer.
 
+A substep holds the velocity zero when the velocity's sign has turned at its end or at its
+middle. The end alone misses a pair of zeros: a substep that starts moving (the swing's first
+fell short of the zero) and is longer than a half-period (up to `3.5/omega` for the variable
+mass, whose half-period grows with the mass) can end past the next zero as well, and the swing
+would skip two turning points. With the middle too, a substep shorter than twice the shortest
+time between velocity zeros finds the first one (`model.substep`'s contract).
+
 In a batch the values that several kernels read (a substep's end and its guard, Newton's value
 and slope) are `computed_once`: XLA's CPU kernels would each recompute the series.
 
@@ -178,13 +185,18 @@ def march_to_velocity_zero(
         n = len(cs) - 1
         tail = jnp.abs(cs[-1]) * h**n + jnp.abs(cs[-2]) * h ** (n - 1)
         x1, v1 = horner_and_derivative(cs, h)
-        if not one_lane:  # (a batch: each of the three would recompute the series)
-            x1, v1, tail = computed_once((x1, v1, tail), k)
+        # the velocity's sign at mid-substep too (module docstring: two zeros in one substep)
+        v_mid = horner(derivative(cs), 0.5 * h)
+        if not one_lane:  # (a batch: each of the four would recompute the series)
+            x1, v1, tail, v_mid = computed_once((x1, v1, tail, v_mid), k)
         bad = tail > TAIL_TOLERANCE * (jnp.abs(x) + jnp.abs(x1) + jnp.abs(v) * h)
         inaccurate = inaccurate | (bad & jnp.logical_not(found))
-        hit = jnp.logical_not(found) & (v1 * s <= 0)
-        # the substep holding the zero: its start, length and series
-        start = jax.tree.map(lambda new, old: jnp.where(hit, new, old), (t, x, v, h), start)
+        early = v_mid * s <= 0  # (the first zero in the substep's first half)
+        hit = jnp.logical_not(found) & (early | (v1 * s <= 0))
+        # the substep holding the zero: its start, length (its first half for an early zero)
+        # and series
+        held = (t, x, v, jnp.where(early, 0.5 * h, h))
+        start = jax.tree.map(lambda new, old: jnp.where(hit, new, old), held, start)
         limited = jnp.where(found, limited, end_limited)
         found = found | hit
         t, x, v = (jnp.where(found, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))

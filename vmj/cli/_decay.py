@@ -37,6 +37,30 @@ def run(args) -> int:
     return args.decay_run(args)
 
 
+def _max_substeps_arg(q, default: str) -> None:
+    q.add_argument(
+        "--max-substeps",
+        type=count,
+        metavar="N",
+        help=f"with --method exact: substeps per half-swing at most (default {default}; a mass "
+        "that grows fast, or creeping motion, needs more)",
+    )
+
+
+def _max_substeps(args, default: int | None = None) -> int | None:
+    """`--max-substeps`, which only the exact method takes, else `default`."""
+    if args.max_substeps is None:
+        return default
+    if args.method != "exact":
+        raise ValueError(f"--max-substeps applies to --method exact (got --method {args.method})")
+    return args.max_substeps
+
+
+def _message(seq) -> str:
+    """The solve's status message, with the command's spelling of the step limit's option."""
+    return seq.message.replace("raise max_substeps", "raise --max-substeps")
+
+
 def turning_point_limit(args, n: int, what: str) -> None:
     """Refuse more than `MAX_TURNING_POINTS` unless `--force`."""
     if not args.force:
@@ -52,6 +76,7 @@ def _variable_mass_args(q) -> None:
         default="exact",
         help="exact non-smooth solver, smoothed ODE, or the paper's energy balance",
     )
+    _max_substeps_arg(q, "8")
 
 
 def _variable_mass(args) -> int:
@@ -60,7 +85,13 @@ def _variable_mass(args) -> int:
     turning_point_limit(args, args.n, f"--n {args.n} turning points")
     spec = MODELS["variable-mass"]
     values = spec.resolve(given(spec, args))
-    seq = vmj.turning_points(spec.build(values), values["a0"], args.n, method=args.method)
+    seq = vmj.turning_points(
+        spec.build(values),
+        values["a0"],
+        args.n,
+        method=args.method,
+        max_substeps=_max_substeps(args),
+    )
     got = seq.reached()
     out = {
         "model": "variable-mass",
@@ -71,11 +102,11 @@ def _variable_mass(args) -> int:
         "stopped": bool(seq.stopped),
     }
     if bool(seq.failed):
-        out["message"] = seq.message
+        out["message"] = _message(seq)
     lines = [f"{'k':>3} {'t [s]':>12} {'|x| [m]':>14} {'crossed':>8}"]
     for k, (t, a, c) in enumerate(zip(out["times"], out["amplitudes"], out["crossed"]), 1):
         lines.append(f"{k:>3} {t:12.6f} {a:14.8f} {'yes' if c else 'no *':>8}")
-    lines.append(f"status: {seq.message}")
+    lines.append(f"status: {_message(seq)}")
     emit(out, args.json, "\n".join(lines))
     return 0
 
@@ -102,6 +133,7 @@ def _rope_args(q, methods=("exact", "smooth", "kbm")) -> None:
         default="exact",
         help=", ".join(described[m] for m in methods),
     )
+    _max_substeps_arg(q, "12")
     q.add_argument(
         "--units",
         choices=("si", "technical"),
@@ -162,12 +194,13 @@ def _rope(args) -> int:
         )
         failed = False
     else:
-        seq = vmj.turning_points(rope, a0, n, method=args.method, max_substeps=12)
+        substeps = _max_substeps(args, 12 if args.method == "exact" else None)
+        seq = vmj.turning_points(rope, a0, n, method=args.method, max_substeps=substeps)
         got = seq.reached()
         keep = got["times"] <= args.t1
         times, amps = got["times"][keep], got["amplitudes"][keep]
         stopped = bool(seq.stopped) and bool(np.all(keep))
-        message, failed = seq.message, bool(seq.failed)
+        message, failed = _message(seq), bool(seq.failed)
         if int(seq.count) == n and not stopped and not failed and keep.all():
             raise RuntimeError("internal: the turning-point count estimate was too small")
     out = {
