@@ -255,6 +255,18 @@ def test_sweep_rope_in_technical_units(tmp_path, capsys):
     )
 
 
+def test_sweep_takes_max_substeps_for_a_fast_growing_mass(capsys):
+    """Masses growing by 200-300 kg/s from 5 kg need more than the default 8 substeps in their
+    first swing: the summary names the option, and with it no point fails."""
+    argv = ["sweep", "variable-mass", "--delta", "200,300", "--set"]
+    argv += ["m0=5,c=4900,eps=0,mu=2,FT=14.7,a0=0.06", "--n", "12"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "failed: 2" in out and "raise --max-substeps" in out
+    assert main(argv + ["--max-substeps", "24"]) == 0
+    assert "failed: 0" in capsys.readouterr().out
+
+
 def test_technical_units_convert_as_the_library_does():
     from vmj.cli._params import MODELS
 

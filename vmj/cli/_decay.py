@@ -5,7 +5,16 @@ from __future__ import annotations
 from ._options import count, emit, number, refuse_above
 from ._params import MODELS, add_options, given
 
-__all__ = ["add_arguments", "run", "rope_model", "turning_point_limit", "MAX_TURNING_POINTS"]
+__all__ = [
+    "add_arguments",
+    "cli_message",
+    "max_substeps",
+    "max_substeps_arg",
+    "run",
+    "rope_model",
+    "turning_point_limit",
+    "MAX_TURNING_POINTS",
+]
 
 MAX_TURNING_POINTS = 100_000  #: turning points computed without --force (decay, sensitivity)
 
@@ -37,7 +46,7 @@ def run(args) -> int:
     return args.decay_run(args)
 
 
-def _max_substeps_arg(q, default: str) -> None:
+def max_substeps_arg(q, default: str) -> None:
     q.add_argument(
         "--max-substeps",
         type=count,
@@ -47,7 +56,7 @@ def _max_substeps_arg(q, default: str) -> None:
     )
 
 
-def _max_substeps(args, default: int | None = None) -> int | None:
+def max_substeps(args, default: int | None = None) -> int | None:
     """`--max-substeps`, which only the exact method takes, else `default`."""
     if args.max_substeps is None:
         return default
@@ -56,9 +65,9 @@ def _max_substeps(args, default: int | None = None) -> int | None:
     return args.max_substeps
 
 
-def _message(seq) -> str:
-    """The solve's status message, with the command's spelling of the step limit's option."""
-    return seq.message.replace("raise max_substeps", "raise --max-substeps")
+def cli_message(message: str) -> str:
+    """A status message with the command's spelling of the step limit's option."""
+    return message.replace("raise max_substeps", "raise --max-substeps")
 
 
 def turning_point_limit(args, n: int, what: str) -> None:
@@ -76,7 +85,7 @@ def _variable_mass_args(q) -> None:
         default="exact",
         help="exact non-smooth solver, smoothed ODE, or the paper's energy balance",
     )
-    _max_substeps_arg(q, "8")
+    max_substeps_arg(q, "8")
 
 
 def _variable_mass(args) -> int:
@@ -90,7 +99,7 @@ def _variable_mass(args) -> int:
         values["a0"],
         args.n,
         method=args.method,
-        max_substeps=_max_substeps(args),
+        max_substeps=max_substeps(args),
     )
     got = seq.reached()
     out = {
@@ -102,11 +111,11 @@ def _variable_mass(args) -> int:
         "stopped": bool(seq.stopped),
     }
     if bool(seq.failed):
-        out["message"] = _message(seq)
+        out["message"] = cli_message(seq.message)
     lines = [f"{'k':>3} {'t [s]':>12} {'|x| [m]':>14} {'crossed':>8}"]
     for k, (t, a, c) in enumerate(zip(out["times"], out["amplitudes"], out["crossed"]), 1):
         lines.append(f"{k:>3} {t:12.6f} {a:14.8f} {'yes' if c else 'no *':>8}")
-    lines.append(f"status: {_message(seq)}")
+    lines.append(f"status: {cli_message(seq.message)}")
     emit(out, args.json, "\n".join(lines))
     return 0
 
@@ -133,7 +142,7 @@ def _rope_args(q, methods=("exact", "smooth", "kbm")) -> None:
         default="exact",
         help=", ".join(described[m] for m in methods),
     )
-    _max_substeps_arg(q, "12")
+    max_substeps_arg(q, "12")
     q.add_argument(
         "--units",
         choices=("si", "technical"),
@@ -194,13 +203,13 @@ def _rope(args) -> int:
         )
         failed = False
     else:
-        substeps = _max_substeps(args, 12 if args.method == "exact" else None)
+        substeps = max_substeps(args, 12 if args.method == "exact" else None)
         seq = vmj.turning_points(rope, a0, n, method=args.method, max_substeps=substeps)
         got = seq.reached()
         keep = got["times"] <= args.t1
         times, amps = got["times"][keep], got["amplitudes"][keep]
         stopped = bool(seq.stopped) and bool(np.all(keep))
-        message, failed = _message(seq), bool(seq.failed)
+        message, failed = cli_message(seq.message), bool(seq.failed)
         if int(seq.count) == n and not stopped and not failed and keep.all():
             raise RuntimeError("internal: the turning-point count estimate was too small")
     out = {

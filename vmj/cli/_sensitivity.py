@@ -21,7 +21,7 @@ CYCLE = ("period", "slip_time", "stick_time")  #: the stick-slip quantities diff
 
 def add_arguments(p) -> None:
     from ._app import add_global_options
-    from ._decay import MAX_TURNING_POINTS, _max_substeps_arg, _rope_args
+    from ._decay import MAX_TURNING_POINTS, _rope_args, max_substeps_arg
 
     sub = p.add_subparsers(dest="model", required=True, metavar="MODEL")
     for name in ("variable-mass", "rope", "stick-slip"):
@@ -49,7 +49,7 @@ def add_arguments(p) -> None:
                 default="exact",
                 help="solver differentiated",
             )
-            _max_substeps_arg(q, "8")
+            max_substeps_arg(q, "8")
         elif name == "rope":
             _rope_args(q, ("exact", "smooth"))  # the averaged envelope has no turning points
         else:
@@ -168,10 +168,10 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
 
     import vmj
 
-    from ._decay import _max_substeps, _message
+    from ._decay import cli_message, max_substeps
 
     method = args.method
-    substeps = _max_substeps(args, 12 if args.model == "rope" and method == "exact" else None)
+    substeps = max_substeps(args, 12 if args.model == "rope" and method == "exact" else None)
     extra = {} if substeps is None else {"max_substeps": substeps}
 
     def decay(m, a0, n):
@@ -204,7 +204,7 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
         "stopped": bool(seq.stopped),
     }
     if bool(seq.failed):
-        out["message"] = _message(seq)
+        out["message"] = cli_message(seq.message)
     bad = [w for w, _ in wrt if not np.all(np.isfinite(out["d_amplitudes"][w] + out["d_times"][w]))]
     if bad:
         raise ValueError(
@@ -226,6 +226,6 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
             f"{k + 1:>3} {out['times'][k]:10.5f} {out['amplitudes'][k]:12.8f}"
             + "".join(f" {out['d_amplitudes'][w][k]:24.10g}" for w, _ in wrt)
         )
-    lines.append(f"status: {_message(seq)}; dt_k/dp in the JSON output (--json)")
+    lines.append(f"status: {cli_message(seq.message)}; dt_k/dp in the JSON output (--json)")
     emit(out, args.json, "\n".join(lines))
     return 0

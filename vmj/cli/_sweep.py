@@ -22,6 +22,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from ._decay import cli_message, max_substeps, max_substeps_arg
 from ._options import (
     Joined,
     count,
@@ -75,7 +76,8 @@ def _turning_points(args, g, scalars, method=None):
     import vmj
 
     method = method or args.method
-    extra = {"max_substeps": 12} if args.model == "rope" and method == "exact" else {}
+    substeps = max_substeps(args, 12 if args.model == "rope" and method == "exact" else None)
+    extra = {} if substeps is None else {"max_substeps": substeps}
     return vmj.sweep(
         vmj.turning_points, g, a0=scalars["a0"], n=args.n, method=method, **_engine(args), **extra
     )
@@ -89,7 +91,10 @@ def _failures(codes) -> tuple:
 
     failed = np.asarray(codes)[vmj.RESULTS.failed(np.asarray(codes))]
     statuses, counts = np.unique(failed, return_counts=True)
-    lines = [f"  {k} points: {vmj.RESULTS(int(c)).message}" for c, k in zip(statuses, counts)]
+    lines = [
+        f"  {k} points: {cli_message(vmj.RESULTS(int(c)).message)}"
+        for c, k in zip(statuses, counts)
+    ]
     return failed.size, lines
 
 
@@ -208,6 +213,8 @@ def add_arguments(p) -> None:
         if len(how.methods) > 1:
             q.add_argument("--method", choices=how.methods, help="solver")
         q.set_defaults(method=how.methods[0])
+        if how.turning_points and "exact" in how.methods:
+            max_substeps_arg(q, "12" if name == "rope" else "8")
         if name == "rope":
             q.add_argument(
                 "--units",
