@@ -8,7 +8,7 @@ from ._params import MODELS, add_options, given
 __all__ = [
     "add_arguments",
     "cli_message",
-    "max_substeps",
+    "exact_options",
     "max_substeps_arg",
     "run",
     "rope_model",
@@ -56,13 +56,17 @@ def max_substeps_arg(q, default: str) -> None:
     )
 
 
-def max_substeps(args, default: int | None = None) -> int | None:
-    """`--max-substeps`, which only the exact method takes, else `default`."""
-    if args.max_substeps is None:
-        return default
-    if args.method != "exact":
+def exact_options(args, method: str | None = None) -> dict:
+    """The exact solver's `max_substeps` for a solve by `method` (default: `--method`):
+    `--max-substeps` (refused with another `--method`), else the rope's 12."""
+    given = getattr(args, "max_substeps", None)
+    if given is not None and args.method != "exact":
         raise ValueError(f"--max-substeps applies to --method exact (got --method {args.method})")
-    return args.max_substeps
+    if (method or args.method) != "exact":
+        return {}
+    if given is not None:
+        return {"max_substeps": given}
+    return {"max_substeps": 12} if args.model == "rope" else {}
 
 
 def cli_message(message: str) -> str:
@@ -99,7 +103,7 @@ def _variable_mass(args) -> int:
         values["a0"],
         args.n,
         method=args.method,
-        max_substeps=max_substeps(args),
+        **exact_options(args),
     )
     got = seq.reached()
     out = {
@@ -203,8 +207,7 @@ def _rope(args) -> int:
         )
         failed = False
     else:
-        substeps = max_substeps(args, 12 if args.method == "exact" else None)
-        seq = vmj.turning_points(rope, a0, n, method=args.method, max_substeps=substeps)
+        seq = vmj.turning_points(rope, a0, n, method=args.method, **exact_options(args))
         got = seq.reached()
         keep = got["times"] <= args.t1
         times, amps = got["times"][keep], got["amplitudes"][keep]

@@ -168,11 +168,10 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
 
     import vmj
 
-    from ._decay import cli_message, max_substeps
+    from ._decay import cli_message, exact_options
 
     method = args.method
-    substeps = max_substeps(args, 12 if args.model == "rope" and method == "exact" else None)
-    extra = {} if substeps is None else {"max_substeps": substeps}
+    extra = exact_options(args)
 
     def decay(m, a0, n):
         seq = vmj.turning_points(m, a0, n, method=method, **extra)

@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ._decay import cli_message, max_substeps, max_substeps_arg
+from ._decay import cli_message, exact_options, max_substeps_arg
 from ._options import (
     Joined,
     count,
@@ -76,10 +76,14 @@ def _turning_points(args, g, scalars, method=None):
     import vmj
 
     method = method or args.method
-    substeps = max_substeps(args, 12 if args.model == "rope" and method == "exact" else None)
-    extra = {} if substeps is None else {"max_substeps": substeps}
     return vmj.sweep(
-        vmj.turning_points, g, a0=scalars["a0"], n=args.n, method=method, **_engine(args), **extra
+        vmj.turning_points,
+        g,
+        a0=scalars["a0"],
+        n=args.n,
+        method=method,
+        **_engine(args),
+        **exact_options(args, method),
     )
 
 
