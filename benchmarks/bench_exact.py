@@ -91,14 +91,21 @@ def model_of(eps, mu, delta):
 
 
 # -- operations in the solver's program ---------------------------------------------------------
-def _ops(jaxpr, loops):
+def _ops(jaxpr, loops, conds=None):
     """Arithmetic operations of `jaxpr` outside its while loops, whose (cond, body) jaxprs are
-    appended to `loops` in program order."""
+    appended to `loops` in program order; of a conditional, its cheapest branch, the extra
+    operations of its dearest appended to `conds`."""
     count = 0
     for eqn in jaxpr.eqns:
         name = eqn.primitive.name
         if name == "while":
             loops.append((eqn.params["cond_jaxpr"].jaxpr, eqn.params["body_jaxpr"].jaxpr))
+            continue
+        if name == "cond":
+            branches = sorted(_ops(b.jaxpr, loops) for b in eqn.params["branches"])
+            count += branches[0]
+            if conds is not None:
+                conds.append(branches[-1] - branches[0])
             continue
         if name in ARITHMETIC:
             count += int(np.prod(eqn.outvars[0].aval.shape, dtype=int)) or 1
@@ -113,9 +120,10 @@ def _ops(jaxpr, loops):
 
 
 def operation_counts():
-    """Operations per lane: outside the swings, per half-swing (the rest rule, the Newton
-    start, the implicit step, the bookkeeping), per substep and per Newton iteration (each with
-    its loop test)."""
+    """Operations per lane: outside the swings, per half-swing (its first substep, the rest
+    rule, the Newton start, the implicit step, the bookkeeping), per further substep and per
+    Newton iteration (each with its loop test), and the series recomputed for Newton where a
+    further substep held the zero."""
     model = model_of(0.5, 2.0, 1.0)
     jaxpr = jax.make_jaxpr(lambda m, a0: _exact._solve_decay(m, a0, N, MAX_SUBSTEPS, "lax"))(
         model, jnp.asarray(A0)
@@ -123,14 +131,15 @@ def operation_counts():
     top = []
     outside = _ops(jaxpr, top)
     ((swing_cond, swing_body),) = top
-    inner = []
-    per_swing = _ops(swing_body, inner) + _ops(swing_cond, [])
+    inner, conds = [], []
+    per_swing = _ops(swing_body, inner, conds) + _ops(swing_cond, [])
     (sub_cond, sub_body), (newton_cond, newton_body) = inner
     return {
         "outside": outside,
         "swing": per_swing,
         "substep": _ops(sub_body, []) + _ops(sub_cond, []),
         "newton": _ops(newton_body, []) + _ops(newton_cond, []),
+        "recompute": max(conds),
     }
 
 
@@ -141,10 +150,10 @@ def _replay_swing(model, t, x, active):
     s, t_go, stuck = model.rest(t, x)
     moving = active & jnp.logical_not(stuck)
     scale = model.swing_scale(t_go, x)
-    tt, xx, vv, found = t_go, x, jnp.zeros_like(x), jnp.logical_not(moving)
-    start = (t_go, x, vv, vv)
-    substeps = jnp.zeros((), jnp.int32)
-    for _ in range(MAX_SUBSTEPS):
+
+    def substep(carry, _):  # (a loop: unrolled, XLA computed each substep's chains anew in
+        # every kernel that reads them, and the next substep's in those, without end)
+        tt, xx, vv, found, start, substeps = carry
         h, _, t_next = model.substep(tt, scale)
         cs = model.taylor(tt, xx, vv, s, _exact.ORDER)
         x1, v1 = horner_and_derivative(cs, h)
@@ -155,6 +164,11 @@ def _replay_swing(model, t, x, active):
         substeps = substeps + jnp.logical_not(found)
         found = found | hit
         tt, xx, vv = (jnp.where(found, a, b) for a, b in ((tt, t_next), (xx, x1), (vv, v1)))
+        return (tt, xx, vv, found, start, substeps), None
+
+    zero = jnp.zeros_like(x)
+    init = (t_go, x, zero, jnp.logical_not(moving), (t_go, x, zero, zero), jnp.zeros((), jnp.int32))
+    *_, start, substeps = lax.scan(substep, init, None, length=MAX_SUBSTEPS)[0]
     t0, x0, v0, h = start
     cs = model.taylor(t0, x0, v0, s, _exact.ORDER)
     f_cs = [c * s for c in derivative(cs)]
@@ -345,29 +359,33 @@ def floor_of(res, P, eps, mu, delta, t_sweep, t_rate, rate_ops, cores):
     chunk = -(-P // res.chunks)
     batches = [slice(c * chunk, min((c + 1) * chunk, P)) for c in range(res.chunks)]
 
-    def total(swings, k, it):
-        return ops["outside"] + swings * ops["swing"] + k * ops["substep"] + it * ops["newton"]
+    def total(swings, k, it):  # (`k` substeps per swing: the first is the swing's own)
+        further = np.maximum(k - 1, 0)
+        return (
+            ops["outside"]
+            + swings * ops["swing"]
+            + further.sum(-1) * ops["substep"]
+            + (further > 0).sum(-1) * ops["recompute"]
+            + it * ops["newton"]
+        )
 
-    lane = total(moving.sum(1), substeps.sum(1), newton.sum(1))  # what each lane needs
+    lane = total(moving.sum(1), substeps, newton.sum(1))  # what each lane needs
     run = np.concatenate(
         [
             np.full(
                 b.stop - b.start,
-                total(
-                    int(moving[b].any(0).sum()),
-                    int(substeps[b].max(0).sum()),
-                    int(newton[b].max(0).sum()),
-                ),
+                total(int(moving[b].any(0).sum()), substeps[b].max(0), int(newton[b].max(0).sum())),
             )
             for b in batches
         ]
     )  # what each lane's batch runs
-    fixed = total(N, N * MAX_SUBSTEPS, N * _exact.NEWTON)
+    fixed = total(N, np.full(N, MAX_SUBSTEPS), N * _exact.NEWTON)
     rate, fastest = rate_ops / t_rate.median, rate_ops / t_rate.times.min()
     floor = lane.sum() / rate / P
     print(
-        f"  operations: {ops['substep']} per substep, {ops['newton']} per Newton iteration, "
-        f"{ops['swing']} per half-swing besides, {ops['outside']} once"
+        f"  operations: {ops['swing']} per half-swing with its first substep, "
+        f"{ops['substep']} per further substep (and {ops['recompute']} for Newton's series), "
+        f"{ops['newton']} per Newton iteration, {ops['outside']} once"
     )
     print(
         f"  iterations per point: {moving.sum(1).mean():.2f} half-swings, "

@@ -205,8 +205,8 @@ def test_sweeps_from_several_threads_at_once_keep_their_results_and_threads():
         t.join()
     for a, b in zip(alone, got):
         np.testing.assert_array_equal(a, b)
-    kept = len(_engine._IDLE)
-    assert 1 <= kept <= len(grids) * CORES
+    kept = len(_engine._IDLE)  # (one core: the chunks run in the calling thread, none kept)
+    assert (1 if CORES > 1 else 0) <= kept <= len(grids) * CORES
     for _ in range(5):  # one after the other: no new thread
         run(grids[0])
         assert len(_engine._IDLE) == kept

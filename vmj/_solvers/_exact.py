@@ -176,8 +176,8 @@ def march_to_velocity_zero(
         k, found = carry[0], carry[4]
         return (k < max_substeps) & unvmap_any(jnp.logical_not(found))
 
-    def body(carry):
-        k, t, x, v, found, limited, inaccurate, start = carry
+    def step(k, t, x, v, found, limited, inaccurate, start):
+        """One substep: the carry after it, and its series."""
         h, end_limited, t_next = model.substep(t, scale)
         cs = model.taylor(t, x, v, s, ORDER)
         # truncation guard: the last terms of the series must be negligible (a diverging
@@ -200,27 +200,43 @@ def march_to_velocity_zero(
         limited = jnp.where(found, limited, end_limited)
         found = found | hit
         t, x, v = (jnp.where(found, a, b) for a, b in ((t, t_next), (x, x1), (v, v1)))
-        return k + 1, t, x, v, found, limited, inaccurate, start
+        return (k + 1, t, x, v, found, limited, inaccurate, start), cs
 
     false = zeros_of_lanes(x0, bool)
-    init = (jnp.array(0), t0, x0, zero, jnp.logical_not(moving), false, false, (t0, x0, zero, zero))
+    # (the counter opaque to XLA, which would fold `computed_once`'s conditional away)
+    k0 = lax.optimization_barrier(jnp.array(0))
+    init = (k0, t0, x0, zero, jnp.logical_not(moving), false, false, (t0, x0, zero, zero))
+    # the first substep outside the loop: almost every swing's zero is in it, and Newton then
+    # takes its series instead of computing it again (the loop runs only if a lane needs more)
+    first, cs = step(*init)
     _, reached, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
-        cond, body, init, max_substeps, kind=kind, base=substep_block(max_substeps)
+        cond,
+        lambda carry: step(*carry)[0],
+        first,
+        max_substeps,
+        kind=kind,
+        base=substep_block(max_substeps),
+    )
+    later = found & jnp.logical_not(first[4])  # (lanes whose zero a later substep holds)
+    cs = lax.cond(
+        unvmap_any(later),
+        lambda cs: [jnp.where(later, a, b) for a, b in zip(model.taylor(t, x, v, s, ORDER), cs)],
+        lambda cs: cs,
+        cs,
     )
     # substeps that crowd against the model's lifetime (a rope's length running out, whose
     # substeps shrink with it) end the model, not the step budget
     limited = limited | (lax.stop_gradient(reached) >= (1 - 1e-6) * model.lifetime())
     t_guess = t0 + model.half_period(t0, scale)
-    t1, x1 = _velocity_zero(model, t, x, v, s, h, t_guess, one_lane)
+    t1, x1 = _velocity_zero(model, cs, t, x, v, s, h, t_guess, one_lane)
     return found & jnp.logical_not(inaccurate), limited, t1, x1
 
 
-def _velocity_zero(model, t, x, v, s, h, t_guess, one_lane: bool):
-    """Velocity zero of the substep's Taylor polynomial about `(t, x, v)` (valid on
+def _velocity_zero(model, cs, t, x, v, s, h, t_guess, one_lane: bool):
+    """Velocity zero of the substep's Taylor polynomial `cs` about `(t, x, v)` (valid on
     `[t, t + h]`, moving with sign `s`): `(time, position)`. Newton's iterations use the
     series' coefficients carried into their loop, or recomputed in it with `one_lane` (for a
     model with a straight-line recurrence)."""
-    cs = model.taylor(t, x, v, s, ORDER)
     if one_lane and model.straight_line_taylor:
         stopped = lax.stop_gradient((model, t, x, v))
         series = lambda: stopped[0].taylor(*stopped[1:], s, ORDER)  # noqa: E731
