@@ -125,9 +125,9 @@ def operation_counts():
     Newton iteration (each with its loop test), and the series recomputed for Newton where a
     further substep held the zero."""
     model = model_of(0.5, 2.0, 1.0)
-    jaxpr = jax.make_jaxpr(lambda m, a0: _exact._solve_decay(m, a0, N, MAX_SUBSTEPS, "lax"))(
-        model, jnp.asarray(A0)
-    ).jaxpr
+    jaxpr = jax.make_jaxpr(
+        lambda m, a0: _exact._solve_decay(m, a0, N, MAX_SUBSTEPS, "lax", values=True)
+    )(model, jnp.asarray(A0)).jaxpr
     top = []
     outside = _ops(jaxpr, top)
     ((swing_cond, swing_body),) = top

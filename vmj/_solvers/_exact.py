@@ -135,10 +135,12 @@ class Exact(AbstractSolver):
         return model.exact_cycle(max_reversals)
 
 
-def _solve_decay(model, a0, n: int, max_substeps: int, kind: str, one_lane: bool = False):
+def _solve_decay(
+    model, a0, n: int, max_substeps: int, kind: str, one_lane: bool = False, values: bool = False
+):
     def swing(t0, x0, s, moving):
         found, limited, t1, x1 = march_to_velocity_zero(
-            model, t0, x0, s, moving, max_substeps, kind, one_lane
+            model, t0, x0, s, moving, max_substeps, kind, one_lane, values
         )
         return found, jnp.where(limited, model.exhausted, RESULTS.step_limit), t1, x1
 
@@ -149,7 +151,7 @@ def _solve_decay(model, a0, n: int, max_substeps: int, kind: str, one_lane: bool
 def _decay(model, a0, *, n: int, max_substeps: int, one_lane: bool):
     """The decay with plain `lax.while_loop`s (the fastest loops, not reverse-differentiable);
     derivatives, forward or reverse, come from the same code with bounded loops (below)."""
-    return _solve_decay(model, a0, n, max_substeps, "lax", one_lane)
+    return _solve_decay(model, a0, n, max_substeps, "lax", one_lane, values=True)
 
 
 @_decay.def_jvp
@@ -160,7 +162,15 @@ def _decay_jvp(primals, tangents, *, n: int, max_substeps: int, one_lane: bool):
 
 
 def march_to_velocity_zero(
-    model, t0, x0, s, moving, max_substeps: int, kind: str, one_lane: bool = False
+    model,
+    t0,
+    x0,
+    s,
+    moving,
+    max_substeps: int,
+    kind: str,
+    one_lane: bool = False,
+    values: bool = False,
 ):
     """From rest at `(t0, x0)` with friction sign `s`, advance by Taylor substeps to the next
     velocity zero (lanes with `moving` False take no substep). Returns `(found, limited, t1,
@@ -168,7 +178,12 @@ def march_to_velocity_zero(
     when a series lost accuracy (its last terms not negligible); `limited` tells whether the
     substeps were limited by the model's lifetime. The substeps end as soon as every lane of a
     `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`; `one_lane`: as in
-    `Exact`)."""
+    `Exact`). With `values` (a solve that is not differentiated) the first substep runs before
+    the loop and Newton takes its series: almost every swing's zero is in it, and the series
+    was computed again for Newton (211 of a half-swing's operations for the variable mass; now
+    only where a later substep holds the zero, under a conditional that a batch skips when no
+    lane needs it). Derivatives keep the substep in the loop alone: their programs would hold
+    its code twice (`jax.jacfwd` of 12 swings compiled in 4.1 -> 7.4 s)."""
     scale = model.swing_scale(t0, x0)
     zero = zeros_of_lanes(x0)
 
@@ -203,12 +218,11 @@ def march_to_velocity_zero(
         return (k + 1, t, x, v, found, limited, inaccurate, start), cs
 
     false = zeros_of_lanes(x0, bool)
-    # (the counter opaque to XLA, which would fold `computed_once`'s conditional away)
-    k0 = lax.optimization_barrier(jnp.array(0))
+    # (outside a loop the counter is made opaque to XLA, which would fold `computed_once`'s
+    # conditional away)
+    k0 = lax.optimization_barrier(jnp.array(0)) if values else jnp.array(0)
     init = (k0, t0, x0, zero, jnp.logical_not(moving), false, false, (t0, x0, zero, zero))
-    # the first substep outside the loop: almost every swing's zero is in it, and Newton then
-    # takes its series instead of computing it again (the loop runs only if a lane needs more)
-    first, cs = step(*init)
+    first, cs = step(*init) if values else (init, None)
     _, reached, _, _, found, limited, inaccurate, (t, x, v, h) = early_exit_loop(
         cond,
         lambda carry: step(*carry)[0],
@@ -217,13 +231,16 @@ def march_to_velocity_zero(
         kind=kind,
         base=substep_block(max_substeps),
     )
-    later = found & jnp.logical_not(first[4])  # (lanes whose zero a later substep holds)
-    cs = lax.cond(
-        unvmap_any(later),
-        lambda cs: [jnp.where(later, a, b) for a, b in zip(model.taylor(t, x, v, s, ORDER), cs)],
-        lambda cs: cs,
-        cs,
-    )
+    if values:
+        later = found & jnp.logical_not(first[4])  # (lanes whose zero a later substep holds)
+        cs = lax.cond(
+            unvmap_any(later),
+            lambda c: [jnp.where(later, a, b) for a, b in zip(model.taylor(t, x, v, s, ORDER), c)],
+            lambda c: c,
+            cs,
+        )
+    else:
+        cs = model.taylor(t, x, v, s, ORDER)
     # substeps that crowd against the model's lifetime (a rope's length running out, whose
     # substeps shrink with it) end the model, not the step budget
     limited = limited | (lax.stop_gradient(reached) >= (1 - 1e-6) * model.lifetime())
