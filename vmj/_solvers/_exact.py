@@ -151,7 +151,7 @@ def _solve_decay(
 def _decay(model, a0, *, n: int, max_substeps: int, one_lane: bool):
     """The decay with plain `lax.while_loop`s (the fastest loops, not reverse-differentiable);
     derivatives, forward or reverse, come from the same code with bounded loops (below)."""
-    return _solve_decay(model, a0, n, max_substeps, "lax", one_lane, values=True)
+    return _solve_decay(model, a0, n, max_substeps, "lax", one_lane, values=not one_lane)
 
 
 @_decay.def_jvp
@@ -178,12 +178,14 @@ def march_to_velocity_zero(
     when a series lost accuracy (its last terms not negligible); `limited` tells whether the
     substeps were limited by the model's lifetime. The substeps end as soon as every lane of a
     `vmap`ped batch has found its zero (`kind`: of `early_exit_loop`; `one_lane`: as in
-    `Exact`). With `values` (a solve that is not differentiated) the first substep runs before
-    the loop and Newton takes its series: almost every swing's zero is in it, and the series
+    `Exact`). With `values` (a batch's solve that is not differentiated) the first substep runs
+    before the loop and Newton takes its series: almost every swing's zero is in it, and the series
     was computed again for Newton (211 of a half-swing's operations for the variable mass; now
     only where a later substep holds the zero, under a conditional that a batch skips when no
     lane needs it). Derivatives keep the substep in the loop alone: their programs would hold
-    its code twice (`jax.jacfwd` of 12 swings compiled in 4.1 -> 7.4 s)."""
+    its code twice (`jax.jacfwd` of 12 swings compiled in 4.1 -> 7.4 s); so does a single solve
+    (`one_lane`), whose time is its kernels' number (a repeated `vmj table 1` took 0.78 ->
+    0.88 s with it)."""
     scale = model.swing_scale(t0, x0)
     zero = zeros_of_lanes(x0)
 
