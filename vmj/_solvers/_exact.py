@@ -234,7 +234,8 @@ def march_to_velocity_zero(
         base=substep_block(max_substeps),
     )
     if values:
-        later = found & jnp.logical_not(first[4])  # (lanes whose zero a later substep holds)
+        _, _, _, _, found_first, *_ = first
+        later = found & jnp.logical_not(found_first)  # (lanes whose zero a later substep holds)
         cs = lax.cond(
             unvmap_any(later),
             lambda c: [jnp.where(later, a, b) for a, b in zip(model.taylor(t, x, v, s, ORDER), c)],

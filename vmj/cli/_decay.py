@@ -17,6 +17,9 @@ __all__ = [
 ]
 
 MAX_TURNING_POINTS = 100_000  #: turning points computed without --force (decay, sensitivity)
+#: the rope's exact substeps per half-swing at most unless --max-substeps (the library's
+#: default, 8, serves the variable mass)
+ROPE_SUBSTEPS = 12
 
 
 def add_arguments(p) -> None:
@@ -46,7 +49,8 @@ def run(args) -> int:
     return args.decay_run(args)
 
 
-def max_substeps_arg(q, default: str) -> None:
+def max_substeps_arg(q, model: str) -> None:
+    default = ROPE_SUBSTEPS if model == "rope" else 8
     q.add_argument(
         "--max-substeps",
         type=count,
@@ -58,15 +62,15 @@ def max_substeps_arg(q, default: str) -> None:
 
 def exact_options(args, method: str | None = None) -> dict:
     """The exact solver's `max_substeps` for a solve by `method` (default: `--method`):
-    `--max-substeps` (refused with another `--method`), else the rope's 12."""
-    given = getattr(args, "max_substeps", None)
+    `--max-substeps` (refused with another `--method`), else the rope's `ROPE_SUBSTEPS`."""
+    given = args.max_substeps
     if given is not None and args.method != "exact":
         raise ValueError(f"--max-substeps applies to --method exact (got --method {args.method})")
     if (method or args.method) != "exact":
         return {}
     if given is not None:
         return {"max_substeps": given}
-    return {"max_substeps": 12} if args.model == "rope" else {}
+    return {"max_substeps": ROPE_SUBSTEPS} if args.model == "rope" else {}
 
 
 def cli_message(message: str) -> str:
@@ -89,7 +93,7 @@ def _variable_mass_args(q) -> None:
         default="exact",
         help="exact non-smooth solver, smoothed ODE, or the paper's energy balance",
     )
-    max_substeps_arg(q, "8")
+    max_substeps_arg(q, "variable-mass")
 
 
 def _variable_mass(args) -> int:
@@ -146,7 +150,7 @@ def _rope_args(q, methods=("exact", "smooth", "kbm")) -> None:
         default="exact",
         help=", ".join(described[m] for m in methods),
     )
-    max_substeps_arg(q, "12")
+    max_substeps_arg(q, "rope")
     q.add_argument(
         "--units",
         choices=("si", "technical"),

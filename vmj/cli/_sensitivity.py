@@ -49,7 +49,7 @@ def add_arguments(p) -> None:
                 default="exact",
                 help="solver differentiated",
             )
-            max_substeps_arg(q, "8")
+            max_substeps_arg(q, name)
         elif name == "rope":
             _rope_args(q, ("exact", "smooth"))  # the averaged envelope has no turning points
         else:

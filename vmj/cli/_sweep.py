@@ -217,8 +217,8 @@ def add_arguments(p) -> None:
         if len(how.methods) > 1:
             q.add_argument("--method", choices=how.methods, help="solver")
         q.set_defaults(method=how.methods[0])
-        if how.turning_points and "exact" in how.methods:
-            max_substeps_arg(q, "12" if name == "rope" else "8")
+        if how.turning_points:
+            max_substeps_arg(q, name)
         if name == "rope":
             q.add_argument(
                 "--units",
