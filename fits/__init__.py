@@ -31,9 +31,10 @@ from ._io import (
     read_signal,
     record_from_sequence,
 )
-from ._models import FORWARDS
-from ._report import paper_records, plot_fit, text_report
+from ._report import paper_records, plot_fit
+from ._result import text_report
 from ._sensor import sensor_start
+from ._space import FORWARDS
 
 __all__ = [
     "Record",

@@ -265,7 +265,7 @@ def run(args) -> int:
     import fits
     from fits._fit import MissingParameters
     from fits._models import SPACES
-    from fits._report import outliers_at
+    from fits._result import outliers_at
 
     model = args.model or "variable-mass"
     space = SPACES[model]

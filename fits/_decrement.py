@@ -114,7 +114,7 @@ def decrement(record: Record, centre: float | None = None) -> dict:
 
 
 def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
-    """Starting values of the parameters of a model family (a `fits._models.Space`) from the
+    """Starting values of the parameters of a model family (a `fits._space.Space`) from the
     decrement estimate `dec`; values in `given` (fixed parameters, or starts chosen by the user)
     take precedence. A space with a `start(record, given, dec)` function supplies its own."""
     if getattr(space, "start", None) is not None:

@@ -44,7 +44,7 @@ from vmj.cli import name_list
 
 from ._decrement import decrement, starting_guess
 from ._io import EDGE_RELEASE, HELD_RELEASE, Record, extract_turning_points, sample_window
-from ._models import FORWARDS, SPACES, Space, series_space
+from ._models import SPACES
 from ._params import (
     HELD,
     INTERVAL,
@@ -59,6 +59,7 @@ from ._params import (
 )
 from ._result import FitResult, _assess, _information, _result, _robust_scale, _values_of
 from ._solve import _TUNING, _job_arrays, _profiles, _rss, _Shape, _solve
+from ._space import FORWARDS, Space, series_space
 
 __all__ = ["FitResult", "fit", "fit_batch", "LOSSES", "OPTIMIZERS", "RESIDUALS"]
 

@@ -47,8 +47,8 @@ import vmj
 
 from ._decrement import decrement
 from ._io import Record, unit_at_end
-from ._models import Space, Variant, first_amplitude, record_centre
 from ._sensor import _opposite, sensor_start
+from ._space import Space, Variant, first_amplitude, record_centre
 
 __all__ = ["PENDULUM", "DEGREE", "DISSIPATION_SETS", "FREE"]
 

@@ -1,6 +1,6 @@
-"""The result of a fit (`FitResult`, its JSON contract) and how a solved job becomes one:
-statistics (AIC, BIC), the corrected covariance (`fits._stats`), the converged rules, the
-profile-likelihood intervals, the residual diagnostics and the model comparison.
+"""The result of a fit (`FitResult`, its JSON contract and its text report) and how a solved
+job becomes one: statistics (AIC, BIC), the corrected covariance (`fits._stats`), the converged
+rules, the profile-likelihood intervals, the residual diagnostics and the model comparison.
 """
 
 from __future__ import annotations
@@ -115,9 +115,184 @@ class FitResult:
         return jsonable(out)
 
     def report(self) -> str:
-        from ._report import text_report
-
+        """The readable summary ([`fits.text_report`][])."""
         return text_report(self)
+
+
+# -- the text report ---------------------------------------------------------------------------
+def _fmt(v) -> str:
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return "nan"
+    return "nan" if not np.isfinite(v) else f"{v:.6g}"
+
+
+def _interval(lo, hi) -> str:
+    """`[lo, hi]` with enough digits to tell the ends apart."""
+    try:
+        lo, hi = float(lo), float(hi)
+    except (TypeError, ValueError):
+        return "[nan, nan]"
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return f"[{_fmt(lo)}, {_fmt(hi)}]"
+    width, size = abs(hi - lo), max(abs(lo), abs(hi))
+    digits = (
+        6 if width <= 0 or size <= 0 else int(min(15, max(6, np.ceil(np.log10(size / width)) + 3)))
+    )
+    return f"[{lo:.{digits}g}, {hi:.{digits}g}]"
+
+
+def _short(v, digits: int) -> str:
+    return "nan" if v is None or not np.isfinite(v) else f"{v:.{digits}g}"
+
+
+def _corr(v) -> str:
+    return "nan" if v is None or not np.isfinite(v) else f"{v:+.3f}"
+
+
+def _field(result, name, default=None):
+    """A field of the result, `default` when this result does not carry it."""
+    value = getattr(result, name, None)
+    return default if value is None else value
+
+
+def _unit(result, name: str) -> str:
+    unit = _field(result, "units", {}).get(name)
+    if unit and unit.startswith("signal"):
+        unit = "signal units" + unit[len("signal") :]
+    return f" [{unit}]" if unit and unit != "-" else ""
+
+
+def _comparison_rows(comparison: dict) -> list:
+    return [(k, v) for k, v in comparison.items() if isinstance(v, dict) and "aic" in v]
+
+
+def _warnings(result) -> list:
+    seen = []
+    for w in list(_field(result, "warnings", [])) + list(
+        _field(result, "diagnostics", {}).get("warnings", [])
+    ):
+        if w not in seen:
+            seen.append(w)
+    return seen
+
+
+def outliers_at(result: FitResult) -> str:
+    """Where the flagged outliers are: `"at k = [...]"` (turning points) or `"at samples
+    [...]"` (a fit on the whole time series)."""
+    where = "samples" if _field(result, "residuals_of") == "series" else "k ="
+    return f"at {where} {result.outliers}"
+
+
+def text_report(result: FitResult) -> str:
+    """A readable summary of a [`fits.FitResult`][]: each fitted parameter with its unit, its
+    standard error corrected for residual autocorrelation (`+-`), the Gauss-Newton standard
+    error (`gn`) and the 95 % interval; correlations; convergence; residual RMS and
+    diagnostics (lag-1 autocorrelation, runs test, effective sample size); the decrement
+    method; the model comparison by AIC/BIC; per-record values of a joint fit; the sample
+    clock of a raw signal; every warning."""
+    label = _field(result, "label", "")
+    records = _field(result, "records", [])
+    what = f"{len(records)} records" if len(records) > 1 else f"{len(result.record)} turning points"
+    lines = [
+        f"model {result.model}"
+        + (f" ({label})" if label else "")
+        + f", forward {result.forward}, loss {result.loss}, optimizer {result.optimizer}, "
+        + what
+    ]
+    intervals = _field(result, "intervals", {})
+    stderr_gn = _field(result, "stderr_gn", {})
+    for name, value in result.params.items():
+        stderr = _fmt(result.stderr.get(name))
+        # no standard error: on a bound or not identified (the warnings say which)
+        spread = "(no standard error)" if stderr == "nan" else f"+- {stderr:<10}"
+        line = f"  {name:>7} = {_fmt(value):>12} {spread}{_unit(result, name)}"
+        if name in stderr_gn and _fmt(stderr_gn[name]) != "nan":
+            line += f"  (gn +- {_fmt(stderr_gn[name])})"
+        if name in intervals and intervals[name] is not None:
+            line += "  95 % " + _interval(*intervals[name])
+        lines.append(line)
+    if len(result.params) > 1:
+        names = list(result.params)
+        lines.append(
+            "  correlation: "
+            + "; ".join(
+                f"{a}/{b} {_corr(result.correlation[i][j])}"
+                for i, a in enumerate(names)
+                for j, b in enumerate(names)
+                if j > i
+            )
+        )
+    lines.append(
+        f"  converged: {result.converged} after {result.iterations} iterations; "
+        f"rms {_fmt(result.rms)}"
+        + ("" if result.rms_time is None else f", time rms {_fmt(result.rms_time)} s")
+    )
+    diag = _field(result, "diagnostics", {})
+    if diag:
+        n_res = _field(result, "n_residuals")
+        lines.append(
+            f"  residuals: lag-1 autocorrelation {_short(diag.get('lag1'), 3)}, runs test "
+            f"p = {_short(diag.get('runs_p'), 3)}, effective sample size "
+            f"{_short(diag.get('n_eff'), 4)}" + ("" if not n_res else f" of {n_res}")
+        )
+    dec = result.decrement
+    if dec:
+        lines.append(
+            f"  decrement method: r = {_fmt(dec.get('r'))} per half-swing, zeta = "
+            f"{_fmt(dec.get('zeta'))}, xF = {_fmt(dec.get('xF'))} +- "
+            f"{_fmt(dec.get('stderr_xF'))} (signal units)"
+        )
+    rows = _comparison_rows(result.model_comparison or {})
+    aic, bic = _field(result, "aic"), _field(result, "bic")
+    if not rows and aic is not None and np.isfinite(aic):
+        lines.append(f"  AIC {aic:.2f}, BIC {bic:.2f}")
+    if rows:
+        lines.append("  model comparison (lower is better):")
+        for k, c in rows:
+            lines.append(
+                f"    {k:>10}: AIC {c['aic']:10.2f}  BIC {c['bic']:10.2f}  "
+                + ", ".join(f"{n}={_fmt(v)}" for n, v in c.get("params", {}).items())
+            )
+        best = [
+            f"by {k[5:].upper()}: {v}"
+            for k, v in result.model_comparison.items()
+            if k.startswith("best_")
+        ]
+        if best:
+            lines.append("    best " + ", ".join(best))
+    if len(records) > 1:
+        lines.append("  per record:")
+        for i, item in enumerate(records):
+            item = item if isinstance(item, dict) else {}
+            src = item.get("source") or f"record {i}"
+            values = item.get("params", {})
+            err = item.get("stderr", {})
+            ivs = item.get("intervals", {})
+            lines.append(
+                f"    {src}: "
+                + ", ".join(
+                    f"{n}={_fmt(v)} +- {_fmt(err.get(n))}"
+                    + (" " + _interval(*ivs[n]) if ivs.get(n) is not None else "")
+                    for n, v in values.items()
+                )
+            )
+    clock = _field(result, "clock", None) or result.record.clock
+    if clock:
+        lines.append(
+            "  clock: "
+            + str(
+                clock.get("message")
+                or ", ".join(
+                    f"{k} {v}" for k, v in clock.items() if not isinstance(v, (list, dict))
+                )
+            )
+        )
+    if result.outliers:
+        lines.append(f"  outliers (|residual| > 5 robust sd) {outliers_at(result)}")
+    lines += [f"  warning: {w}" for w in _warnings(result)]
+    return "\n".join(lines)
 
 
 #: a fit whose turning-point times miss the record's by more than this fraction of a

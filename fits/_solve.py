@@ -24,8 +24,8 @@ import optimistix as optx
 import vmj
 from vmj.cli import exported_jit
 
-from ._models import theta_dict
 from ._params import HELD, apply, derivative
+from ._space import theta_dict
 
 __all__ = []
 

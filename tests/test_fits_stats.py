@@ -269,7 +269,11 @@ def test_report_and_figure_of_a_joint_amplitude_only_result(tmp_path):
     result = _result(records, residuals, {"zeta": 0.01, "xF": 0.02}, {"zeta": 0.002, "xF": None})
     text = result.report()
     assert "2 records" in text and "per record:" in text and "r1: offset=0" in text
-    assert "xF =         0.02 +- nan" in text and "95 % [0.009, 0.011]" in text
+    assert (
+        "xF =         0.02 (no standard error)" in text
+        and "gn +- nan" not in text
+        and "95 % [0.009, 0.011]" in text
+    )
     assert "zeta/xF nan" in text and "lag-1 autocorrelation 0.7" in text
     assert text.count("not identified") == 1  # in warnings and diagnostics: listed once
     path = tmp_path / "joint.svg"
