@@ -27,7 +27,7 @@ answers `--help` and argument errors at once.
 
 from typing import TYPE_CHECKING
 
-__version__ = "0.2.0"
+from ._version import __version__ as __version__
 
 if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs as written
     from ._checks import AbstractParams, assume_valid

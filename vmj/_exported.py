@@ -42,6 +42,8 @@ import struct
 import sys
 import tempfile
 
+from ._version import __version__
+
 __all__ = ["exported_jit", "enable_exported_cache", "exported_cache_directory"]
 
 _MAGIC = b"vmj-exported 1\n"
@@ -470,8 +472,6 @@ def _environment(module: str) -> str:
 
     import jax
 
-    import vmj
-
     versions = []
     for name in _LIBRARIES:
         try:
@@ -480,9 +480,7 @@ def _environment(module: str) -> str:
             versions.append(f"{name}=-")
     packages = sorted({"vmj", module.partition(".")[0]})
     sources = [f"{p}:{_source_hash(p)}" for p in packages]
-    return " ".join(
-        [f"vmj={vmj.__version__}", *versions, *sources, f"backend={jax.default_backend()}"]
-    )
+    return " ".join([f"vmj={__version__}", *versions, *sources, f"backend={jax.default_backend()}"])
 
 
 @functools.cache

@@ -10,9 +10,10 @@ import sys
 from collections.abc import Callable, Sequence
 
 from .._checks import check_int
+from .._version import __version__
 from ._engine import CORES, Progress, cluster, failure_message, run_chunks, threads_of
 from ._store import ChunkStore, describe_fn, digest
-from ._sweep import SweepError, _version, chunk_plan
+from ._sweep import SweepError, chunk_plan
 
 __all__ = ["map_chunks"]
 
@@ -80,7 +81,7 @@ def map_chunks(
         "fn": digest(fn),
         "items": digest(items),
         "chunk_size": chunk_size,
-        "vmj": _version(),
+        "vmj": __version__,
     }
     described = {
         "fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",

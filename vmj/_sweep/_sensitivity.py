@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._checks import _float
-from ..cli._options import name_list
+from .._names import name_list
 from ._grid import Grid
 from ._tree import _get, resolve_field
 

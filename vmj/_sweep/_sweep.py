@@ -29,6 +29,7 @@ from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
 from .._checks import check_int, mark_checked, validated, warn_if_float32
 from .._solution import RESULTS
+from .._version import __version__
 from ._engine import (
     CORES,
     Progress,
@@ -822,7 +823,7 @@ def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
         "dims": list(dims),
         "coords": digest(coords),
         "chunk_size": chunk_size,
-        "vmj": _version(),
+        "vmj": __version__,
         "jax": jax.__version__,
         "x64": bool(jax.config.jax_enable_x64),
     }
@@ -836,12 +837,6 @@ def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
         "float64": str(definition["x64"]),
     }
     return definition, described
-
-
-def _version() -> str:
-    from .. import __version__
-
-    return __version__
 
 
 def _describe_args(args: dict) -> str:

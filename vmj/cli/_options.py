@@ -13,6 +13,8 @@ import json
 import math
 import os
 
+from .._names import name_list
+
 __all__ = [
     "HelpFormatter",
     "Joined",
@@ -233,14 +235,6 @@ def figure_path(text: str) -> str:
 def emit(obj, as_json: bool, text: str) -> None:
     """Print `obj` as one JSON object (`jsonable`), or `text`."""
     print(json.dumps(jsonable(obj), allow_nan=False) if as_json else text)
-
-
-def name_list(names) -> tuple:
-    """Parameter names given as a sequence or as one comma-separated string (`"FT,mu"`; a bare
-    string would otherwise be split into its letters)."""
-    if isinstance(names, str):
-        return tuple(n.strip() for n in names.split(","))
-    return tuple(names)
 
 
 def jsonable(obj):
