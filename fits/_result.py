@@ -213,17 +213,15 @@ def text_report(result: FitResult) -> str:
         if name in intervals and intervals[name] is not None:
             line += "  95 % " + _interval(*intervals[name])
         lines.append(line)
-    if len(result.params) > 1:
-        names = list(result.params)
-        lines.append(
-            "  correlation: "
-            + "; ".join(
-                f"{a}/{b} {_corr(result.correlation[i][j])}"
-                for i, a in enumerate(names)
-                for j, b in enumerate(names)
-                if j > i
-            )
-        )
+    names = list(result.params)
+    pairs = [  # (a parameter without a standard error has no correlations)
+        f"{a}/{b} {_corr(result.correlation[i][j])}"
+        for i, a in enumerate(names)
+        for j, b in enumerate(names)
+        if j > i and _corr(result.correlation[i][j]) != "nan"
+    ]
+    if pairs:
+        lines.append("  correlation: " + "; ".join(pairs))
     lines.append(
         f"  converged: {result.converged} after {result.iterations} iterations; "
         f"rms {_fmt(result.rms)}"

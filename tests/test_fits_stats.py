@@ -274,7 +274,7 @@ def test_report_and_figure_of_a_joint_amplitude_only_result(tmp_path):
         and "gn +- nan" not in text
         and "95 % [0.009, 0.011]" in text
     )
-    assert "zeta/xF nan" in text and "lag-1 autocorrelation 0.7" in text
+    assert "  correlation:" not in text and "lag-1 autocorrelation 0.7" in text
     assert text.count("not identified") == 1  # in warnings and diagnostics: listed once
     path = tmp_path / "joint.svg"
     fits.plot_fit(result, path)
