@@ -43,7 +43,14 @@ import vmj
 from vmj.cli import name_list
 
 from ._decrement import decrement, starting_guess
-from ._io import EDGE_RELEASE, HELD_RELEASE, Record, extract_turning_points, sample_window
+from ._io import (
+    EDGE_RELEASE,
+    HELD_RELEASE,
+    Record,
+    extract_turning_points,
+    in_metres,
+    sample_window,
+)
 from ._models import SPACES
 from ._params import (
     HELD,
@@ -719,7 +726,9 @@ def _problem(space, records, givens, free, shared):
     for rec, given in zip(records, givens):
         if not isinstance(rec, Record):
             raise ValueError("records must be fits.Record objects (see fits.read_record)")
-        recs.append(_extracted_for(space, rec, given))
+        rec = _extracted_for(space, rec, given)
+        # (the SI models' friction from positions in mm would be 1000 times too large)
+        recs.append(in_metres(rec) if space.unit("a0") == "m" else rec)
     for rec, given in zip(recs, givens):
         _fixed_values(space, rec, free, given)  # a parameter without a value: its name first
     decs = []

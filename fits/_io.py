@@ -6,6 +6,7 @@ Everything here is NumPy (no JAX): it runs once per file, before the fit.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import io
 import math
@@ -85,6 +86,29 @@ _UNIT_SPELLINGS = {
     "msec": "ms",
     "minute": "min",
     "minutes": "min",
+}
+
+
+#: a length unit at the end of a value column's name (`amplitude_mm`, `x [um]`, `Position
+#: (in)`), in metres
+LENGTH_UNITS = {
+    "nm": 1e-9,
+    "um": 1e-6,
+    "mm": 1e-3,
+    "cm": 1e-2,
+    "dm": 0.1,
+    "m": 1.0,
+    "in": 0.0254,
+    "ft": 0.3048,
+}
+_LENGTH_UNIT = unit_at_end("nm|um|µm|μm|mm|cm|dm|m|in|inch|inches|ft|feet|foot")
+_LENGTH_SPELLINGS = {
+    "µm": "um",
+    "μm": "um",
+    "inch": "in",
+    "inches": "in",
+    "feet": "ft",
+    "foot": "ft",
 }
 
 
@@ -747,7 +771,9 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     if crossed is not None:
         check("crossed", ~np.isin(crossed, (0.0, 1.0)), "crossed must hold 0 or 1")
     if "position" in values:
-        return record_from_sequence(positions=values["position"], k=k, times=times, source=source)
+        record = record_from_sequence(positions=values["position"], k=k, times=times, source=source)
+        record.meta["value_name"] = label[value]
+        return record
     amplitudes = values["amplitude"]
     check(
         "amplitude",
@@ -757,9 +783,43 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     record = record_from_sequence(
         amplitudes=amplitudes, crossed=crossed, k=k, times=times, source=source
     )
+    record.meta["value_name"] = label[value]
     if index is None and crossed is None:  # nothing says the rows are half-swings
         record.meta["rows"] = ROWS_AS_HALF_SWINGS
     return record
+
+
+def value_name(record: Record) -> str:
+    """The name of the column the record's values were read from (the raw signal's, or the
+    peak table's amplitude or position column), `""` where it came from arrays."""
+    return (
+        record.signal.signal_name
+        if record.signal is not None
+        else record.meta.get("value_name", "")
+    )
+
+
+def in_metres(record: Record) -> Record:
+    """`record` with its positions in metres, for models whose lengths are SI: where its value
+    column's name ends with another length unit (`amplitude_mm`, `x [um]`), the positions, the
+    centre, the noise and the raw signal scaled to metres, `meta["length_unit"]` the unit
+    converted from; else `record` itself (a name without a unit is read in metres)."""
+    m = _LENGTH_UNIT.search(value_name(record).strip())
+    unit = _LENGTH_SPELLINGS.get(m.group(1).lower(), m.group(1).lower()) if m else "m"
+    scale = LENGTH_UNITS[unit]
+    if scale == 1.0:
+        return record
+    signal = record.signal
+    if signal is not None:
+        signal = dataclasses.replace(signal, y=signal.y * scale)
+    return dataclasses.replace(
+        record,
+        positions=record.positions * scale,
+        centre=record.centre * scale,
+        noise=None if record.noise is None else record.noise * scale,
+        signal=signal,
+        meta={**record.meta, "length_unit": unit},
+    )
 
 
 def record_from_sequence(

@@ -12,7 +12,7 @@ import numpy as np
 
 from vmj.cli import jsonable
 
-from ._io import ROWS_AS_HALF_SWINGS, Record
+from ._io import ROWS_AS_HALF_SWINGS, Record, value_name
 from ._params import HELD
 from ._stats import RANK_RTOL, covariance, diagnostics
 
@@ -686,6 +686,12 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
                 f"in turn); a table of one side's peaks (one per period) needs a 'cycle' "
                 f"column: read as half-swings, it gives half the frequency and twice the "
                 f"damping"
+            )
+        if "length_unit" in rec.meta:
+            warn.append(
+                f"{rec.source}: its positions are in {rec.meta['length_unit']} (the column "
+                f"{value_name(rec)!r}): converted to m, the model's unit (a0, offset and the "
+                f"friction are in SI units)"
             )
         faster = rec.meta.get("faster")
         if faster:

@@ -6,6 +6,7 @@ records of equal bucketed length and equal batch size), so the module compiles o
 """
 
 import warnings
+from importlib.resources import files
 
 import numpy as np
 import pytest
@@ -183,3 +184,35 @@ def test_both_friction_terms_free_with_a_constant_mass():
     assert any("rank-deficient" in w for w in r.warnings), r.warnings
     friction = r.params["FT"] + r.params["f"] * PAPER["g"] * PAPER["m0"]
     assert abs(friction / PAPER["FT"] - 1) < 0.03, r.params
+
+
+def test_a_column_in_millimetres_is_read_in_metres(tmp_path):
+    """The shipped table-1 column written in mm (`amplitude [mm]`, `position_mm`): the
+    variable-mass model's lengths are SI, so the positions are converted to metres (said in the
+    warnings) and the fit is the one of the column in metres. Read as metres, the same numbers
+    gave F_T 1000 times too large. A column naming no unit is read in metres, as before; the
+    oscillator's positions stay in the signal's units."""
+    shipped = fits.read_peaks(files("fits") / "data" / "table1_mu9_eps0.csv")
+    rows = np.loadtxt(files("fits") / "data" / "table1_mu9_eps0.csv", delimiter=",", skiprows=1)
+    mm = tmp_path / "mm.csv"
+    mm.write_text(
+        "k,amplitude [mm],crossed\n"
+        + "".join(f"{int(k)},{1000 * a:.2f},{int(c)}\n" for k, a, c in rows)
+    )
+    signed = tmp_path / "signed.csv"
+    signed.write_text(
+        "k,position_mm\n"
+        + "".join(f"{k},{1000 * x:.2f}\n" for k, x in zip(shipped.k, shipped.positions))
+    )
+    given = {"m0": 5.0, "c": 4900.0, "delta": 3.0, "eps": 0.0}
+    kwargs = dict(forward="energy", loss="cauchy", compare=False, intervals=False)
+    ref = fits.fit(shipped, "variable-mass", ("FT", "mu"), given, **kwargs)
+    assert not any("converted to m" in w for w in ref.warnings)
+    for path in (mm, signed):
+        rec = fits.read_peaks(path)
+        got = fits.fit(rec, "variable-mass", ("FT", "mu"), given, **kwargs)
+        for name in ("FT", "mu"):
+            assert got.params[name] == pytest.approx(ref.params[name], rel=1e-6), name
+        assert any("its positions are in mm" in w and "converted to m" in w for w in got.warnings)
+        osc = fits.fit(rec, "oscillator", ("zeta", "xF", "a0"), compare=False, intervals=False)
+        assert osc.params["a0"] > 10  # signal units: mm

@@ -1170,3 +1170,29 @@ def test_critical_damping_is_refused(pendulum):
     record, _ = pendulum
     with pytest.raises(ValueError, match=r"zeta must be finite and in \[0, 1\)"):
         fits.fit(record, "oscillator", ("omega", "xF", "a0", "offset"), {"zeta": 1.0})
+
+
+def test_a_raw_signal_in_millimetres_is_scaled_to_metres_for_the_si_models(tmp_path):
+    """`fits._io.in_metres` (what a fit of an SI model reads, `fits._fit._problem`): a raw
+    signal whose column is `x_mm` becomes the same record in metres, positions, centre, noise
+    and samples alike, the unit named in its meta; a column without a unit (or in m) is left
+    as it is."""
+    from fits._io import in_metres
+
+    t, x, _ = _oscillator_signal(20.0, 0.01, 0.5, 10.0, 1.0, 8.0, seed=3, n_spikes=0)
+    for name, unit, scale in (
+        ("x_mm", "mm", 1e-3),
+        ("x (um)", "um", 1e-6),
+        ("x [m]", None, 1.0),
+        ("x", None, 1.0),
+    ):
+        text = f"time,{name}\n" + "".join(f"{a:.6f},{b:.6f}\n" for a, b in zip(t, x))
+        rec = fits.read_record(_write(tmp_path, text), series=True)
+        si = in_metres(rec)
+        assert si.meta.get("length_unit") == unit
+        np.testing.assert_allclose(si.positions, rec.positions * scale)
+        np.testing.assert_allclose(si.signal.y, rec.signal.y * scale)
+        assert si.centre == pytest.approx(rec.centre * scale) and si.noise == pytest.approx(
+            rec.noise * scale
+        )
+        np.testing.assert_array_equal(si.times, rec.times)
