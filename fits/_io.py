@@ -102,6 +102,8 @@ LENGTH_UNITS = {
     "ft": 0.3048,
 }
 _LENGTH_UNIT = unit_at_end("nm|um|µm|μm|mm|cm|dm|m|in|inch|inches|ft|feet|foot")
+#: an angle unit at the end of a value column's name (`Angle(deg)`, `theta_rad`)
+ANGLE_UNIT = unit_at_end("mrad|rad|radians?|deg|degrees?|°")
 _LENGTH_SPELLINGS = {
     "µm": "um",
     "μm": "um",
@@ -803,8 +805,16 @@ def in_metres(record: Record) -> Record:
     """`record` with its positions in metres, for models whose lengths are SI: where its value
     column's name ends with another length unit (`amplitude_mm`, `x [um]`), the positions, the
     centre, the noise and the raw signal scaled to metres, `meta["length_unit"]` the unit
-    converted from; else `record` itself (a name without a unit is read in metres)."""
-    m = _LENGTH_UNIT.search(value_name(record).strip())
+    converted from; else `record` itself (a name without a unit is read in metres). A column
+    named in an angle unit is a `ValueError`."""
+    name = value_name(record).strip()
+    if ANGLE_UNIT.search(name):
+        _fail(
+            record.source,
+            f"the column {name!r} holds an angle, and this model's positions are lengths [m] "
+            "(an angle record: --model pendulum, or oscillator in the signal's units)",
+        )
+    m = _LENGTH_UNIT.search(name)
     unit = _LENGTH_SPELLINGS.get(m.group(1).lower(), m.group(1).lower()) if m else "m"
     scale = LENGTH_UNITS[unit]
     if scale == 1.0:

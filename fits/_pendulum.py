@@ -46,7 +46,7 @@ import numpy as np
 import vmj
 
 from ._decrement import decrement
-from ._io import Record, unit_at_end, value_name
+from ._io import ANGLE_UNIT, Record, value_name
 from ._sensor import _opposite, sensor_start
 from ._space import Space, Variant, first_amplitude, record_centre
 
@@ -54,7 +54,6 @@ __all__ = ["PENDULUM", "DEGREE", "DISSIPATION_SETS", "FREE"]
 
 DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: degrees
 #: an angle unit at the end of a column's name: `Angle(rad)`, `theta_deg`, `phi [mrad]`
-_ANGLE_UNIT = unit_at_end("mrad|rad|radians?|deg|degrees?|°")
 
 
 def named_angle_unit(record: Record) -> float:
@@ -62,7 +61,7 @@ def named_angle_unit(record: Record) -> float:
     (or peak table's value) column ends with (`Angle(rad)`: 1, `theta_deg`: `DEGREE`, `phi [mrad]`: 0.001), else
     degrees. Read as degrees, a record in radians had its `b2` [1/rad] 57 times too large, and
     with a sine law its frequency off by 30 standard errors."""
-    m = _ANGLE_UNIT.search(value_name(record).strip())
+    m = ANGLE_UNIT.search(value_name(record).strip())
     unit = m.group(1).lower() if m else "deg"
     return 1e-3 if unit == "mrad" else 1.0 if unit.startswith("rad") else DEGREE
 

@@ -1176,7 +1176,7 @@ def test_a_raw_signal_in_millimetres_is_scaled_to_metres_for_the_si_models(tmp_p
     """`fits._io.in_metres` (what a fit of an SI model reads, `fits._fit._problem`): a raw
     signal whose column is `x_mm` becomes the same record in metres, positions, centre, noise
     and samples alike, the unit named in its meta; a column without a unit (or in m) is left
-    as it is."""
+    as it is; one named in an angle unit is refused."""
     from fits._io import in_metres
 
     t, x, _ = _oscillator_signal(20.0, 0.01, 0.5, 10.0, 1.0, 8.0, seed=3, n_spikes=0)
@@ -1196,3 +1196,6 @@ def test_a_raw_signal_in_millimetres_is_scaled_to_metres_for_the_si_models(tmp_p
             rec.noise * scale
         )
         np.testing.assert_array_equal(si.times, rec.times)
+    text = "time,theta_deg\n" + "".join(f"{a:.6f},{b:.6f}\n" for a, b in zip(t, x))
+    with pytest.raises(ValueError, match="'theta_deg' holds an angle.*lengths \\[m\\]"):
+        in_metres(fits.read_record(_write(tmp_path, text), series=True))
