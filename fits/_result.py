@@ -489,6 +489,38 @@ def _assess(job, prob, shape) -> _Assessed:
     )
 
 
+#: model families whose decrement per half-swing does not grow as the amplitude falls (constant
+#: parameters; viscous, Coulomb and quadratic damping); a varying mass or rope length can grow it
+_FIXED_LAWS = ("oscillator", "pendulum")
+
+
+def _steepening(rec: Record) -> str | None:
+    """A warning where `rec`'s amplitudes fall faster later than earlier (the mean decrement
+    over windows of an even number of half-swings, so that the sides' asymmetry cancels, rises
+    by more than 5 of its standard errors from one window to the next), which no free decay of
+    the `_FIXED_LAWS` does: an oscillation held steady (forced) before the release, say."""
+    skip = 1 if rec.meta.get("release") else 0  # a release located from one side: no datum
+    a = rec.amplitudes[skip:]
+    width = max(4, 2 * (a.size // 16))
+    windows = a.size // width
+    if windows < 3:
+        return None
+    ends = a[: (windows * width) + 1 : width] if a.size > windows * width else a[::width]
+    drops = -np.diff(ends) / width  # mean decrement of each window [signal units]
+    # the amplitudes' own scatter (a turning point is located less sharply than a sample)
+    noise = max(rec.noise or 0.0, _robust_scale(np.diff(a, 2), 0.0) / math.sqrt(6))
+    rises = np.nonzero(np.diff(drops) > 5 * math.sqrt(6) * noise / width)[0]
+    if rises.size == 0:
+        return None
+    k = int(rec.k[skip + (rises[0] + 1) * width])
+    return (
+        f"{rec.source}: its amplitudes fall faster after turning point k = {k} than before it "
+        f"({drops[rises[0] + 1]:.3g} against {drops[rises[0]]:.3g} per half-swing), which no "
+        f"free decay of this model does: an oscillation held or forced before the release? "
+        f"Fit the free decay alone (--window START:, read_record(window=...))"
+    )
+
+
 def _decays_left_out(records) -> list:
     """A warning per signal of several free decays of which the fit leaves some out."""
     taken, starts = {}, {}
@@ -680,6 +712,9 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         intervals[nm] = (float(lo), float(hi))
     warn += _decays_left_out(prob.records)
     for rec in prob.records:
+        steeper = _steepening(rec) if space.name.partition(":")[0] in _FIXED_LAWS else None
+        if steeper:
+            warn.append(steeper)
         if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:
             warn.append(
                 f"{rec.source}: its rows are read as successive half-swings (both sides' peaks "

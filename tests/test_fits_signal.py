@@ -1199,3 +1199,33 @@ def test_a_raw_signal_in_millimetres_is_scaled_to_metres_for_the_si_models(tmp_p
     text = "time,theta_deg\n" + "".join(f"{a:.6f},{b:.6f}\n" for a, b in zip(t, x))
     with pytest.raises(ValueError, match="'theta_deg' holds an angle.*lengths \\[m\\]"):
         in_metres(fits.read_record(_write(tmp_path, text), series=True))
+
+
+def test_an_oscillation_held_before_the_release_is_warned_of(tmp_path):
+    """A free decay (`_oscillator_signal`) after 2 s of a steady oscillation of its release
+    amplitude (a shaker switched off; at 20 rad/s about 13 half-swings): the amplitudes fall
+    faster after the release than before, which no free decay does, and the oscillator fit
+    says so, naming a turning point within two windows of the release. The decay alone gives
+    no such warning."""
+    from fits._result import _steepening
+
+    omega, a0 = 20.0, 10.0
+    t, y, _ = _oscillator_signal(omega, 0.01, 0.05, a0, 0.5, 10.0, seed=4, n_spikes=0)
+    lead = np.arange(-2.0, 0.0, 2e-3)
+    held = (
+        0.5
+        + a0 * np.cos(omega * lead + np.pi)
+        + np.random.default_rng(5).normal(0, 0.02, lead.size)
+    )
+    free = _write(tmp_path, "time,x\n" + "".join(f"{a:.6f},{b:.6f}\n" for a, b in zip(t, y)))
+    both = "".join(f"{a + 2.0:.6f},{b:.6f}\n" for a, b in zip(np.r_[lead, t], np.r_[held, y]))
+    forced = _write(tmp_path, "time,x\n" + both, "forced.csv")
+    assert _steepening(fits.read_record(free, series=True)) is None
+    rec = fits.read_record(forced, series=True)
+    message = _steepening(rec)
+    assert message is not None and "fall faster after turning point k = " in message
+    k = int(message.split("k = ")[1].split()[0])
+    release = int(np.argmin(np.abs(rec.times + rec.time_origin - 2.0)))
+    assert abs(k - int(rec.k[release])) <= 2 * max(4, 2 * (len(rec) // 16))
+    got = fits.fit(rec, "oscillator", ("omega", "zeta", "xF", "a0", "offset"), compare=False)
+    assert any(w == message for w in got.warnings)
