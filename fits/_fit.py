@@ -728,7 +728,7 @@ def _problem(space, records, givens, free, shared):
             raise ValueError("records must be fits.Record objects (see fits.read_record)")
         rec = _extracted_for(space, rec, given)
         # (the SI models' friction from positions in mm would be 1000 times too large)
-        recs.append(in_metres(rec) if space.unit("a0") == "m" else rec)
+        recs.append(in_metres(rec, space.name) if space.unit("a0") == "m" else rec)
     for rec, given in zip(recs, givens):
         _fixed_values(space, rec, free, given)  # a parameter without a value: its name first
     decs = []

@@ -801,18 +801,19 @@ def value_name(record: Record) -> str:
     )
 
 
-def in_metres(record: Record) -> Record:
+def in_metres(record: Record, model: str = "this") -> Record:
     """`record` with its positions in metres, for models whose lengths are SI: where its value
     column's name ends with another length unit (`amplitude_mm`, `x [um]`), the positions, the
     centre, the noise and the raw signal scaled to metres, `meta["length_unit"]` the unit
     converted from; else `record` itself (a name without a unit is read in metres). A column
-    named in an angle unit is a `ValueError`."""
+    named in an angle unit is a `ValueError` naming `model`."""
     name = value_name(record).strip()
     if ANGLE_UNIT.search(name):
         _fail(
             record.source,
-            f"the column {name!r} holds an angle, and this model's positions are lengths [m] "
-            "(an angle record: --model pendulum, or oscillator in the signal's units)",
+            f"the column {name!r} holds an angle, and the {model} model's positions are "
+            "lengths [m] (an angle record: --model pendulum, or oscillator in the signal's "
+            "units)",
         )
     m = _LENGTH_UNIT.search(name)
     unit = _LENGTH_SPELLINGS.get(m.group(1).lower(), m.group(1).lower()) if m else "m"

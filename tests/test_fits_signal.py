@@ -1197,8 +1197,8 @@ def test_a_raw_signal_in_millimetres_is_scaled_to_metres_for_the_si_models(tmp_p
         )
         np.testing.assert_array_equal(si.times, rec.times)
     text = "time,theta_deg\n" + "".join(f"{a:.6f},{b:.6f}\n" for a, b in zip(t, x))
-    with pytest.raises(ValueError, match="'theta_deg' holds an angle.*lengths \\[m\\]"):
-        in_metres(fits.read_record(_write(tmp_path, text), series=True))
+    with pytest.raises(ValueError, match="'theta_deg' holds an angle, and the rope model's"):
+        in_metres(fits.read_record(_write(tmp_path, text), series=True), "rope")
 
 
 def test_an_oscillation_held_before_the_release_is_warned_of(tmp_path):
