@@ -96,6 +96,7 @@ OSCILLATOR = Space(
     },
     variants=friction_variants(("xF",), ("zeta",)),
     bounds={"asym": (-0.5, 0.5)},
+    constant_laws=True,
 )
 
 

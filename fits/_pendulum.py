@@ -53,13 +53,12 @@ from ._space import Space, Variant, first_amplitude, record_centre
 __all__ = ["PENDULUM", "DEGREE", "DISSIPATION_SETS", "FREE"]
 
 DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: degrees
-#: an angle unit at the end of a column's name: `Angle(rad)`, `theta_deg`, `phi [mrad]`
 
 
 def named_angle_unit(record: Record) -> float:
-    """Default `angle_unit` [rad per signal unit]: the unit the name of the record's signal
-    (or peak table's value) column ends with (`Angle(rad)`: 1, `theta_deg`: `DEGREE`, `phi [mrad]`: 0.001), else
-    degrees. Read as degrees, a record in radians had its `b2` [1/rad] 57 times too large, and
+    """Default `angle_unit` [rad per signal unit]: the unit the name of the record's signal (or
+    peak table's value) column ends with (`Angle(rad)`: 1, `theta_deg`: `DEGREE`, `phi
+    [mrad]`: 0.001), else degrees. Read as degrees, a record in radians had its `b2` [1/rad] 57 times too large, and
     with a sine law its frequency off by 30 standard errors."""
     m = ANGLE_UNIT.search(value_name(record).strip())
     unit = m.group(1).lower() if m else "deg"
@@ -279,6 +278,7 @@ def _space(variants: tuple = (), select: bool = False) -> Space:
         label="sine:viscous+coulomb+quadratic",
         start=_start,
         time_noise="amplitude",
+        constant_laws=True,
     )
 
 

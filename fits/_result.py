@@ -208,17 +208,18 @@ def text_report(result: FitResult) -> str:
         # no standard error: on a bound or not identified (the warnings say which)
         spread = "(no standard error)" if stderr == "nan" else f"+- {stderr:<10}"
         line = f"  {name:>7} = {_fmt(value):>12} {spread}{_unit(result, name)}"
-        if name in stderr_gn and _fmt(stderr_gn[name]) != "nan":
-            line += f"  (gn +- {_fmt(stderr_gn[name])})"
+        gn = _fmt(stderr_gn.get(name))
+        if gn != "nan":
+            line += f"  (gn +- {gn})"
         if name in intervals and intervals[name] is not None:
             line += "  95 % " + _interval(*intervals[name])
         lines.append(line)
     names = list(result.params)
     pairs = [  # (a parameter without a standard error has no correlations)
-        f"{a}/{b} {_corr(result.correlation[i][j])}"
+        f"{a}/{b} {c}"
         for i, a in enumerate(names)
         for j, b in enumerate(names)
-        if j > i and _corr(result.correlation[i][j]) != "nan"
+        if j > i and (c := _corr(result.correlation[i][j])) != "nan"
     ]
     if pairs:
         lines.append("  correlation: " + "; ".join(pairs))
@@ -489,23 +490,19 @@ def _assess(job, prob, shape) -> _Assessed:
     )
 
 
-#: model families whose decrement per half-swing does not grow as the amplitude falls (constant
-#: parameters; viscous, Coulomb and quadratic damping); a varying mass or rope length can grow it
-_FIXED_LAWS = ("oscillator", "pendulum")
-
-
 def _steepening(rec: Record) -> str | None:
     """A warning where `rec`'s amplitudes fall faster later than earlier (the mean decrement
     over windows of an even number of half-swings, so that the sides' asymmetry cancels, rises
     by more than 5 of its standard errors from one window to the next), which no free decay of
-    the `_FIXED_LAWS` does: an oscillation held steady (forced) before the release, say."""
+    a space with `constant_laws` does: an oscillation held steady (forced) before the release,
+    say."""
     skip = 1 if rec.meta.get("release") else 0  # a release located from one side: no datum
     a = rec.amplitudes[skip:]
     width = max(4, 2 * (a.size // 16))
     windows = a.size // width
     if windows < 3:
         return None
-    ends = a[: (windows * width) + 1 : width] if a.size > windows * width else a[::width]
+    ends = a[: windows * width + 1 : width]  # (the last window's end where the record has it)
     drops = -np.diff(ends) / width  # mean decrement of each window [signal units]
     # the amplitudes' own scatter (a turning point is located less sharply than a sample)
     noise = max(rec.noise or 0.0, _robust_scale(np.diff(a, 2), 0.0) / math.sqrt(6))
@@ -712,7 +709,7 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         intervals[nm] = (float(lo), float(hi))
     warn += _decays_left_out(prob.records)
     for rec in prob.records:
-        steeper = _steepening(rec) if space.name.partition(":")[0] in _FIXED_LAWS else None
+        steeper = _steepening(rec) if space.constant_laws else None
         if steeper:
             warn.append(steeper)
         if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:

@@ -80,7 +80,9 @@ class Space:
     `time_noise` (`"constant"`: every turning point's time equally precise; `"amplitude"`: the
     times' noise inversely proportional to the amplitude, as for extrema located in a sampled
     signal, weighted accordingly; records extracted from a raw signal are weighted so
-    whatever the space's value).
+    whatever the space's value); `constant_laws` (the model's decrement per half-swing cannot
+    grow as the amplitude falls, so a record whose amplitudes fall faster later than earlier is
+    warned of: `fits._result._steepening`; not for a varying mass or rope length).
 
     Sensor parameters, applied by the fit when present in `names`: `offset` (the reading's
     zero), `drift` (its change per second, on the record's clock) and `asym` (side-dependent
@@ -105,6 +107,7 @@ class Space:
     start: Callable | None = None  #: `start(record, given, dec) -> {name: value}` (optional)
     series: bool = False
     time_noise: str = "constant"  #: how the times' noise scales: "constant" or "amplitude"
+    constant_laws: bool = False  #: the decrement cannot grow as the amplitude falls
 
     def predict(self, theta: dict, n: int, forward: str):
         """`(times [s], signed positions [signal units])` of the release and the first `n`
