@@ -129,7 +129,43 @@ def test_sensitivity_stick_slip_against_finite_differences(capsys):
         np.testing.assert_allclose(got, diff, rtol=1e-6)
 
 
-# with the long runs, for CI's time (17 s of compiling): the rope's derivatives are checked in
+def test_the_smoothed_solver_is_differentiated_in_reverse_mode(capsys, monkeypatch):
+    """`--method smooth` asks vmj.sensitivity for reverse mode (diffrax's adjoint; forward mode
+    is refused) and reports its derivatives by name; the reverse-mode numbers themselves are
+    checked against central differences in tests/test_variable_mass.py, end to end through
+    the command in the long run below (23 s of compiling)."""
+    asked = {}
+
+    def sensitivity(fn, model, wrt, mode, **kw):
+        asked.update(mode=mode, wrt=list(wrt), n=kw["n"])
+        return {
+            w: {"times": np.full(kw["n"], 1.0), "amplitudes": np.full(kw["n"], -2.0)} for w in wrt
+        }
+
+    monkeypatch.setattr(vmj, "sensitivity", sensitivity)
+    out = run_json(
+        capsys,
+        [
+            "sensitivity",
+            "variable-mass",
+            *VARIABLE_MASS,
+            "--n",
+            "4",
+            "--wrt",
+            "FT",
+            "--method",
+            "smooth",
+        ],
+    )
+    assert asked["mode"] == "reverse" and asked["n"] == 4
+    assert out["method"] == "smooth" and out["d_amplitudes"]["FT"] == [-2.0] * len(out["times"])
+    seq = vmj.turning_points(
+        vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7)), 0.06, 4, method="smooth"
+    )
+    np.testing.assert_allclose(out["amplitudes"], seq.reached()["amplitudes"], rtol=1e-12)
+
+
+@pytest.mark.long  # 23 s of compiling, with the long runs for CI's time
 def test_sensitivity_of_the_smoothed_solver_in_reverse_mode(capsys):
     """The smoothed solve is differentiated by diffrax's adjoint (reverse mode only): against
     central differences of the exact solver's amplitudes (the two solvers agree to ~1e-8)."""
@@ -140,6 +176,7 @@ def test_sensitivity_of_the_smoothed_solver_in_reverse_mode(capsys):
     np.testing.assert_allclose(out["d_amplitudes"]["FT"], central(amp, 14.7, 1e-4), rtol=1e-5)
 
 
+# with the long runs, for CI's time (17 s of compiling): the rope's derivatives are checked in
 # tests/test_rope.py, the command's plumbing by the variable-mass sensitivity commands
 @pytest.mark.long
 def test_sensitivity_rope(capsys):
