@@ -84,13 +84,39 @@ def exported_jit(fun=None, *, static_argnums=(), compiler_options=None):
     """`jax.jit(fun, static_argnums=..., compiler_options=...)` that, while the exported-program
     cache is on, loads and stores the function's exported programs there (see the module's
     docstring). The plain jitted function's attributes (`lower`, ...) are those of the result.
-    `compiler_options` (XLA's, as for `jax.jit`) apply where the function is compiled as a
-    program of its own, not where it is traced inside another."""
+    `compiler_options` (XLA's, as for `jax.jit`, beside `ONE_CALL`) apply where the function is
+    compiled as a program of its own, not where it is traced inside another (a sweep's
+    `jax.vmap`, the user's own `jax.jit`)."""
     if fun is None:
         return functools.partial(
             exported_jit, static_argnums=static_argnums, compiler_options=compiler_options
         )
     return _ExportedJit(fun, static_argnums, compiler_options)
+
+
+#: XLA's options for every program compiled here: one call's program, whose compile is most of
+#: the call's cost. XLA's CPU backend emits each fused kernel through MLIR by default
+#: (`xla_cpu_use_fusion_emitters`); its older emitters write the same arithmetic in less time:
+#: the first `vmj fit` of the shipped table (alternating processes, fresh caches) 7.9-9.5 s ->
+#: 6.1-8.3 s (12.4-13.5 -> 7.3-7.4 s on one core), the same output to the last digit; the first
+#: `fits.fit` 6.3 -> 4.0 s, a warm one 5.4 -> 4.9 ms. Their kernels run slower in bulk (a fit of
+#: 200 records in one batch 1.7 -> 1.8 ms per record; as the default for a whole sweep, energy
+#: balance 3.3x, exact 1.3x, smoothed 1.7x slower), so `vmj.sweep` keeps XLA's default.
+ONE_CALL = {"xla_cpu_use_fusion_emitters": False}
+
+
+@functools.cache
+def _one_call_options() -> tuple:
+    """`ONE_CALL`'s items where this XLA knows them (an XLA before the option refuses to
+    compile with it; another backend ignores it), else none: checked once per process, on a
+    program of one addition."""
+    import jax
+
+    try:
+        jax.jit(lambda x: x + 1, compiler_options=ONE_CALL).lower(1.0).compile()
+    except Exception:  # (XLA's error for an unknown option)
+        return ()
+    return tuple(ONE_CALL.items())
 
 
 class _ExportedJit:
@@ -103,14 +129,8 @@ class _ExportedJit:
         )
         if any(i < 0 for i in self.static_argnums):
             raise ValueError("static_argnums must be non-negative positions")
-        self.compiler_options = dict(compiler_options or {})
+        self.options = dict(compiler_options or {})
         self.jitted = jax.jit(fun, static_argnums=self.static_argnums)
-        # (JAX takes compiler options for a program of its own only, not inside a trace)
-        self.top = (
-            jax.jit(fun, static_argnums=self.static_argnums, compiler_options=compiler_options)
-            if compiler_options
-            else self.jitted
-        )
         self.loaded: dict = {}  # (directory, x64, static, treedef, avals) -> (call, out tree)
         functools.update_wrapper(self, fun)
 
@@ -127,11 +147,23 @@ class _ExportedJit:
             return self._plain(*args, **kwargs)
         return self._call_exported(args)
 
+    @functools.cached_property
+    def compiler_options(self) -> dict:
+        return {**dict(_one_call_options()), **self.options}
+
+    @functools.cached_property
+    def top(self):
+        """The jitted function with its compiler options (JAX takes them for a program of its
+        own only, not inside a trace)."""
+        import jax
+
+        return jax.jit(
+            self.fun, static_argnums=self.static_argnums, compiler_options=self.compiler_options
+        )
+
     def _plain(self, *args, **kwargs):
         """The jitted function, with its compiler options where no transformation traces."""
-        return (self.top if self.top is not self.jitted and _top_level() else self.jitted)(
-            *args, **kwargs
-        )
+        return (self.top if _top_level() else self.jitted)(*args, **kwargs)
 
     def _call_exported(self, args):
         import jax
@@ -171,7 +203,7 @@ class _ExportedJit:
                 f"{self.fun.__module__}.{self.fun.__qualname__}",
                 _environment(self.fun.__module__),
                 f"x64={jax.config.jax_enable_x64}",
-                repr(sorted(self.compiler_options.items())),
+                repr(sorted({**ONE_CALL, **self.options}.items())),  # (no probe: no XLA)
                 _stable(static),
                 str(treedef),
                 repr(avals),
