@@ -143,20 +143,8 @@ def test_the_smoothed_solver_is_differentiated_in_reverse_mode(capsys, monkeypat
         }
 
     monkeypatch.setattr(vmj, "sensitivity", sensitivity)
-    out = run_json(
-        capsys,
-        [
-            "sensitivity",
-            "variable-mass",
-            *VARIABLE_MASS,
-            "--n",
-            "4",
-            "--wrt",
-            "FT",
-            "--method",
-            "smooth",
-        ],
-    )
+    argv = ["sensitivity", "variable-mass", *VARIABLE_MASS, "--n", "4", "--wrt", "FT"]
+    out = run_json(capsys, [*argv, "--method", "smooth"])
     assert asked["mode"] == "reverse" and asked["n"] == 4
     assert out["method"] == "smooth" and out["d_amplitudes"]["FT"] == [-2.0] * len(out["times"])
     seq = vmj.turning_points(
