@@ -57,9 +57,9 @@ DEGREE = math.pi / 180.0  #: the default `angle_unit` [rad per signal unit]: deg
 
 def named_angle_unit(record: Record) -> float:
     """Default `angle_unit` [rad per signal unit]: the unit the name of the record's signal (or
-    peak table's value) column ends with (`Angle(rad)`: 1, `theta_deg`: `DEGREE`, `phi
-    [mrad]`: 0.001), else degrees. Read as degrees, a record in radians had its `b2` [1/rad] 57 times too large, and
-    with a sine law its frequency off by 30 standard errors."""
+    peak table's value) column ends with (`Angle(rad)`: 1, `theta_deg`: `DEGREE`,
+    `phi [mrad]`: 0.001), else degrees. Read as degrees, a record in radians had its `b2`
+    [1/rad] 57 times too large, and with a sine law its frequency off by 30 standard errors."""
     m = ANGLE_UNIT.search(value_name(record).strip())
     unit = m.group(1).lower() if m else "deg"
     return 1e-3 if unit == "mrad" else 1.0 if unit.startswith("rad") else DEGREE

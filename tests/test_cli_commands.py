@@ -137,7 +137,7 @@ def test_the_smoothed_solver_is_differentiated_in_reverse_mode(capsys, monkeypat
     asked = {}
 
     def sensitivity(fn, model, wrt, mode, **kw):
-        asked.update(mode=mode, wrt=list(wrt), n=kw["n"])
+        asked.update(mode=mode, n=kw["n"])
         return {
             w: {"times": np.full(kw["n"], 1.0), "amplitudes": np.full(kw["n"], -2.0)} for w in wrt
         }
@@ -147,9 +147,7 @@ def test_the_smoothed_solver_is_differentiated_in_reverse_mode(capsys, monkeypat
     out = run_json(capsys, [*argv, "--method", "smooth"])
     assert asked["mode"] == "reverse" and asked["n"] == 4
     assert out["method"] == "smooth" and out["d_amplitudes"]["FT"] == [-2.0] * len(out["times"])
-    seq = vmj.turning_points(
-        vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7)), 0.06, 4, method="smooth"
-    )
+    seq = vmj.turning_points(MODEL, 0.06, 4, method="smooth")
     np.testing.assert_allclose(out["amplitudes"], seq.reached()["amplitudes"], rtol=1e-12)
 
 
