@@ -142,3 +142,57 @@ def test_one_calls_compile_with_the_older_kernel_emitters_to_the_same_numbers():
         default = jax.jit(lambda m, s=solver: vmj.turning_points(m, 0.06, 12, s))(model)
         np.testing.assert_allclose(one.positions, default.positions, rtol=0, atol=tol * 0.06)
         np.testing.assert_allclose(one.times, default.times, rtol=0, atol=tol)
+
+
+def test_filter_jit_gives_one_calls_program_the_options_and_keeps_its_static_arguments(
+    monkeypatch,
+):
+    """`vmj._exported.filter_jit` (the entry points with callables or dictionaries among their
+    arguments): arrays traced, every other argument static (a new value traces anew, a new
+    array does not); at top level its program is compiled with `ONE_CALL` (an option XLA does
+    not know is refused there), inside the user's `jit` it is `equinox.filter_jit`."""
+    import vmj._exported as exported
+
+    traces = []
+
+    def scaled(x, scale, names, settings):
+        traces.append(names)
+        return {n: x * scale * settings["k"] for n in names}
+
+    f = exported.filter_jit(scaled)
+    x = jnp.arange(3.0)
+    got = f(x, 2.0, ("a", "b"), {"k": 3})
+    np.testing.assert_array_equal(got["b"], 6.0 * x)
+    f(x + 1.0, 2.0, ("a", "b"), {"k": 3})
+    assert len(traces) == 1
+    np.testing.assert_array_equal(f(x, 2.0, ("a",), {"k": 4})["a"], 8.0 * x)
+    assert len(traces) == 2
+    inside = jax.jit(lambda x: f(x, 2.0, ("a",), {"k": 4})["a"])(x)
+    np.testing.assert_array_equal(inside, 8.0 * x)
+
+    monkeypatch.setattr(exported, "_one_call_options", lambda: (("xla_no_such_option", 1),))
+    refused = exported.filter_jit(scaled)
+    with pytest.raises(Exception, match="xla_no_such_option"):
+        refused(x, 2.0, ("a",), {"k": 3})
+    traced = jax.jit(lambda x: refused(x, 2.0, ("a",), {"k": 3})["a"])(x)
+    np.testing.assert_array_equal(traced, 6.0 * x)
+
+
+def test_sensitivity_and_linear_response_as_one_call_equal_the_users_jit():
+    """`vmj.sensitivity` and `LinearOscillator.response` compiled on their own (`ONE_CALL`)
+    give the numbers of the same code inside the user's `jit` (XLA's default emitters)."""
+    model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
+
+    def amplitudes(m, a0, n):
+        return vmj.turning_points(m, a0, n).amplitudes
+
+    one = vmj.sensitivity(amplitudes, model, wrt=("F", "mu"), a0=0.06, n=8)
+    users = jax.jit(lambda m: vmj.sensitivity(amplitudes, m, wrt=("F", "mu"), a0=0.06, n=8))(model)
+    for w in ("F", "mu"):
+        np.testing.assert_allclose(one[w], users[w], rtol=1e-13, atol=0)
+    f = vmj.LinearOscillator(1.0, 1.0, 14.5, vmj.HarmonicForce(F0=4.0, p=15.0))
+    ts = jnp.linspace(0.0, 2.0, 51)
+    x, v = f.response(ts, 0.0, 0.1)
+    xj, vj = jax.jit(lambda f: f.response(ts, 0.0, 0.1))(f)
+    np.testing.assert_allclose(x, xj, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(v, vj, rtol=1e-13, atol=1e-15)

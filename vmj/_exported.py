@@ -44,7 +44,7 @@ import tempfile
 
 from ._version import __version__
 
-__all__ = ["exported_jit", "enable_exported_cache", "exported_cache_directory"]
+__all__ = ["exported_jit", "filter_jit", "enable_exported_cache", "exported_cache_directory"]
 
 _MAGIC = b"vmj-exported 1\n"
 _HEAD = struct.Struct("<32s32sQ")  # key digest, payload digest, skeleton length
@@ -94,9 +94,10 @@ def exported_jit(fun=None, *, static_argnums=(), compiler_options=None):
     return _ExportedJit(fun, static_argnums, compiler_options)
 
 
-#: XLA's options for every program compiled here: one call's program, whose compile is most of
-#: the call's cost. XLA's CPU backend emits each fused kernel through MLIR by default
-#: (`xla_cpu_use_fusion_emitters`); its older emitters write the same arithmetic in less time:
+#: XLA's options for every program compiled here and by `filter_jit`: one call's program, whose
+#: compile is most of the call's cost. XLA's CPU backend emits each fused kernel through MLIR by
+#: default (`xla_cpu_use_fusion_emitters`); its older emitters write the same arithmetic in less
+#: time:
 #: the first `vmj fit` of the shipped table (alternating processes, fresh caches) 7.9-9.5 s ->
 #: 6.1-8.3 s (12.4-13.5 -> 7.3-7.4 s on one core), the same output to the last digit; the first
 #: `fits.fit` 6.3 -> 4.0 s, a warm one 5.4 -> 4.9 ms. Their kernels run slower in bulk (a fit of
@@ -117,6 +118,57 @@ def _one_call_options() -> tuple:
     except Exception:  # (XLA's error for an unknown option)
         return ()
     return tuple(ONE_CALL.items())
+
+
+def filter_jit(fun):
+    """`equinox.filter_jit(fun)` (arrays traced, every other argument static and hashed) whose
+    program gets `ONE_CALL` where it is compiled on its own, as `exported_jit`'s: for the
+    entry points whose arguments are no flat arrays (a model with a callable, a dictionary of
+    solver settings; `vmj.sensitivity`, the rope's averaged laws, the linear response, the
+    stick-slip cycle's samples). Inside a transformation it is `equinox.filter_jit` itself.
+    The function returns arrays only."""
+    import equinox as eqx
+
+    traced = eqx.filter_jit(fun)
+
+    @functools.cache
+    def top():
+        import jax
+
+        def program(dynamic, static):
+            args, kwargs = eqx.combine(dynamic, jax.tree.unflatten(*static.tree_and_leaves))
+            return fun(*args, **kwargs)
+
+        program.__name__ = program.__qualname__ = fun.__name__
+        return jax.jit(program, static_argnums=1, compiler_options=dict(_one_call_options()))
+
+    @functools.wraps(fun)
+    def call(*args, **kwargs):
+        if not (_top_level() and _one_call_options()):
+            return traced(*args, **kwargs)
+        import jax
+
+        dynamic, static = eqx.partition((args, kwargs), eqx.is_array)
+        leaves, tree = jax.tree.flatten(static)
+        return top()(dynamic, _Static((tree, tuple(leaves))))
+
+    return call
+
+
+class _Static:
+    """The non-array part of `filter_jit`'s arguments as `jax.jit`'s static argument: their
+    tree and leaves, hashed and compared as a pair (a dictionary itself is not hashable)."""
+
+    __slots__ = ("tree_and_leaves",)
+
+    def __init__(self, tree_and_leaves):
+        self.tree_and_leaves = tree_and_leaves
+
+    def __hash__(self):
+        return hash(self.tree_and_leaves)
+
+    def __eq__(self, other):
+        return isinstance(other, _Static) and self.tree_and_leaves == other.tree_and_leaves
 
 
 class _ExportedJit:

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 from jaxtyping import Array
 
 from .._checks import _float, nonnegative, positive
+from .._exported import filter_jit
 from .._laws._forcing import Forcing, NoForcing
 from ._base import AbstractAnalytic
 
@@ -176,7 +177,7 @@ class LinearOscillator(AbstractAnalytic):
         t = jnp.maximum(jnp.log(A / (fraction * D)) / self.decay_rate, 0.0)
         return jnp.where(jnp.isinf(D), jnp.nan, t)
 
-    @eqx.filter_jit
+    @filter_jit
     def response(self, t, x0, v0):
         """Analytic displacement and velocity `(x, v)` [m, m/s] at times `t` [s] from `x(0) = x0`,
         `x'(0) = v0`: steady forced response plus the homogeneous solution (any damping,

@@ -28,6 +28,7 @@ from .._checks import (
     warn_if_float32,
 )
 from .._closed_forms._osinski import action_law, energy_map_sequence, kbm
+from .._exported import filter_jit
 from .._laws._length import ConstantSpeed, LengthProfile
 from .._numerics._series import cauchy, cauchy_term
 from .._solution import RESULTS
@@ -292,12 +293,12 @@ def _averaged_inputs(rope, a0, t):
     return rope, a0, _float(t)
 
 
-@eqx.filter_jit
+@filter_jit
 def _kbm(rope, a0, t):
     return kbm(rope, a0, t)
 
 
-@eqx.filter_jit
+@filter_jit
 def _action(rope, a0, ts):
     return action_law(rope, a0, ts)
 

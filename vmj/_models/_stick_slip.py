@@ -32,6 +32,7 @@ from jaxtyping import Array
 
 from .._checks import _float, _is_traced, check, check_int, positive
 from .._closed_forms._belokobylsky import closed_form_cycle
+from .._exported import filter_jit
 from .._numerics._roots import bracketed_newton, implicit_step
 from .._solution import RESULTS, Trajectory
 from ._base import AbstractLimitCycle
@@ -264,7 +265,7 @@ class StickSlipCycle(eqx.Module):
         return _sample(self, n_save, jnp.asarray(periods, dtype=self.period.dtype), physical)
 
 
-@eqx.filter_jit
+@filter_jit
 def _sample(cycle, n_save, periods, physical):
     m = cycle.model
     ts = jnp.linspace(0.0, periods * cycle.period, n_save)
@@ -398,7 +399,7 @@ SMOOTH_SAMPLES = 20_000  #: saved points per period for the event detection
 CREEP = 20.0  #: |u| below CREEP * w counts as a stop of the smoothed disk
 
 
-@eqx.filter_jit
+@filter_jit
 def smoothed_states(model, solver, t1, n_save: int):
     """`(ts, ys, code)`: the smoothed model's state `(xi, xi', z)` at `n_save` times from
     breakaway to `t1`."""

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._checks import _float
+from .._exported import filter_jit
 from .._names import name_list
 from ._grid import Grid
 from ._tree import _get, resolve_field
@@ -123,7 +124,7 @@ class _PointSensitivity(eqx.Module):
         return {f"d_{w}": got[w] for w in self.wrt}
 
 
-@eqx.filter_jit
+@filter_jit
 def _sensitivity(fn, model, paths, field_names, wrt, mode, theta0, solver_args):
     def of(theta):
         m = model
