@@ -97,12 +97,12 @@ def exported_jit(fun=None, *, static_argnums=(), compiler_options=None):
 #: XLA's options for every program compiled here and by `filter_jit`: one call's program, whose
 #: compile is most of the call's cost. XLA's CPU backend emits each fused kernel through MLIR by
 #: default (`xla_cpu_use_fusion_emitters`); its older emitters write the same arithmetic in less
-#: time:
-#: the first `vmj fit` of the shipped table (alternating processes, fresh caches) 7.9-9.5 s ->
-#: 6.1-8.3 s (12.4-13.5 -> 7.3-7.4 s on one core), the same output to the last digit; the first
-#: `fits.fit` 6.3 -> 4.0 s, a warm one 5.4 -> 4.9 ms. Their kernels run slower in bulk (a fit of
-#: 200 records in one batch 1.7 -> 1.8 ms per record; as the default for a whole sweep, energy
-#: balance 3.3x, exact 1.3x, smoothed 1.7x slower), so `vmj.sweep` keeps XLA's default.
+#: time: the first `vmj fit` of the shipped table (alternating processes, fresh caches) 7.9-9.5
+#: s -> 6.1-8.3 s (12.4-13.5 -> 7.3-7.4 s on one core), the same output to the last digit; the
+#: first `fits.fit` 6.3 -> 4.0 s, a warm one 5.4 -> 4.9 ms; the first `vmj.sensitivity` of the
+#: README 4.0 -> 3.3 s. Their kernels run slower in bulk (a fit of 200 records in one batch 1.7
+#: -> 1.8 ms per record; as the default for a whole sweep, energy balance 3.3x, exact 1.3x,
+#: smoothed 1.7x slower), so `vmj.sweep` keeps XLA's default.
 ONE_CALL = {"xla_cpu_use_fusion_emitters": False}
 
 
