@@ -218,8 +218,15 @@ def _vmj(cache, *argv):
             "--set m0=5,c=4900,delta=3,eps=0 --json",
             "_solve_lm",
         ),
+        # forward mode through the exact solver, traced without guards (the concrete solve
+        # before it checked the input)
+        (
+            "sensitivity variable-mass --m0 5 --c 4900 --delta 3 --eps 0 --mu 2 --FT 14.7 "
+            "--a0 0.06 --n 2 --wrt FT,mu --json",
+            "_decay_derivatives",
+        ),
     ],
-    ids=["decay", "fit"],
+    ids=["decay", "fit", "sensitivity"],
 )
 def test_a_repeated_command_loads_its_compiled_program(tmp_path, argv, program):
     """The program that `vmj` compiles lands in its cache directory as an executable (it holds

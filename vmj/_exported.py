@@ -173,8 +173,6 @@ class _Static:
 
 class _ExportedJit:
     def __init__(self, fun, static_argnums, compiler_options=None):
-        import jax
-
         self.fun = fun
         self.static_argnums = (
             (static_argnums,) if isinstance(static_argnums, int) else tuple(sorted(static_argnums))
@@ -182,7 +180,6 @@ class _ExportedJit:
         if any(i < 0 for i in self.static_argnums):
             raise ValueError("static_argnums must be non-negative positions")
         self.options = dict(compiler_options or {})
-        self.jitted = jax.jit(fun, static_argnums=self.static_argnums)
         self.loaded: dict = {}  # (directory, x64, static, treedef, avals) -> (call, out tree)
         functools.update_wrapper(self, fun)
 
@@ -198,6 +195,14 @@ class _ExportedJit:
         if _directory[0] is None or kwargs:
             return self._plain(*args, **kwargs)
         return self._call_exported(args)
+
+    @functools.cached_property
+    def jitted(self):
+        """The plain `jax.jit` of the function (made at its first use: a module that defines an
+        entry point imports no JAX, as the command's `--help` imports its subcommands)."""
+        import jax
+
+        return jax.jit(self.fun, static_argnums=self.static_argnums)
 
     @functools.cached_property
     def compiler_options(self) -> dict:

@@ -11,6 +11,7 @@ derivatives of the period, slip and stick times. Derivatives are per SI unit of 
 
 from __future__ import annotations
 
+from .._exported import exported_jit
 from ._options import Joined, count, emit, figure_path, traced_checks
 from ._params import MODELS, add_options, given
 
@@ -162,6 +163,19 @@ def _cycle(args, values, model, wrt, keys, units) -> int:
     return 0
 
 
+@exported_jit(static_argnums=(2, 3, 4, 5, 6))
+def _decay_derivatives(model, a0, n, method, extra, keys, mode):
+    """`vmj.sensitivity` of the amplitudes and times of `n` turning points by `method` (the
+    exact solver's `extra` options as sorted items) with respect to `keys` in `mode`."""
+    import vmj
+
+    def decay(m, a0, n):
+        seq = vmj.turning_points(m, a0, n, method=method, **dict(extra))
+        return {"times": seq.times, "amplitudes": seq.amplitudes}
+
+    return vmj.sensitivity(decay, model, keys, mode=mode, a0=a0, n=n)
+
+
 def _decay(args, model, a0, n, wrt, keys, units) -> int:
     """Derivatives of the turning points' amplitudes and times."""
     import numpy as np
@@ -173,10 +187,6 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     method = args.method
     extra = exact_options(args)
 
-    def decay(m, a0, n):
-        seq = vmj.turning_points(m, a0, n, method=method, **extra)
-        return {"times": seq.times, "amplitudes": seq.amplitudes}
-
     seq = vmj.turning_points(model, a0, n, method=method, **extra)
     got = seq.reached()
     keep = len(got["times"])
@@ -185,8 +195,13 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     # the smoothed solve differentiates by diffrax's adjoint, in reverse mode only (in
     # forward mode vmj.sensitivity says so)
     mode = "reverse" if method == "smooth" else "forward"
-    with traced_checks():
-        d = vmj.sensitivity(decay, model, keys, mode=mode, a0=a0, n=n)
+    # that concrete solve checked the model and a0 on the host (a failed check raised there):
+    # the derivatives are traced without guards, so that the program is exported and a
+    # repeated command loads it (vmj/_exported.py)
+    with vmj.assume_valid():
+        d = _decay_derivatives(
+            model, a0, n, method, tuple(sorted(extra.items())), tuple(keys), mode
+        )
     out = {
         "model": args.model,
         "method": method,
