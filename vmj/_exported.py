@@ -4,8 +4,9 @@ command skips tracing, lowering and compiling.
 JAX's persistent compilation cache keeps XLA's compiled code, but every new process still traces
 the Python function and lowers it before it can look that code up: for `vmj fit` that tracing
 is most of the run (docs/performance.md). `exported_jit` is `jax.jit` for the compiled entry
-points (`vmj._integrate`, `fits._solve`); while the cache is switched on, each call with new
-static arguments, argument structure or shapes looks in the cache directory for two entries:
+points (`vmj._integrate`, `fits._solve`, the derivatives of `vmj sensitivity`); while the cache
+is switched on, each call with new static arguments, argument structure or shapes looks in the
+cache directory for two entries:
 
 - `NAME-KEY.xla`: XLA's executable (`jax.experimental.serialize_executable`), deserialized and
   called as it is: no tracing, no lowering, no lookup in the compilation cache. Its key also
