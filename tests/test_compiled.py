@@ -150,7 +150,7 @@ def test_filter_jit_gives_one_calls_program_the_options_and_keeps_its_static_arg
     """`vmj._exported.filter_jit` (the entry points with callables or dictionaries among their
     arguments): arrays traced, every other argument static (a new value traces anew, a new
     array does not); at top level its program is compiled with `ONE_CALL` (an option XLA does
-    not know is refused there), inside the user's `jit` it is `equinox.filter_jit`."""
+    not know is refused there), inside the user's `jit` without it."""
     import vmj._exported as exported
 
     traces = []

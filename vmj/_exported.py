@@ -45,7 +45,14 @@ import tempfile
 
 from ._version import __version__
 
-__all__ = ["exported_jit", "filter_jit", "enable_exported_cache", "exported_cache_directory"]
+__all__ = [
+    "exported_jit",
+    "filter_jit",
+    "split_arrays",
+    "joined_leaves",
+    "enable_exported_cache",
+    "exported_cache_directory",
+]
 
 _MAGIC = b"vmj-exported 1\n"
 _HEAD = struct.Struct("<32s32sQ")  # key digest, payload digest, skeleton length
@@ -121,55 +128,55 @@ def _one_call_options() -> tuple:
     return tuple(ONE_CALL.items())
 
 
-def filter_jit(fun):
-    """`equinox.filter_jit(fun)` (arrays traced, every other argument static and hashed) whose
-    program gets `ONE_CALL` where it is compiled on its own, as `exported_jit`'s: for the
-    entry points whose arguments are no flat arrays (a model with a callable, a dictionary of
-    solver settings; `vmj.sensitivity`, the rope's averaged laws, the linear response, the
-    stick-slip cycle's samples). Inside a transformation it is `equinox.filter_jit` itself.
-    The function returns arrays only."""
+def split_arrays(tree):
+    """`(arrays, static)`: the array leaves of `tree` and the rest of it, `(treedef, which
+    leaves are arrays, the other leaves)`, hashable where those are (`joined_leaves(static,
+    arrays)` gives all its leaves back): `filter_jit`'s static argument and a sweep's. A
+    flattening of the tree, where `equinox.partition` and `equinox.combine` walked it in Python
+    (of a sweep's fixed cost of about a millisecond, 4096 points, two such walks took about 0.1
+    ms)."""
     import equinox as eqx
+    import jax
 
-    traced = eqx.filter_jit(fun)
+    leaves, treedef = jax.tree.flatten(tree)
+    is_array = tuple(eqx.is_array(x) for x in leaves)
+    rest = tuple(x for x, a in zip(leaves, is_array) if not a)
+    return [x for x, a in zip(leaves, is_array) if a], (treedef, is_array, rest)
+
+
+def joined_leaves(static, arrays) -> list:
+    """The leaves of the tree that `split_arrays` took apart into `arrays` and `static` (its
+    structure: `static[0]`)."""
+    _, is_array, rest = static
+    arrays, rest = iter(arrays), iter(rest)
+    return [next(arrays) if a else next(rest) for a in is_array]
+
+
+def filter_jit(fun):
+    """`jax.jit` of `fun` with its arrays traced and every other argument static (hashed), as
+    `equinox.filter_jit`, whose program gets `ONE_CALL` where it is compiled on its own (no
+    transformation tracing), as `exported_jit`'s: for the entry points whose arguments are no
+    flat arrays (a model with a callable, a dictionary of solver settings; `vmj.sensitivity`,
+    the rope's averaged laws, the linear response, the stick-slip cycle's samples). The
+    function returns arrays only."""
 
     @functools.cache
-    def top():
+    def jitted(options: tuple):
         import jax
 
-        def program(dynamic, static):
-            args, kwargs = eqx.combine(dynamic, jax.tree.unflatten(*static.tree_and_leaves))
+        def program(arrays, static):
+            args, kwargs = jax.tree.unflatten(static[0], joined_leaves(static, arrays))
             return fun(*args, **kwargs)
 
         program.__name__ = program.__qualname__ = fun.__name__
-        return jax.jit(program, static_argnums=1, compiler_options=dict(_one_call_options()))
+        return jax.jit(program, static_argnums=1, compiler_options=dict(options) or None)
 
     @functools.wraps(fun)
     def call(*args, **kwargs):
-        if not (_top_level() and _one_call_options()):
-            return traced(*args, **kwargs)
-        import jax
-
-        dynamic, static = eqx.partition((args, kwargs), eqx.is_array)
-        leaves, tree = jax.tree.flatten(static)
-        return top()(dynamic, _Static((tree, tuple(leaves))))
+        arrays, static = split_arrays((args, kwargs))
+        return jitted(_one_call_options() if _top_level() else ())(arrays, static)
 
     return call
-
-
-class _Static:
-    """The non-array part of `filter_jit`'s arguments as `jax.jit`'s static argument: their
-    tree and leaves, hashed and compared as a pair (a dictionary itself is not hashable)."""
-
-    __slots__ = ("tree_and_leaves",)
-
-    def __init__(self, tree_and_leaves):
-        self.tree_and_leaves = tree_and_leaves
-
-    def __hash__(self):
-        return hash(self.tree_and_leaves)
-
-    def __eq__(self, other):
-        return isinstance(other, _Static) and self.tree_and_leaves == other.tree_and_leaves
 
 
 class _ExportedJit:

@@ -28,6 +28,7 @@ import numpy as np
 from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
 from .._checks import check_int, mark_checked, validated, warn_if_float32
+from .._exported import joined_leaves, split_arrays
 from .._solution import RESULTS
 from .._version import __version__
 from ._engine import (
@@ -144,26 +145,6 @@ def chunk_options(devices) -> dict:
     return {"xla_cpu_prefer_vector_width": 512} if _avx512() else {}
 
 
-def _split(tree):
-    """`(arrays, static)`: the array leaves of `tree` and the rest of it, `(treedef, which
-    leaves are arrays, the other leaves)`, hashable where those are (`_leaves(static, arrays)`
-    gives all its leaves back). A flattening of the tree, where
-    `equinox.partition` and `equinox.combine` walked it in Python (of a sweep's fixed cost of
-    about a millisecond, 4096 points, two such walks took about 0.1 ms)."""
-    leaves, treedef = jax.tree.flatten(tree)
-    is_array = tuple(eqx.is_array(x) for x in leaves)
-    rest = tuple(x for x, a in zip(leaves, is_array) if not a)
-    return [x for x, a in zip(leaves, is_array) if a], (treedef, is_array, rest)
-
-
-def _leaves(static, arrays) -> list:
-    """The leaves of the tree that `_split` took apart into `arrays` and `static` (its
-    structure: `static[0]`)."""
-    _, is_array, rest = static
-    arrays, rest = iter(arrays), iter(rest)
-    return [next(arrays) if a else next(rest) for a in is_array]
-
-
 def _chunk_function(fn, static_kwargs, static_model, swept, shape, size, sharding, output, options):
     """The compiled function of a sweep's chunks, `(model arrays, kwargs arrays, start) -> fn`
     at the points `start ... start + size` (flat, C order; indices past the last point repeat
@@ -178,8 +159,8 @@ def _chunk_function(fn, static_kwargs, static_model, swept, shape, size, shardin
     def run(model_arrays, kwargs_arrays, start):
         global _TRACES
         _TRACES += 1
-        leaves, treedef = _leaves(static_model, model_arrays), static_model[0]
-        kwargs = jax.tree.unflatten(static_kwargs[0], _leaves(static_kwargs, kwargs_arrays))
+        leaves, treedef = joined_leaves(static_model, model_arrays), static_model[0]
+        kwargs = jax.tree.unflatten(static_kwargs[0], joined_leaves(static_kwargs, kwargs_arrays))
         idx = jnp.minimum(start + jnp.arange(size), math.prod(shape) - 1)
         part = [_take(x, shape, idx) if s else x for x, s in zip(leaves, swept)]
         if sharding is not None:
@@ -278,9 +259,9 @@ class _SweepJob:
         self._lock = threading.Lock()
 
     def _parts(self):
-        """(arrays, static part) of the model and of the arguments (`_split`'s)."""
+        """(arrays, static part) of the model and of the arguments (`split_arrays`'s)."""
         if self._parted is None:
-            self._parted = (*_split(self.model), *_split(self.kwargs))
+            self._parted = (*split_arrays(self.model), *split_arrays(self.kwargs))
         return self._parted
 
     def on_device(self):
