@@ -246,6 +246,20 @@ def test_a_repeated_command_loads_its_compiled_program(tmp_path, argv, program):
     assert f"jit({program})" not in again.stderr
 
 
+def test_a_repeated_sweep_loads_its_chunks_program(tmp_path):
+    """`vmj sweep`'s chunk program is stored with the axes of its result's points (the energy
+    balance's come last) and loaded by a repeat: no tracing, no compilation, the same file."""
+    cache, out = tmp_path / "cache", [tmp_path / "first.csv", tmp_path / "again.csv"]
+    argv = "sweep variable-mass --eps 0:1:3 --mu 0,5 --delta -3,3 --method energy --n 4 --set "
+    argv = [*argv.split(), "m0=5,c=4900,FT=14.7,a0=0.06"]
+    first = _vmj(cache, *argv, "--out", str(out[0]))
+    assert "Finished XLA compilation of jit(_chunk_program)" in first.stderr
+    assert any(e.startswith("_chunk_program") for e in os.listdir(cache / "exported"))
+    again = _vmj(cache, *argv, "--out", str(out[1]))
+    assert "jit(_chunk_program)" not in again.stderr
+    assert out[1].read_text() == out[0].read_text() and out[0].read_text().count("\n") == 14
+
+
 def test_the_command_settles_the_garbage_collector_only_for_its_own_process(capsys):
     """The process's own `vmj` freezes what start-up imported (the collector stays on); `main`
     called in-process leaves the caller's collector as it was."""

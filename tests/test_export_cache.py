@@ -155,3 +155,14 @@ def test_static_arguments_are_described_the_same_in_every_process():
     text = exported._stable((SPACES["variable-mass"], "exact", 8, 200))
     assert " at 0x" not in text and "fits._models._variable_mass" in text
     assert exported._stable({"b": 1, "a": (2.0, None)}) == "{'a': tuple(2.0, None), 'b': 1}"
+    # a lambda or a local function has no name of its own (two in one module would share
+    # one): described with its address, so never cached
+    assert " at 0x" in exported._stable(lambda m: m)
+    assert " at 0x" in exported._stable((test_no_cache_writes_nothing, _local()))
+
+
+def _local():
+    def f(m):
+        return m
+
+    return f

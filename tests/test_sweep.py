@@ -269,8 +269,8 @@ def test_wide_vectors_on_avx512_processors(monkeypatch):
         m.setenv("XLA_FLAGS", "--xla_cpu_prefer_vector_width=256")
         assert chunk_options(cpu) == {}
     sweep_module._KNOWN.clear()  # (compiled anew with the option)
-    made, real = [], sweep_module._chunk_function
-    monkeypatch.setattr(sweep_module, "_chunk_function", lambda *a: made.append(a[-1]) or real(*a))
+    made, real = [], sweep_module._ChunkFunction
+    monkeypatch.setattr(sweep_module, "_ChunkFunction", lambda *a: made.append(a[-1]) or real(*a))
     wide = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4, devices=cpu)
     assert made == [{"xla_cpu_prefer_vector_width": 512}]
     np.testing.assert_allclose(wide.values.positions, narrow.values.positions, atol=1e-13 * A0)

@@ -4,7 +4,8 @@ command skips tracing, lowering and compiling.
 JAX's persistent compilation cache keeps XLA's compiled code, but every new process still traces
 the Python function and lowers it before it can look that code up: for `vmj fit` that tracing
 is most of the run (docs/performance.md). `exported_jit` is `jax.jit` for the compiled entry
-points (`vmj._integrate`, `fits._solve`, the derivatives of `vmj sensitivity`); while the cache
+points (`vmj._integrate`, `fits._solve`, the derivatives of `vmj sensitivity`, a sweep's chunks
+on one CPU: `vmj sweep`); while the cache
 is switched on, each call with new static arguments, argument structure or shapes looks in the
 cache directory for two entries:
 
@@ -88,18 +89,21 @@ def exported_cache_directory() -> str | None:
     return _directory[0]
 
 
-def exported_jit(fun=None, *, static_argnums=(), compiler_options=None):
+def exported_jit(fun=None, *, static_argnums=(), compiler_options=None, one_call=True):
     """`jax.jit(fun, static_argnums=..., compiler_options=...)` that, while the exported-program
     cache is on, loads and stores the function's exported programs there (see the module's
     docstring). The plain jitted function's attributes (`lower`, ...) are those of the result.
-    `compiler_options` (XLA's, as for `jax.jit`, beside `ONE_CALL`) apply where the function is
-    compiled as a program of its own, not where it is traced inside another (a sweep's
-    `jax.vmap`, the user's own `jax.jit`)."""
+    `compiler_options` (XLA's, as for `jax.jit`, beside `ONE_CALL` unless `one_call=False`: a
+    sweep's chunk) apply where the function is compiled as a program of its own, not where it
+    is traced inside another (a sweep's `jax.vmap`, the user's own `jax.jit`)."""
     if fun is None:
         return functools.partial(
-            exported_jit, static_argnums=static_argnums, compiler_options=compiler_options
+            exported_jit,
+            static_argnums=static_argnums,
+            compiler_options=compiler_options,
+            one_call=one_call,
         )
-    return _ExportedJit(fun, static_argnums, compiler_options)
+    return _ExportedJit(fun, static_argnums, compiler_options, one_call)
 
 
 #: XLA's options for every program compiled here and by `filter_jit`: one call's program, whose
@@ -180,8 +184,8 @@ def filter_jit(fun):
 
 
 class _ExportedJit:
-    def __init__(self, fun, static_argnums, compiler_options=None):
-        self.fun = fun
+    def __init__(self, fun, static_argnums, compiler_options=None, one_call=True):
+        self.fun, self.one_call = fun, one_call
         self.static_argnums = (
             (static_argnums,) if isinstance(static_argnums, int) else tuple(sorted(static_argnums))
         )
@@ -200,9 +204,34 @@ class _ExportedJit:
         return getattr(self.jitted, name)
 
     def __call__(self, *args, **kwargs):
-        if _directory[0] is None or kwargs:
+        found = None if kwargs else self._lookup(args)
+        if found is None:
             return self._plain(*args, **kwargs)
-        return self._call_exported(args)
+        import jax
+
+        leaves, (call, out_tree) = found
+        return jax.tree.unflatten(out_tree, call(*leaves))
+
+    def eval_shape(self, *args):
+        """The output's structure and shapes (`jax.eval_shape`): read off the stored program
+        where the cache has it, without tracing the function."""
+        import jax
+
+        found = self._lookup(args)
+        if found is None:
+            static = tuple(args[i] for i in self.static_argnums)
+            dynamic = [a for i, a in enumerate(args) if i not in self.static_argnums]
+            return jax.eval_shape(lambda *d: self.jitted(*self._merge(static, d)), *dynamic)
+        call, out_tree = found[1]
+        return jax.tree.unflatten(out_tree, list(_executable(call).out_info))
+
+    def compiled(self, *args):
+        """The compiled program for `args` (`jax.stages.Compiled`: its `memory_analysis()`, ...):
+        the stored one where the cache has it."""
+        found = self._lookup(args)
+        if found is None:
+            return (self.top if _top_level() else self.jitted).lower(*args).compile()
+        return _executable(found[1][0])
 
     @functools.cached_property
     def jitted(self):
@@ -214,7 +243,7 @@ class _ExportedJit:
 
     @functools.cached_property
     def compiler_options(self) -> dict:
-        return {**dict(_one_call_options()), **self.options}
+        return {**dict(_one_call_options() if self.one_call else ()), **self.options}
 
     @functools.cached_property
     def top(self):
@@ -230,29 +259,29 @@ class _ExportedJit:
         """The jitted function, with its compiler options where no transformation traces."""
         return (self.top if _top_level() else self.jitted)(*args, **kwargs)
 
-    def _call_exported(self, args):
+    def _lookup(self, args):
+        """`(leaves of the traced arguments, (call, output tree))` of the stored program for
+        `args`, loaded or exported at the first call; `None` where they take the plain path
+        (cache off, traced arguments, an unhashable static argument, not exportable)."""
+        if _directory[0] is None:
+            return None
         import jax
 
         static = tuple(args[i] for i in self.static_argnums)
         dynamic = tuple(a for i, a in enumerate(args) if i not in self.static_argnums)
         leaves, treedef = jax.tree.flatten(dynamic)
-        if any(isinstance(x, jax.core.Tracer) for x in leaves):
-            return self.jitted(*args)
         typeof = getattr(jax, "typeof", None)  # (JAX >= 0.4.36; before, the plain path)
-        if typeof is None:
-            return self._plain(*args)
+        if typeof is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
+            return None
         try:
             avals = tuple(typeof(x) for x in leaves)
             key = (_directory[0], jax.config.jax_enable_x64, static, treedef, avals)
             entry = self.loaded.get(key)
         except TypeError:  # a leaf that is no array, or an unhashable static argument
-            return self._plain(*args)
+            return None
         if entry is None:
             entry = self.loaded[key] = self._load_or_export(static, treedef, avals)
-        if entry is _PLAIN:
-            return self._plain(*args)
-        call, out_tree = entry
-        return jax.tree.unflatten(out_tree, call(*leaves))
+        return None if entry is _PLAIN else (leaves, entry)
 
     def _merge(self, static, dynamic):
         """The positional arguments, from the static ones and the others."""
@@ -268,7 +297,8 @@ class _ExportedJit:
                 f"{self.fun.__module__}.{self.fun.__qualname__}",
                 _environment(self.fun.__module__),
                 f"x64={jax.config.jax_enable_x64}",
-                repr(sorted({**ONE_CALL, **self.options}.items())),  # (no probe: no XLA)
+                # (no probe of the options: no XLA)
+                repr(sorted({**(ONE_CALL if self.one_call else {}), **self.options}.items())),
                 _stable(static),
                 str(treedef),
                 repr(avals),
@@ -317,6 +347,11 @@ class _ExportedJit:
         out_tree = out_trees[-1]
         _write(path, digest, pickle.dumps(_skeleton(out_tree)), blob)
         return self._compile(exported, out_tree, path, digest, avals), out_tree
+
+
+def _executable(call):
+    """The `jax.stages.Compiled` behind a stored program's call."""
+    return call.compiled if isinstance(call, _Loaded) else call
 
 
 class _Loaded:
@@ -543,6 +578,8 @@ def _stable(value) -> str:
         fields = (f"{f.name}={_stable(getattr(value, f.name))}" for f in dataclasses.fields(value))
         return f"{type(value).__module__}.{type(value).__qualname__}({', '.join(fields)})"
     if callable(value) and hasattr(value, "__qualname__"):
+        if "<" in value.__qualname__:  # a lambda or a local function: no name of its own
+            return repr(value)  # (with its address: never cached)
         return f"{getattr(value, '__module__', '?')}.{value.__qualname__}"
     return repr(value)
 

@@ -14,6 +14,7 @@ parameters are array fields works.
 from __future__ import annotations
 
 import collections
+import dataclasses
 import functools
 import math
 import os
@@ -28,7 +29,7 @@ import numpy as np
 from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
 from .._checks import check_int, mark_checked, validated, warn_if_float32
-from .._exported import joined_leaves, split_arrays
+from .._exported import exported_cache_directory, exported_jit, joined_leaves, split_arrays
 from .._solution import RESULTS
 from .._version import __version__
 from ._engine import (
@@ -145,46 +146,118 @@ def chunk_options(devices) -> dict:
     return {"xla_cpu_prefer_vector_width": 512} if _avx512() else {}
 
 
-def _chunk_function(fn, static_kwargs, static_model, swept, shape, size, sharding, output, options):
-    """The compiled function of a sweep's chunks, `(model arrays, kwargs arrays, start) -> fn`
-    at the points `start ... start + size` (flat, C order; indices past the last point repeat
-    it) of a model whose swept leaves (flags in `swept`) broadcast to `shape`, its result
-    placed by `output` (`host_output`'s), compiled with XLA's `options` (`chunk_options`'s).
-    Each leaf of the result has its points on the axis its computation puts them on
-    (`vmap_in_place`; on the first where the chunk is sharded over several devices), recorded in
-    `axes` (a list, filled when the function is traced). Everything else is closed over: a
-    call is `jax.jit`'s dispatch of a few arrays (tens of microseconds less per chunk than
-    sorting a whole model and its arguments into static and traced parts)."""
+@dataclasses.dataclass(frozen=True)
+class _Chunk:
+    """What a sweep's chunk program is made of besides its arrays (hashable, its static
+    argument): `fn`, the static parts of its arguments and of the model (`split_arrays`'s), the
+    swept leaves (flags), the points' `shape`, the chunk's `size` and the `sharding` of a chunk
+    over several devices (`None` on one)."""
 
-    def run(model_arrays, kwargs_arrays, start):
-        global _TRACES
-        _TRACES += 1
-        leaves, treedef = joined_leaves(static_model, model_arrays), static_model[0]
-        kwargs = jax.tree.unflatten(static_kwargs[0], joined_leaves(static_kwargs, kwargs_arrays))
-        idx = jnp.minimum(start + jnp.arange(size), math.prod(shape) - 1)
-        part = [_take(x, shape, idx) if s else x for x, s in zip(leaves, swept)]
-        if sharding is not None:
-            part = [
-                jax.lax.with_sharding_constraint(x, sharding) if s else x
-                for x, s in zip(part, swept)
-            ]
+    fn: Callable
+    static_kwargs: tuple
+    static_model: tuple
+    swept: tuple
+    shape: tuple
+    size: int
+    sharding: object
 
-        def point(batched):
-            it = iter(batched)
-            # the sweep validated its arrays on the host: no guards (host callbacks) per point
-            one = jax.tree.unflatten(treedef, [next(it) if s else x for x, s in zip(part, swept)])
-            return fn(mark_checked(one), **kwargs)
 
-        points = [x for x, s in zip(part, swept) if s]
-        if sharding is None:
-            out, axes[:] = vmap_in_place(point, points)
-        else:  # (a sharding over several devices splits the first axis)
-            out = jax.vmap(point)(points)
-            axes[:] = [0] * len(jax.tree.leaves(out))
-        return out
+@jax.tree_util.register_pytree_node_class
+class _Placed:
+    """A chunk's result `out` with the axis of each of its leaves where its points are
+    (`axes`, `vmap_in_place`'s): the axes are in the result's structure, so that they come with
+    it from the exported-program cache."""
 
-    axes = []
-    return jax.jit(run, out_shardings=output, compiler_options=options or None), axes
+    def __init__(self, out, axes: tuple):
+        self.out, self.axes = out, tuple(axes)
+
+    def tree_flatten(self):
+        return (self.out,), self.axes
+
+    @classmethod
+    def tree_unflatten(cls, axes, children):
+        return cls(children[0], axes)
+
+
+def _chunk_program(model_arrays, kwargs_arrays, start, chunk: _Chunk) -> _Placed:
+    """`chunk.fn` at the points `start ... start + chunk.size` (flat, C order; indices past the
+    last point repeat it) of a model whose swept leaves broadcast to `chunk.shape`; each leaf of
+    the result has its points on the axis its computation puts them on (`vmap_in_place`; on
+    the first where the chunk is sharded over several devices)."""
+    global _TRACES
+    _TRACES += 1
+    shape, swept = chunk.shape, chunk.swept
+    leaves, treedef = joined_leaves(chunk.static_model, model_arrays), chunk.static_model[0]
+    kwargs = jax.tree.unflatten(
+        chunk.static_kwargs[0], joined_leaves(chunk.static_kwargs, kwargs_arrays)
+    )
+    idx = jnp.minimum(start + jnp.arange(chunk.size), math.prod(shape) - 1)
+    part = [_take(x, shape, idx) if s else x for x, s in zip(leaves, swept)]
+    if chunk.sharding is not None:
+        part = [
+            jax.lax.with_sharding_constraint(x, chunk.sharding) if s else x
+            for x, s in zip(part, swept)
+        ]
+
+    def point(batched):
+        it = iter(batched)
+        # the sweep validated its arrays on the host: no guards (host callbacks) per point
+        one = jax.tree.unflatten(treedef, [next(it) if s else x for x, s in zip(part, swept)])
+        return chunk.fn(mark_checked(one), **kwargs)
+
+    points = [x for x, s in zip(part, swept) if s]
+    if chunk.sharding is None:
+        return _Placed(*vmap_in_place(point, points))
+    out = jax.vmap(point)(points)  # (a sharding over several devices splits the first axis)
+    return _Placed(out, [0] * len(jax.tree.leaves(out)))
+
+
+@functools.cache
+def _exported_chunk(options: tuple):
+    """`_chunk_program` through the exported-program cache, compiled with XLA's `options`
+    (`chunk_options`'s items; not `ONE_CALL`'s: a chunk runs in bulk)."""
+    return exported_jit(
+        _chunk_program, static_argnums=3, compiler_options=dict(options), one_call=False
+    )
+
+
+class _ChunkFunction:
+    """The compiled function of a sweep's chunks, `(model arrays, kwargs arrays, start) ->
+    _Placed`, its result placed by `output` (`host_output`'s), compiled with XLA's `options`
+    (`chunk_options`'s). Everything else is the chunk's static `_Chunk`: a call is `jax.jit`'s
+    dispatch of a few arrays (tens of microseconds less per chunk than sorting a whole model and
+    its arguments into static and traced parts). While the exported-program cache is on (the
+    `vmj` command), a chunk on one CPU device is stored there: a repeated `vmj sweep` loads its
+    executable, untraced."""
+
+    def __init__(self, chunk: _Chunk, output, options: dict):
+        self.chunk = chunk
+        self.jitted = jax.jit(
+            functools.partial(_chunk_program, chunk=chunk),
+            out_shardings=output,
+            compiler_options=options or None,
+        )
+        self.exported = None
+        if output is None and chunk.sharding is None and exported_cache_directory() is not None:
+            self.exported = _exported_chunk(tuple(sorted(options.items())))
+
+    def __call__(self, *args) -> _Placed:
+        if self.exported is None:
+            return self.jitted(*args)
+        return self.exported(*args, self.chunk)
+
+    def lower(self, *args):
+        return self.jitted.lower(*args)
+
+    def compile(self, *args):
+        if self.exported is None:
+            return self.jitted.lower(*args).compile()
+        return self.exported.compiled(*args, self.chunk)
+
+    def eval_shape(self, *args) -> _Placed:
+        if self.exported is None:
+            return jax.eval_shape(self.jitted, *args)
+        return self.exported.eval_shape(*args, self.chunk)
 
 
 def vmap_in_place(fn, args):
@@ -317,6 +390,7 @@ class _SweepJob:
                 self.sharding,
                 self.output(),
                 bool(jax.config.jax_enable_x64),
+                exported_cache_directory(),
             )
             hash(key)
         except TypeError:
@@ -324,9 +398,9 @@ class _SweepJob:
         return key
 
     def known(self, chunk: int) -> dict:
-        """What this process knows of the compiled chunk: its function (`"function"`) and its
-        result's point axes (`"axes"`), compiled (`"compiled"`), its memory (`"bytes"`) and
-        output structure (`"spec"`, the points first): shared by the sweeps of the same
+        """What this process knows of the compiled chunk: its function (`"function"`),
+        compiled (`"compiled"`), its memory (`"bytes"`), its result's point axes (`"axes"`)
+        and output structure (`"spec"`, the points first): shared by the sweeps of the same
         definition, or this job's own where the definition cannot be hashed."""
         if chunk in self._known:
             return self._known[chunk]
@@ -351,14 +425,16 @@ class _SweepJob:
         with _KNOWN_LOCK:
             if "function" not in known:
                 _, static_model, _, static_kwargs = self._parts()
-                known["function"], known["axes"] = _chunk_function(
-                    self.fn,
-                    static_kwargs,
-                    static_model,
-                    self.swept,
-                    self.shape,
-                    chunk,
-                    self.sharding,
+                known["function"] = _ChunkFunction(
+                    _Chunk(
+                        self.fn,
+                        static_kwargs,
+                        static_model,
+                        self.swept,
+                        self.shape,
+                        chunk,
+                        self.sharding,
+                    ),
                     self.output(),
                     chunk_options(self.devices),
                 )
@@ -367,7 +443,7 @@ class _SweepJob:
 
     def compile(self, chunk: int | None = None):
         """The compiled chunk (JAX keeps it: later calls with the same shapes reuse it)."""
-        compiled = self.function(chunk).lower(*self.args(0)).compile()
+        compiled = self.function(chunk).compile(*self.args(0))
         self.known(chunk or self.chunk)["compiled"] = True
         return compiled
 
@@ -375,12 +451,14 @@ class _SweepJob:
         """The output's structure (leaves with the chunk axis in front), without evaluating."""
         known = self.known(self.chunk)
         if "spec" not in known:
-            leaves, tree = jax.tree.flatten(jax.eval_shape(self.function(), *self.args(0)))
+            placed = self.function().eval_shape(*self.args(0))
+            leaves, tree = jax.tree.flatten(placed.out)
+            known["axes"] = placed.axes
             known["spec"] = jax.tree.unflatten(
                 tree,
                 [
                     jax.ShapeDtypeStruct((s.shape[a], *s.shape[:a], *s.shape[a + 1 :]), s.dtype)
-                    for s, a in zip(leaves, known["axes"])
+                    for s, a in zip(leaves, placed.axes)
                 ],
             )
         return known["spec"]
@@ -389,11 +467,11 @@ class _SweepJob:
         """The result leaves of the points `c * chunk ... (c + 1) * chunk - 1` of chunk `c`, the
         points on their first axis (views of the chunk's result)."""
         start = self.first(c)
-        out = jax.tree.leaves(self.function()(*self.args(start)))
+        placed = self.function()(*self.args(start))
         lo, hi = c * self.chunk, min((c + 1) * self.chunk, self.n)
-        axes = self.known(self.chunk)["axes"]
         return [
-            np.moveaxis(np.asarray(g), a, 0)[lo - start : hi - start] for g, a in zip(out, axes)
+            np.moveaxis(np.asarray(g), a, 0)[lo - start : hi - start]
+            for g, a in zip(jax.tree.leaves(placed.out), placed.axes)
         ]
 
 
