@@ -5,9 +5,8 @@ JAX's persistent compilation cache keeps XLA's compiled code, but every new proc
 the Python function and lowers it before it can look that code up: for `vmj fit` that tracing
 is most of the run (docs/performance.md). `exported_jit` is `jax.jit` for the compiled entry
 points (`vmj._integrate`, `fits._solve`, the derivatives of `vmj sensitivity`, a sweep's chunks
-on one CPU: `vmj sweep`); while the cache
-is switched on, each call with new static arguments, argument structure or shapes looks in the
-cache directory for two entries:
+on one CPU); while the cache is switched on, each call with new static arguments, argument
+structure or shapes looks in the cache directory for two entries:
 
 - `NAME-KEY.xla`: XLA's executable (`jax.experimental.serialize_executable`), deserialized and
   called as it is: no tracing, no lowering, no lookup in the compilation cache. Its key also
