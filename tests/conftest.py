@@ -10,11 +10,15 @@ jax.config.update("jax_enable_x64", True)
 # suite takes as long either way (209 s)
 jax.config.update("jax_cpu_enable_async_dispatch", False)
 # share compiled programs between the pytest workers and test files of one run; the `vmj`
-# command run in-process or as a subprocess uses the same directory (not the user's cache)
+# command run in-process or as a subprocess uses the same directory (not the user's cache).
+# Every program, however quick its compile, as the `vmj` command keeps them: the documentation's
+# snippets and the commands' processes compile many small ones that the suite has compiled
+# already (the suite on 2 cores, the same tree, one run each: 570 s with programs of 1 s of
+# compiling and more kept, 500 s with all kept)
 CACHE = os.path.join(os.path.dirname(__file__), "..", ".pytest_cache", "jax")
 os.environ.setdefault("VMJ_CACHE_DIR", CACHE)
 jax.config.update("jax_compilation_cache_dir", CACHE)
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 

@@ -35,7 +35,7 @@ class SharedCompilationCache(distributed.WorkerPlugin):
 
     def setup(self, worker):
         jax.config.update("jax_compilation_cache_dir", self.path)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # (conftest.py)
 
 
 @pytest.fixture(scope="module")

@@ -88,7 +88,7 @@ def environment(**extra) -> dict:
     env = dict(os.environ, JAX_ENABLE_X64="1", MPLBACKEND="Agg", **extra)
     # compiled programs shared with the test suite's own cache (tests/conftest.py)
     env.setdefault("JAX_COMPILATION_CACHE_DIR", str(ROOT / ".pytest_cache" / "jax"))
-    env.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "1")
+    env.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
     return env
 
 
