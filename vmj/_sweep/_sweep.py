@@ -375,19 +375,20 @@ class _SweepJob:
         """The compiled chunk function's arguments for the chunk starting at point `start`."""
         return (*self.on_device(), np.int64(start))
 
+    def definition(self, chunk: int) -> _Chunk:
+        """The static part of the program of chunks of `chunk` points."""
+        _, static_model, _, static_kwargs = self._parts()
+        return _Chunk(
+            self.fn, static_kwargs, static_model, self.swept, self.shape, chunk, self.sharding
+        )
+
     def key(self, chunk: int):
         """What the compiled chunk depends on, hashable (None if it cannot be hashed)."""
-        model_leaves, static_model, kwargs_leaves, static_kwargs = self._parts()
+        model_leaves, _, kwargs_leaves, _ = self._parts()
         try:
             key = (
-                self.fn,
-                static_model,
-                static_kwargs,
+                self.definition(chunk),
                 tuple((np.shape(x), np.result_type(x).str) for x in model_leaves + kwargs_leaves),
-                self.swept,
-                self.shape,
-                chunk,
-                self.sharding,
                 self.output(),
                 bool(jax.config.jax_enable_x64),
                 exported_cache_directory(),
@@ -424,19 +425,8 @@ class _SweepJob:
         known = self.known(chunk)
         with _KNOWN_LOCK:
             if "function" not in known:
-                _, static_model, _, static_kwargs = self._parts()
                 known["function"] = _ChunkFunction(
-                    _Chunk(
-                        self.fn,
-                        static_kwargs,
-                        static_model,
-                        self.swept,
-                        self.shape,
-                        chunk,
-                        self.sharding,
-                    ),
-                    self.output(),
-                    chunk_options(self.devices),
+                    self.definition(chunk), self.output(), chunk_options(self.devices)
                 )
             self._functions[chunk] = known["function"]
             return known["function"]
