@@ -6,12 +6,16 @@
   --set m0=5,c=4900,delta=3,eps=0 --loss cauchy --json`, first run in a fresh cache (goal
   <= 10 s) and repeated (goal <= 1.5 x), against a whole SciPy script doing the same fit
   (benchmarks/scipy_fit.py: least_squares over an event-driven solve_ivp model), whose answer
-  must agree to 1e-4.
+  must agree to 1e-4;
+- with `--sweep` (for a machine with an accelerator: benchmarks/gpu.sh) the README's
+  1617-point `vmj sweep variable-mass`, first run in a fresh cache and repeated, on JAX's
+  default device (where `vmj sweep` runs) against the same command with `JAX_PLATFORMS=cpu`.
 
 Each group is measured in turns (`interleaved`: one run of each per round), so that the
 machine's changes of speed during the run reach a figure and its peer alike.
 
-Run: .venv/bin/python benchmarks/bench_cli.py [--quick] [--fit]  (`--fit`: the fit's timings alone)
+Run: .venv/bin/python benchmarks/bench_cli.py [--quick] [--fit] [--sweep]  (`--fit`: the fit's
+timings alone; `--sweep`: the sweep's alone)
 """
 
 import argparse
@@ -42,13 +46,30 @@ FIT = [
 ]
 
 
-def process(argv, cache=None, fresh=False, out=None):
+SWEEP = [
+    "sweep",
+    "variable-mass",
+    "--eps",
+    "0:1:11",
+    "--mu",
+    "0:10:21",
+    "--delta",
+    "-3:3:7",
+    "--set",
+    "m0=5,c=4900,FT=14.7,a0=0.06",
+]
+
+
+def process(argv, cache=None, fresh=False, out=None, platforms=None):
     """One run of a process as a function: in the compilation cache `cache`, or with `fresh` in
-    a new empty one (else one made for the run); its standard output is kept in `out["text"]`."""
+    a new empty one (else one made for the run); its standard output is kept in `out["text"]`;
+    `platforms` sets `JAX_PLATFORMS`."""
 
     def run():
         with tempfile.TemporaryDirectory() as empty:
             env = dict(os.environ)
+            if platforms is not None:
+                env["JAX_PLATFORMS"] = platforms
             env["VMJ_CACHE_DIR"] = empty if fresh else (cache or empty)
             _, text = run_process(argv, env=env, cwd=ROOT)
             if out is not None:
@@ -75,10 +96,37 @@ def start_up(times):
     ratio("table 1 repeated / import jax", t_table, t_jax, "<= 1.5")
 
 
+def sweep(times):
+    """The README's sweep on JAX's default device against the same on the CPU, in turns."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [*VMJ, *SWEEP, "--out", os.path.join(tmp, "sweep.csv")]
+        caches = {}
+        for name, platforms in (("default", None), ("cpu", "cpu")):
+            caches[name] = os.path.join(tmp, name)
+            os.mkdir(caches[name])
+            process(cmd, cache=caches[name], platforms=platforms)()  # (fills the cache)
+        t_cold, t_rep, t_cold_cpu, t_rep_cpu = interleaved(
+            (process(cmd, fresh=True), 1),
+            (process(cmd, cache=caches["default"]), 1),
+            (process(cmd, fresh=True, platforms="cpu"), 1),
+            (process(cmd, cache=caches["cpu"], platforms="cpu"), 1),
+            rounds=times,
+        )
+    print("  vmj sweep variable-mass (1617 points), JAX's default device:")
+    print(f"    fresh cache:            {t_cold}")
+    print(f"    repeated:               {t_rep}")
+    print("  the same, JAX_PLATFORMS=cpu:")
+    print(f"    fresh cache:            {t_cold_cpu}")
+    print(f"    repeated:               {t_rep_cpu}")
+    ratio("sweep fresh, default device / CPU", t_cold, t_cold_cpu)
+    ratio("sweep repeated, default device / CPU", t_rep, t_rep_cpu)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer repetitions (a smoke run)")
     ap.add_argument("--fit", action="store_true", help="only `vmj fit` and its SciPy peer")
+    ap.add_argument("--sweep", action="store_true", help="only `vmj sweep`, default device and CPU")
     args = ap.parse_args()
     import jax  # (for the machine line only; the timed processes are separate)
 
@@ -86,6 +134,9 @@ def main():
     print(machine())
     times = 2 if args.quick else REPEAT
     print("whole processes, wall time")
+    if args.sweep:
+        sweep(times)
+        return
     if not args.fit:
         start_up(times)
 

@@ -2,7 +2,8 @@
 # The GPU measurements in one run, on a machine whose Python has JAX with CUDA (no
 # virtual environment needed: vmj runs from the checkout): the exact and the energy-balance
 # sweeps in float64 and float32, each against its same-run peer (SciPy's event loop, NumPy in
-# place: both on the host), the whole-process `vmj fit` on the GPU and on the CPU, then vmj's
+# place: both on the host), the whole-process `vmj fit` and `vmj sweep` on the GPU and on the
+# CPU, then vmj's
 # solver, sweep and fit tests on the GPU.
 #
 # Run from the repository root: bash benchmarks/gpu.sh [SECONDS]  (PYTHON=... picks the
@@ -40,6 +41,9 @@ for platforms in "" cpu; do
   echo "== vmj fit, JAX_PLATFORMS='$platforms' ==" | tee -a "$LOG/bench.txt"
   JAX_PLATFORMS=$platforms $PY benchmarks/bench_cli.py --quick --fit 2>&1 | tee -a "$LOG/bench.txt"
 done
+# the README's `vmj sweep`, whole processes: JAX's default device (the GPU) against the CPU
+echo "== vmj sweep ==" | tee -a "$LOG/bench.txt"
+$PY benchmarks/bench_cli.py --quick --sweep 2>&1 | tee -a "$LOG/bench.txt"
 
 left=$((BUDGET - SECONDS))
 echo "== tests on the GPU ($left s left) =="
