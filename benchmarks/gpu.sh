@@ -3,8 +3,7 @@
 # virtual environment needed: vmj runs from the checkout): the exact and the energy-balance
 # sweeps in float64 and float32, each against its same-run peer (SciPy's event loop, NumPy in
 # place: both on the host), the whole-process `vmj fit` and `vmj sweep` on the GPU and on the
-# CPU, then vmj's
-# solver, sweep and fit tests on the GPU.
+# CPU, then vmj's solver, sweep and fit tests on the GPU.
 #
 # Run from the repository root: bash benchmarks/gpu.sh [SECONDS]  (PYTHON=... picks the
 # interpreter, default python3; SECONDS bounds the whole run, default 540: the tests get what the
