@@ -129,13 +129,14 @@ def test_scalar_arguments_are_checked_on_the_host():
 
 def test_one_calls_compile_with_the_older_kernel_emitters_to_the_same_numbers():
     """A concrete call's program is compiled with `ONE_CALL` (XLA's older kernel emitters:
-    less compile time; vmj/_exported.py), which this XLA takes. The exact and energy-balance
+    less compile time; vmj/_exported.py), which this XLA takes on a CPU (a GPU's compiler
+    refuses it: no options there). The exact and energy-balance
     turning points equal those of XLA's default emitters (as a sweep or the user's own `jit`
     compiles them) to the last bit; the smoothed ones agree to the ODE's tolerance (measured
     2.6e-10 of a0; the two programs differed by 2.9e-10 with the default emitters in both)."""
     from vmj._exported import ONE_CALL, _one_call_options
 
-    assert dict(_one_call_options()) == ONE_CALL
+    assert dict(_one_call_options()) == (ONE_CALL if jax.default_backend() == "cpu" else {})
     model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
     for solver, tol in ((vmj.Exact(), 0.0), (vmj.EnergyBalance(), 0.0), (vmj.Smoothed(), 1e-8)):
         one = vmj.turning_points(model, 0.06, 12, solver)  # the options' program
@@ -176,6 +177,29 @@ def test_filter_jit_gives_one_calls_program_the_options_and_keeps_its_static_arg
         refused(x, 2.0, ("a",), {"k": 3})
     traced = jax.jit(lambda x: refused(x, 2.0, ("a",), {"k": 3})["a"])(x)
     np.testing.assert_array_equal(traced, 6.0 * x)
+
+
+def test_a_top_level_call_waits_for_its_program_off_a_cpu(monkeypatch):
+    """Where JAX's default backend is no CPU, a top-level call of either kind of entry point
+    (`filter_jit`: the rope's averaged laws; `exported_jit`'s plain path: `vmj.turning_points`
+    with the cache off) returns its result finished, so that a check inside the program
+    raises at the call (on an H200 `vmj.kbm_amplitude` over the potential barrier returned,
+    its error logged); inside the user's `jit` nothing waits, and on a CPU nothing needs to."""
+    import vmj._exported as exported
+
+    waited = []
+    monkeypatch.setattr(jax, "block_until_ready", lambda out: waited.append(out) or out)
+    rope = vmj.Rope(1000.0, 1e-4, 1e11, 0.0, 0.0, 1e6, vmj.ConstantSpeed(100.0, 2.0))
+    model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
+    for off_cpu in (False, True):
+        monkeypatch.setattr(exported, "_default_backend_is_cpu", lambda on=not off_cpu: on)
+        amp = vmj.kbm_amplitude(rope, 0.6, jnp.linspace(0.0, 1.0, 3))
+        seq = vmj.turning_points(model, 0.06, 4)
+        assert len(waited) == (2 if off_cpu else 0)
+    assert jax.tree.leaves(waited[0])[0] is amp  # (the law's (amplitude, frequency))
+    assert jax.tree.leaves(waited[1])[0] is jax.tree.leaves(seq)[0]
+    jax.jit(lambda m: vmj.turning_points(m, 0.06, 4).positions)(model)
+    assert len(waited) == 2
 
 
 def test_sensitivity_and_linear_response_as_one_call_equal_the_users_jit():

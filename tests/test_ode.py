@@ -36,7 +36,9 @@ def test_dopri8_steps_as_diffrax_dopri8():
     about the same steps and the same solution within its tolerance. (The error estimate is a
     difference of nearly equal sums over 14 stages: summed in another order it moves by about
     1e-8 relative, which moves later steps by as much; measured 157 + 62 steps against
-    159 + 62, the solutions 4.6e-9 of each component's scale apart.)"""
+    159 + 62, the solutions 4.6e-9 of each component's scale apart. One step's estimates:
+    1.4e-15 of the larger apart on a CPU, 3.4e-12 on an H200 GPU, whose compiler forms the
+    sums' multiply-adds otherwise.)"""
     term = dfx.ODETerm(_field)
     y0, t0, t1 = jnp.array([-0.05, 0.002]), 0.0, 4e-4  # (into the tanh layer: a large error)
     steps = []
@@ -46,7 +48,7 @@ def test_dopri8_steps_as_diffrax_dopri8():
     (y1, e1), (y2, e2) = steps
     np.testing.assert_allclose(y1, y2, rtol=0, atol=1e-15 * float(jnp.abs(y2).max()))
     assert float(jnp.abs(e2).max()) > 1e-7
-    np.testing.assert_allclose(e1, e2, rtol=0, atol=1e-12 * float(jnp.abs(e2).max()))
+    np.testing.assert_allclose(e1, e2, rtol=0, atol=1e-11 * float(jnp.abs(e2).max()))
     ours, theirs = _solve(dopri8()), _solve(dfx.Dopri8())
     assert ours.result == dfx.RESULTS.successful
     n, m = int(ours.stats["num_steps"]), int(theirs.stats["num_steps"])
@@ -120,7 +122,8 @@ def test_recording_keeps_the_accepted_steps_and_stays_put_when_done():
     assert int(steps) == int(np.sum(np.asarray(ts) <= float(t_done)))
     assert int(sol.stats["num_accepted_steps"]) <= int(steps) + 8
     assert int(plain.stats["num_accepted_steps"]) > int(steps) + 20
-    np.testing.assert_allclose(np.asarray(sol.ys[-1]), np.asarray(y_done), rtol=1e-13)
+    # (to rounding: 5.1e-13 relative on an H200 GPU)
+    np.testing.assert_allclose(np.asarray(sol.ys[-1]), np.asarray(y_done), rtol=1e-12)
 
 
 def test_dense_output_and_its_derivative_are_diffrax_dopri8s():

@@ -83,6 +83,29 @@ def _top_level() -> bool:
     return ctx is not None and ctx.is_top_level()
 
 
+def _checked(out):
+    """A top-level call's result, its program finished: a check inside it (`equinox.error_if`,
+    a host callback) raises here, at the call, on every platform. On a GPU the program runs
+    after the call returns, and a failed check would otherwise surface only where the result is
+    first read, or as a logged error and a message at exit where it is never read (seen on an
+    H200, 2026-11-28: `vmj.kbm_amplitude` over the potential barrier returned). Where JAX's
+    default backend is a CPU nothing is waited for: a program with a host callback has run
+    when the call returns there (also with JAX's asynchronous dispatch), and the wait would
+    cost a warm `vmj.turning_points` 8 us of its 65."""
+    if _default_backend_is_cpu():
+        return out
+    import jax
+
+    return jax.block_until_ready(out)
+
+
+@functools.cache
+def _default_backend_is_cpu() -> bool:
+    import jax
+
+    return jax.default_backend() == "cpu"
+
+
 def exported_cache_directory() -> str | None:
     """The directory of the exported-program cache, `None` when it is off."""
     return _directory[0]
@@ -119,9 +142,9 @@ ONE_CALL = {"xla_cpu_use_fusion_emitters": False}
 
 @functools.cache
 def _one_call_options() -> tuple:
-    """`ONE_CALL`'s items where this XLA knows them (an XLA before the option refuses to
-    compile with it; another backend ignores it), else none: checked once per process, on a
-    program of one addition."""
+    """`ONE_CALL`'s items where this XLA knows them (an XLA before the option, or the
+    default backend of another platform, refuses to compile with it), else none: checked once
+    per process, on a program of one addition."""
     import jax
 
     try:
@@ -177,7 +200,9 @@ def filter_jit(fun):
     @functools.wraps(fun)
     def call(*args, **kwargs):
         arrays, static = split_arrays((args, kwargs))
-        return jitted(_one_call_options() if _top_level() else ())(arrays, static)
+        if not _top_level():
+            return jitted(())(arrays, static)
+        return _checked(jitted(_one_call_options())(arrays, static))
 
     return call
 
@@ -256,7 +281,9 @@ class _ExportedJit:
 
     def _plain(self, *args, **kwargs):
         """The jitted function, with its compiler options where no transformation traces."""
-        return (self.top if _top_level() else self.jitted)(*args, **kwargs)
+        if not _top_level():
+            return self.jitted(*args, **kwargs)
+        return _checked(self.top(*args, **kwargs))
 
     def _lookup(self, args):
         """`(leaves of the traced arguments, (call, output tree))` of the stored program for
