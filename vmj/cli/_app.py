@@ -80,7 +80,7 @@ Compiled and traced programs are kept in a persistent cache, so that a repeated 
   {CACHE_ENV}=PATH moves it, --no-cache or {CACHE_ENV}=off switches it off.
 Commands run on the CPU (a single solve or fit is faster there than on a GPU); 'vmj sweep'
   on JAX's default device, a GPU where there is one. {PLATFORMS_ENV}=cuda (or cpu) decides
-  for every command.
+  for every command (a small sweep is faster with cpu too).
 Numbers must be finite, 0 or of magnitude {SMALLEST:g} to {LARGEST:g}, in the units shown in
   brackets.
 Bad input prints one line 'vmj: error: ...' and exits with status 2.
