@@ -7,9 +7,9 @@
   <= 10 s) and repeated (goal <= 1.5 x), against a whole SciPy script doing the same fit
   (benchmarks/scipy_fit.py: least_squares over an event-driven solve_ivp model), whose answer
   must agree to 1e-4;
-- with `--sweep` (for a machine with an accelerator: benchmarks/gpu.sh) the README's
-  1617-point `vmj sweep variable-mass`, first run in a fresh cache and repeated, on JAX's
-  default device (where `vmj sweep` runs) against the same command with `JAX_PLATFORMS=cpu`.
+- with `--sweep` (for a machine with an accelerator: benchmarks/gpu.sh) `vmj sweep
+  variable-mass` of 1617 and 91809 points on the accelerator, on the CPU and where the command
+  chooses, in turns (`sweep`).
 
 Each group is measured in turns (`interleaved`: one run of each per round), so that the
 machine's changes of speed during the run reach a figure and its peer alike.
@@ -46,18 +46,7 @@ FIT = [
 ]
 
 
-SWEEP = [
-    "sweep",
-    "variable-mass",
-    "--eps",
-    "0:1:11",
-    "--mu",
-    "0:10:21",
-    "--delta",
-    "-3:3:7",
-    "--set",
-    "m0=5,c=4900,FT=14.7,a0=0.06",
-]
+SWEEP = ["sweep", "variable-mass", "--set", "m0=5,c=4900,FT=14.7,a0=0.06"]
 
 
 def process(argv, cache=None, fresh=False, out=None, platforms=None):
@@ -96,46 +85,65 @@ def start_up(times):
     ratio("table 1 repeated / import jax", t_table, t_jax, "<= 1.5")
 
 
-def sweep(times):
-    """The README's sweep on JAX's default device against the same on the CPU, in turns."""
+def sweep(times, accelerator):
+    """`vmj sweep variable-mass` of the README (1617 points, estimated 0.02 s) and of 91809
+    points (estimated 1.1 s), whole processes in turns: on the accelerator
+    (`JAX_PLATFORMS=accelerator`, none on a CPU-only machine), on the CPU, and where the
+    command chooses (`JAX_PLATFORMS` unset: the CPU below an estimated 1 s). The README's also
+    in a fresh cache."""
+    sizes = {
+        "1617 points": ["--eps", "0:1:11", "--mu", "0:10:21", "--delta", "-3:3:7"],
+        "91809 points": ["--eps", "0:1:101", "--mu", "0:10:101", "--delta", "-3:3:9"],
+    }
+    where = {"the command's choice": None, "JAX_PLATFORMS=cpu": "cpu"}
+    if accelerator:
+        where[f"JAX_PLATFORMS={accelerator}"] = accelerator
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [*VMJ, *SWEEP, "--out", os.path.join(tmp, "sweep.csv")]
-        caches = {}
-        for name, platforms in (("default", None), ("cpu", "cpu")):
-            caches[name] = os.path.join(tmp, name)
-            os.mkdir(caches[name])
-            process(cmd, cache=caches[name], platforms=platforms)()  # (fills the cache)
-        t_cold, t_rep, t_cold_cpu, t_rep_cpu = interleaved(
-            (process(cmd, fresh=True), 1),
-            (process(cmd, cache=caches["default"]), 1),
-            (process(cmd, fresh=True, platforms="cpu"), 1),
-            (process(cmd, cache=caches["cpu"], platforms="cpu"), 1),
+        runs = []
+        for size, axes in sizes.items():
+            cmd = [*VMJ, *SWEEP, *axes, "--out", os.path.join(tmp, "sweep.csv")]
+            for name, platforms in where.items():
+                cache = os.path.join(tmp, f"{len(runs)}")
+                os.mkdir(cache)
+                process(cmd, cache=cache, platforms=platforms)()  # (fills the cache)
+                runs.append((f"{size}, {name}, repeated", cmd, cache, platforms))
+                if size == "1617 points" and platforms is not None:
+                    runs.append((f"{size}, {name}, fresh cache", cmd, None, platforms))
+        timings = interleaved(
+            *[
+                (process(cmd, cache=cache, fresh=cache is None, platforms=platforms), 1)
+                for _, cmd, cache, platforms in runs
+            ],
             rounds=times,
         )
-    print("  vmj sweep variable-mass (1617 points), JAX's default device:")
-    print(f"    fresh cache:            {t_cold}")
-    print(f"    repeated:               {t_rep}")
-    print("  the same, JAX_PLATFORMS=cpu:")
-    print(f"    fresh cache:            {t_cold_cpu}")
-    print(f"    repeated:               {t_rep_cpu}")
-    ratio("sweep fresh, default device / CPU", t_cold, t_cold_cpu)
-    ratio("sweep repeated, default device / CPU", t_rep, t_rep_cpu)
+    print("  vmj sweep variable-mass (the README's --set)")
+    for (label, *_), t in zip(runs, timings):
+        print(f"    {label + ':':52s} {t}")
+    if accelerator:
+        found = dict(zip([label for label, *_ in runs], timings))
+        for size in sizes:
+            ratio(
+                f"{size}, repeated, {accelerator} / cpu",
+                found[f"{size}, JAX_PLATFORMS={accelerator}, repeated"],
+                found[f"{size}, JAX_PLATFORMS=cpu, repeated"],
+            )
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer repetitions (a smoke run)")
     ap.add_argument("--fit", action="store_true", help="only `vmj fit` and its SciPy peer")
-    ap.add_argument("--sweep", action="store_true", help="only `vmj sweep`, default device and CPU")
+    ap.add_argument("--sweep", action="store_true", help="only `vmj sweep`, accelerator and CPU")
     args = ap.parse_args()
-    import jax  # (for the machine line only; the timed processes are separate)
+    import jax  # (for the machine line and the accelerator's name; the timed processes are separate)
 
-    del jax
+    platform = jax.devices()[0].platform
+    accelerator = {"gpu": "cuda"}.get(platform, platform) if platform != "cpu" else None
     print(machine())
     times = 2 if args.quick else REPEAT
     print("whole processes, wall time")
     if args.sweep:
-        sweep(times)
+        sweep(times, accelerator)
         return
     if not args.fit:
         start_up(times)

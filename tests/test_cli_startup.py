@@ -152,10 +152,11 @@ def test_no_cache_leaves_jax_configuration_alone(capsys):
     assert jax.config.jax_compilation_cache_dir == before
 
 
-def test_commands_run_on_the_cpu_and_sweeps_on_the_default_device():
+def test_commands_run_on_the_cpu_and_large_sweeps_on_the_default_device(monkeypatch):
     """The process's own command runs on the CPU (a single solve or fit is faster there than
-    on a GPU), `vmj sweep` on JAX's default device; `JAX_PLATFORMS` decides for every command;
-    `main` called in-process leaves the caller's devices alone."""
+    on a GPU), `vmj sweep` too where its work is estimated under `CPU_SECONDS`, else on JAX's
+    default device; `JAX_PLATFORMS` decides for every command; `main` called in-process
+    leaves the caller's devices alone."""
     code = (
         "import sys, jax; from vmj.cli import main; "
         "sys.argv = ['vmj', '--no-cache', *sys.argv[1:]]; "
@@ -176,13 +177,24 @@ def test_commands_run_on_the_cpu_and_sweeps_on_the_default_device():
         return run.stdout.split()[-2:]
 
     assert platforms(linear) == ["0", "cpu"]
-    assert platforms(sweep) == ["0", "default"]
+    assert platforms(sweep) == ["0", "cpu"]  # (estimated 2e-7 s)
     assert platforms(linear, JAX_PLATFORMS="cpu,cuda") == ["0", "cpu,cuda"]
+    assert platforms(sweep, JAX_PLATFORMS="cpu,cuda") == ["0", "cpu,cuda"]
     import jax
 
     before = jax.config.jax_platforms
     assert main(["--no-cache", *linear]) == 0
+    assert main(["--no-cache", *sweep]) == 0
     assert jax.config.jax_platforms == before
+    # the estimate's threshold, for the sweep of a process whose devices are vmj's to choose
+    chosen = []
+    monkeypatch.setattr(jax.config, "update", lambda name, value: chosen.append((name, value)))
+    free = argparse.Namespace(device_by_work=True)
+    _app.on_cpu_if_small(free, 1.01 * _app.CPU_SECONDS)
+    _app.on_cpu_if_small(argparse.Namespace(), 0.0)
+    assert chosen == []
+    _app.on_cpu_if_small(free, 0.99 * _app.CPU_SECONDS)
+    assert chosen == [("jax_platforms", "cpu")]
 
 
 def test_an_unusable_cache_directory_is_refused(tmp_path, monkeypatch, capsys):

@@ -27,8 +27,9 @@ class Command:
     """A command: its name, one line of help, and the module that defines it, with
     `add_arguments(parser)` and `run(args) -> int` (imported when the command is named);
     `synchronous`: JAX's CPU computations run in the calling thread; `accelerator`: the command
-    runs on JAX's default device, an accelerator where there is one, where the others run on
-    the CPU (`_set_up_jax`)."""
+    runs on JAX's default device, an accelerator where there is one, unless it calls
+    `on_cpu_if_small` with a small estimate of its work; the others run on the CPU
+    (`_set_up_jax`)."""
 
     name: str
     help: str
@@ -74,13 +75,21 @@ CACHE_ENV = "VMJ_CACHE_DIR"
 PLATFORMS_ENV = "JAX_PLATFORMS"  #: JAX's own choice of devices, which the command keeps
 _OFF = ("off", "none", "0", "false", "no")
 
+#: an accelerator's command estimated at less work than this runs on the CPU [s of the
+#: estimate]: on a machine with an H200 the README's 1617-point `vmj sweep` (estimated 0.02 s)
+#: took 2.98 s on the GPU against 2.07 s on its CPU repeated, 5.26 against 3.60 s in a fresh
+#: cache (bench_cli.py --sweep, 2026-11-28): CUDA's start and the chunk's tracing cost the
+#: GPU about a second whatever the sweep's size. Where a larger sweep gains from the GPU was
+#: not measured; below this the CPU's whole run is about what the GPU adds.
+CPU_SECONDS = 1.0
+
 EPILOG = f"""\
 Compiled and traced programs are kept in a persistent cache, so that a repeated command
   starts faster: ${{XDG_CACHE_HOME:-~/.cache}}/vmj/jax by default; --cache-dir PATH or
   {CACHE_ENV}=PATH moves it, --no-cache or {CACHE_ENV}=off switches it off.
 Commands run on the CPU (a single solve or fit is faster there than on a GPU); 'vmj sweep'
-  on JAX's default device, a GPU where there is one. {PLATFORMS_ENV}=cuda (or cpu) decides
-  for every command (a small sweep is faster with cpu too).
+  on JAX's default device, a GPU where there is one, unless its estimated time is under
+  {CPU_SECONDS:g} s. {PLATFORMS_ENV}=cuda (or cpu) decides for every command.
 Numbers must be finite, 0 or of magnitude {SMALLEST:g} to {LARGEST:g}, in the units shown in
   brackets.
 Bad input prints one line 'vmj: error: ...' and exits with status 2.
@@ -188,18 +197,32 @@ def cache_directory(args) -> tuple[str | None, str]:
     return os.path.join(base, "vmj", "jax"), "default"
 
 
+def on_cpu_if_small(args, seconds: float) -> None:
+    """For an accelerator's command run as the process's own, `JAX_PLATFORMS` unset: the CPU as
+    its device where its work is estimated at under `CPU_SECONDS` (called before anything is
+    placed on a device)."""
+    if getattr(args, "device_by_work", False) and seconds < CPU_SECONDS:
+        import jax
+
+        jax.config.update("jax_platforms", "cpu")
+
+
 def _set_up_jax(args, process: bool = False) -> None:
     """float64, synchronous dispatch, the persistent compilation cache, host memory reuse
     (entry point only); for the process's own command (`process`), the CPU as its device
-    unless the command is for an accelerator or `JAX_PLATFORMS` says otherwise."""
+    unless `JAX_PLATFORMS` says otherwise or the command is for an accelerator (which then
+    decides from its work: `on_cpu_if_small`)."""
     import jax
 
-    if process and not getattr(args, "accelerator", False) and not os.environ.get(PLATFORMS_ENV):
-        # a single solve's loops test their exit on the host at every iteration: on a machine
-        # with an H200, `vmj fit` (bench_cli.py) repeated in 3.35 s on its CPU against 5.24 s
-        # on the GPU (a fresh cache: 12.2 against 18.0 s), one warm solve 0.09-0.14 against
-        # 2.7 ms (docs/performance.md); sweeps fill an accelerator and keep it
-        jax.config.update("jax_platforms", "cpu")
+    if process and not os.environ.get(PLATFORMS_ENV):
+        if getattr(args, "accelerator", False):
+            args.device_by_work = True
+        else:
+            # a single solve's loops test their exit on the host at every iteration: on a
+            # machine with an H200, `vmj fit` (bench_cli.py) repeated in 3.35 s on its CPU
+            # against 5.24 s on the GPU (a fresh cache: 12.2 against 18.0 s), one warm solve
+            # 0.09-0.14 against 2.7 ms (docs/performance.md)
+            jax.config.update("jax_platforms", "cpu")
     jax.config.update("jax_enable_x64", True)
     # run each compiled call in the calling thread: handing it to JAX's dispatch thread costs
     # a single solve more than its arithmetic (docs/performance.md); sweeps run their chunks

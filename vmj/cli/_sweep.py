@@ -22,6 +22,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from ._app import on_cpu_if_small
 from ._decay import cli_message, exact_options, max_substeps_arg
 from ._options import (
     Joined,
@@ -405,6 +406,7 @@ def run(args) -> int:
         )
     if seconds > 10:
         print(f"vmj: sweep of {points} points, estimated {seconds:.0f} s", file=sys.stderr)
+    on_cpu_if_small(args, seconds)
 
     model = spec.build(scalars)
     short = {p.name: p.field.rsplit(".", 1)[-1] for p in spec.fields}
