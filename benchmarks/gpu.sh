@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The GPU measurements in one run, on a machine whose Python has JAX with CUDA (no
-# virtual environment needed: vmj runs from the checkout): the exact and the energy-balance
-# sweeps in float64 and float32, each against its same-run peer (SciPy's event loop, NumPy in
-# place: both on the host), the whole-process `vmj fit` and `vmj sweep` on the GPU and on the
-# CPU, then vmj's solver, sweep and fit tests on the GPU.
+# virtual environment needed: vmj runs from the checkout): vmj's tests on the GPU, then the
+# exact and the energy-balance sweeps in float64 and float32, each against its same-run peer
+# (SciPy's event loop, NumPy in place: both on the host), and the whole-process `vmj fit` and
+# `vmj sweep` on the GPU and on the CPU.
 #
 # Run from the repository root: bash benchmarks/gpu.sh [SECONDS]  (PYTHON=... picks the
-# interpreter, default python3; SECONDS bounds the whole run, default 540: the tests get what the
-# benchmarks leave). Logs go to $OUT (default out/gpu).
+# interpreter, default python3; SECONDS bounds the whole run, default 540: the tests take at
+# most TEST_SECONDS of it, default 200, and a benchmark starts only while it has its time).
+# Logs go to $OUT (default out/gpu).
 set -u
 PY=${PYTHON:-python3}
 BUDGET=${1:-540}
@@ -30,26 +31,31 @@ g = vmj.grid(m, eps=[0.0, 0.5, 1.0], mu=[0.0, 5.0])
 print("sweep:", vmj.sweep(vmj.turning_points, g, a0=0.06, n=12).values.positions[0, 0, :3])
 EOF
 
+# vmj's tests on the GPU first (a failure there is worth more than a figure): every file but
+# the documentation's snippets and the cluster's (processes and servers of their own), spread
+# over 16 workers, for at most TEST_SECONDS (default 200); each test's outcome is written to
+# $LOG/tests.txt as it ends, so that a run cut short still names its failures
+timeout "${TEST_SECONDS:-200}" $PY -m pytest -v --tb=short -rf -n 16 --dist load \
+  -m "not long and not slow" -p no:cacheprovider -p no:benchmark \
+  $(ls tests/test_*.py | grep -v -e test_docs.py -e test_distributed.py) >"$LOG/tests.txt" 2>&1
+echo "== tests on the GPU (exit $?) =="
+grep -E "FAILED|ERROR |[0-9]+ (passed|failed)" "$LOG/tests.txt" | tail -40
+
+# the benchmarks, each while BUDGET leaves it the time it takes here
+left() { [ $((BUDGET - SECONDS)) -gt "$1" ]; }
 for flags in "" "--float32"; do
-  $PY benchmarks/run.py energy exact -- $flags 2>&1 | tee -a "$LOG/bench.txt"
+  left 60 && $PY benchmarks/run.py energy exact -- $flags 2>&1 | tee -a "$LOG/bench.txt"
 done
 # a GPU fills at far more lanes than the 4096 points
-$PY benchmarks/bench_exact.py --points 65536 2>&1 | tee -a "$LOG/bench.txt"
-# the `vmj fit` of bench_cli.py, whole processes: JAX's default device (the GPU), then the CPU
+left 60 && $PY benchmarks/bench_exact.py --points 65536 2>&1 | tee -a "$LOG/bench.txt"
+# the `vmj fit` of bench_cli.py, whole processes: JAX_PLATFORMS unset (the command runs on the
+# CPU), then cpu
 for platforms in "" cpu; do
+  left 40 || break
   echo "== vmj fit, JAX_PLATFORMS='$platforms' ==" | tee -a "$LOG/bench.txt"
   JAX_PLATFORMS=$platforms $PY benchmarks/bench_cli.py --quick --fit 2>&1 | tee -a "$LOG/bench.txt"
 done
-# the README's `vmj sweep`, whole processes: JAX's default device (the GPU) against the CPU
-echo "== vmj sweep ==" | tee -a "$LOG/bench.txt"
-$PY benchmarks/bench_cli.py --quick --sweep 2>&1 | tee -a "$LOG/bench.txt"
-
-left=$((BUDGET - SECONDS))
-echo "== tests on the GPU ($left s left) =="
-if [ "$left" -gt 30 ]; then
-  timeout "$left" $PY -m pytest -q -n 8 --dist loadfile -m "not long and not slow" -p no:cacheprovider \
-    tests/test_variable_mass.py tests/test_sweep.py tests/test_oscillator.py tests/test_rope.py \
-    tests/test_stickslip.py tests/test_linear.py tests/test_ode.py tests/test_roots.py \
-    tests/test_sensitivity.py tests/test_compiled.py tests/test_bad_input.py \
-    tests/test_fits_engine.py 2>&1 | tee "$LOG/tests.txt"
-fi
+# `vmj sweep`, whole processes: on the GPU, on the CPU and where the command chooses
+left 80 && echo "== vmj sweep ==" | tee -a "$LOG/bench.txt" &&
+  $PY benchmarks/bench_cli.py --quick --sweep 2>&1 | tee -a "$LOG/bench.txt"
+echo "== done in $SECONDS s =="
