@@ -8,7 +8,7 @@
   (benchmarks/scipy_fit.py: least_squares over an event-driven solve_ivp model), whose answer
   must agree to 1e-4;
 - with `--sweep` (for a machine with an accelerator: benchmarks/gpu.sh) `vmj sweep
-  variable-mass` of 1617 and 91809 points on the accelerator, on the CPU and where the command
+  variable-mass` of 1617 to 10^6 points on the accelerator, on the CPU and where the command
   chooses, in turns (`sweep`).
 
 Each group is measured in turns (`interleaved`: one run of each per round), so that the
@@ -86,14 +86,15 @@ def start_up(times):
 
 
 def sweep(times, accelerator):
-    """`vmj sweep variable-mass` of the README (1617 points, estimated 0.02 s) and of 91809
-    points (estimated 1.1 s), whole processes in turns: on the accelerator
-    (`JAX_PLATFORMS=accelerator`, none on a CPU-only machine), on the CPU, and where the
-    command chooses (`JAX_PLATFORMS` unset: the CPU below an estimated 1 s). The README's also
-    in a fresh cache."""
+    """`vmj sweep variable-mass` of the README (1617 points written to a CSV file, estimated
+    0.02 s), of 91809 points (estimated 1.1 s) and of 1009899 points (12 s; these two write
+    nothing), whole processes in turns: on the accelerator (`JAX_PLATFORMS=accelerator`, none
+    on a CPU-only machine), on the CPU, and where the command chooses (`JAX_PLATFORMS` unset:
+    the CPU below an estimated 5 s). The README's also in a fresh cache."""
     sizes = {
-        "1617 points": ["--eps", "0:1:11", "--mu", "0:10:21", "--delta", "-3:3:7"],
+        "1617 points": ["--eps", "0:1:11", "--mu", "0:10:21", "--delta", "-3:3:7", "--out"],
         "91809 points": ["--eps", "0:1:101", "--mu", "0:10:101", "--delta", "-3:3:9"],
+        "1009899 points": ["--eps", "0:1:101", "--mu", "0:10:101", "--delta", "-3:3:99"],
     }
     where = {"the command's choice": None, "JAX_PLATFORMS=cpu": "cpu"}
     if accelerator:
@@ -101,7 +102,9 @@ def sweep(times, accelerator):
     with tempfile.TemporaryDirectory() as tmp:
         runs = []
         for size, axes in sizes.items():
-            cmd = [*VMJ, *SWEEP, *axes, "--out", os.path.join(tmp, "sweep.csv")]
+            cmd = [*VMJ, *SWEEP, *axes]
+            if cmd[-1] == "--out":
+                cmd.append(os.path.join(tmp, "sweep.csv"))
             for name, platforms in where.items():
                 cache = os.path.join(tmp, f"{len(runs)}")
                 os.mkdir(cache)

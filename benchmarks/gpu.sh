@@ -56,6 +56,6 @@ for platforms in "" cpu; do
   JAX_PLATFORMS=$platforms $PY benchmarks/bench_cli.py --quick --fit 2>&1 | tee -a "$LOG/bench.txt"
 done
 # `vmj sweep`, whole processes: on the GPU, on the CPU and where the command chooses
-left 80 && echo "== vmj sweep ==" | tee -a "$LOG/bench.txt" &&
+left 120 && echo "== vmj sweep ==" | tee -a "$LOG/bench.txt" &&
   $PY benchmarks/bench_cli.py --quick --sweep 2>&1 | tee -a "$LOG/bench.txt"
 echo "== done in $SECONDS s =="
