@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from .._checks import check_int
 from .._version import __version__
 from ._engine import CORES, Progress, cluster, failure_message, run_chunks, threads_of
-from ._store import ChunkStore, describe_fn, digest
+from ._store import ChunkStore, check_resume, describe_fn, digest
 from ._sweep import SweepError, chunk_plan
 
 __all__ = ["map_chunks"]
@@ -72,10 +72,7 @@ def map_chunks(
         raise ValueError("items must not be empty")
     if chunk_size is not None:
         chunk_size = check_int("chunk_size", chunk_size, 1)
-    if not isinstance(resume, bool):
-        raise ValueError(f"resume must be True or False (got {resume!r})")
-    if resume and store is None:
-        raise ValueError("resume=True needs a store (the path of the work to continue)")
+    check_resume(resume, store, "work")
     n = len(items)
     definition = {
         "fn": digest(fn),

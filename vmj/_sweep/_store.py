@@ -144,6 +144,24 @@ def _zarr():
     return zarr
 
 
+def _opened(zarr, path: str, mode: str):
+    """`path`'s Zarr group opened with `mode` and its vmj metadata (`None` where it is no
+    readable group or has none)."""
+    try:
+        group = zarr.open_group(path, mode=mode)
+        return group, group.attrs.get("vmj")
+    except Exception:
+        return None, None
+
+
+def check_resume(resume, store, work: str) -> None:
+    """`resume=` of `vmj.sweep` and `vmj.map_chunks` (`work` names what a store continues)."""
+    if not isinstance(resume, bool):
+        raise ValueError(f"resume must be True or False (got {resume!r})")
+    if resume and store is None:
+        raise ValueError(f"resume=True needs a store (the path of the {work} to continue)")
+
+
 class ChunkStore:
     """A Zarr group holding the chunks of one definition of work (see the module text)."""
 
@@ -167,11 +185,7 @@ class ChunkStore:
         path = os.fspath(path)
         if not os.path.exists(path):
             return None
-        try:
-            group = zarr.open_group(path, mode="r+")
-            meta = group.attrs.get("vmj")
-        except Exception:
-            meta = None
+        group, meta = _opened(zarr, path, "r+")
         if not isinstance(meta, dict) or meta.get("format") != FORMAT:
             raise ValueError(f"store {path!r} exists and is not a vmj store: choose another path")
         if meta.get("kind") != kind or meta.get("token") != digest(definition):
@@ -193,11 +207,7 @@ class ChunkStore:
         """An existing store opened for reading."""
         zarr = _zarr()
         path = os.fspath(path)
-        try:
-            group = zarr.open_group(path, mode="r")
-            meta = group.attrs.get("vmj")
-        except Exception:
-            meta = None
+        group, meta = _opened(zarr, path, "r")
         if not isinstance(meta, dict) or meta.get("kind") != kind:
             raise ValueError(f"{path!r} is not a vmj {kind} store")
         return cls(group, path, meta)

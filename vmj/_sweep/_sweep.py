@@ -43,7 +43,7 @@ from ._engine import (
 )
 from ._grid import Grid
 from ._result import SweepResult, export_names
-from ._store import ChunkStore, describe_fn, digest
+from ._store import ChunkStore, check_resume, describe_fn, digest
 from ._tree import _get, named_paths
 
 __all__ = ["sweep", "SweepError"]
@@ -668,10 +668,7 @@ def sweep(
     warn_if_float32()
     if chunk_size is not None:
         chunk_size = check_int("chunk_size", chunk_size, 1)
-    if not isinstance(resume, bool):
-        raise ValueError(f"resume must be True or False (got {resume!r})")
-    if resume and store is None:
-        raise ValueError("resume=True needs a store (the path of the sweep to continue)")
+    check_resume(resume, store, "sweep")
     dims, coords, model, shape, is_grid = _layout(model)
     # every point's parameters checked here, once (ValueError naming the field; free for a
     # model checked at its construction); the chunks then trace each point's model as checked
