@@ -314,3 +314,13 @@ def test_a_rope_run_out_says_so():
     seq = vmj.turning_points(vmj.Rope.paper(u=3.0, T=4.0), 0.04, 6000)
     assert int(seq.result) == vmj.RESULTS.length_exhausted
     assert 3.3333 < float(np.asarray(seq.times)[int(seq.count) - 1]) < 10 / 3
+
+
+def test_a_lowered_rope_that_runs_out_of_steps_is_not_run_out():
+    """Lowered, the rope only grows: a swing too slow for the substeps (a cross-section of
+    1e-24 m^2: a half-period of about 1e8 s) ends at the step limit. It said "the rope length
+    l(t) reaches zero" (the substeps are bounded by l/|l'| either way)."""
+    r = vmj.Rope.paper(u=-3.0, T=0.0)
+    slow = vmj.Rope(r.m, 1e-24, r.e, r.b, r.d, r.T, r.length)
+    seq = vmj.turning_points(slow, 0.04, 6000)
+    assert int(seq.result) == vmj.RESULTS.step_limit and int(seq.count) == 0
