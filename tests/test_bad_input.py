@@ -346,6 +346,12 @@ CASES = parameter_cases() + [
         ["--set t_brake goes with --t_stop"],
     ),
     (
+        "sweep rope t_brake axis past t_stop",
+        ["sweep", "rope", "--T", "0,1", "--t_brake", "0,2"]
+        + ["--set", "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=1,t_stop=1"],
+        ["--set t_stop must be > --t_brake [s] (got 1 <= 2)"],
+    ),
+    (
         "sweep rope a0 0",
         [
             "sweep",
@@ -581,7 +587,15 @@ API = [
         "T must be finite and >= 0",
     ),
     ("l0", lambda: vmj.ConstantSpeed(0.0), "l0 must be finite and > 0"),
-    ("t_stop", lambda: vmj.Braking(10.0, 1.0, 2.0, 1.0), "t_stop must be finite and > t_brake"),
+    ("t_stop", lambda: vmj.Braking(10.0, 1.0, 2.0, 1.0), "t_stop must be > t_brake [s]"),
+    (
+        "grid t_brake past t_stop",
+        lambda: vmj.grid(
+            vmj.Rope(2.0, 1e-4, 1e11, 0.0, 0.0, 0.0, vmj.Braking(10.0, 1.0, 0.5, 1.0)),
+            t_brake=[0.0, 2.0],
+        ),
+        "t_stop must be > t_brake [s]",
+    ),
     ("k", lambda: vmj.LinearOscillator(1.0, 1.0, 0.0), "k must be finite and > 0"),
     (
         "grid axis",

@@ -173,9 +173,6 @@ def rope_model(args, t1_flag: str = "--t1"):
             raise ValueError("give --brake or --t_brake/--t_stop, not both")
         values["t_brake"] = (args.brake[0], "--brake T_BRAKE")
         values["t_stop"] = (args.brake[1], "--brake T_STOP")
-    brake, stop = values.get("t_brake"), values.get("t_stop")
-    if brake is not None and stop is not None and not stop[0] > brake[0]:
-        raise ValueError(f"{stop[1]} must be > {brake[1]} [s] (got {stop[0]:g} <= {brake[0]:g})")
     values = spec.resolve(values, technical=args.units == "technical")
     rope = spec.build(values)
     if not args.t1 > 0:

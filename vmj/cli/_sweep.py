@@ -338,6 +338,7 @@ def gather(spec, args, force: bool):
         raw,
         technical,
         spell=lambda n: f"--set {n}=" if spec.param(n).field is None else f"--{n}/--set {n}=",
+        axes=axes,
     )
     return scalars, axes
 
