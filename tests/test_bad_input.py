@@ -129,6 +129,11 @@ CASES = parameter_cases() + [
     ),
     ("vm --method", put(VM, "--method", "rk4"), ["argument --method", "invalid choice"]),
     ("vm unknown option", VM + ["--bogus", "1"], ["unrecognized arguments: --bogus"]),
+    (
+        "vm option twice",
+        VM + ["--m0", "6"],
+        ["argument --m0: given twice (5 and 6); give it once"],
+    ),
     ("vm missing", VM[:4], ["required: --eps, --mu, --delta, --c, --a0"]),
     ("vm empty value", put(VM, "--mu", ""), ["argument --mu", "not a number"]),
     # -- decay rope -------------------------------------------------------------------------------
@@ -165,6 +170,11 @@ CASES = parameter_cases() + [
         ROPE + ["--brake", "0", "1", "--t_brake", "0"],
         ["--brake or --t_brake"],
     ),
+    (
+        "rope --brake twice",
+        ROPE + ["--brake", "0", "1", "--brake", "0", "2"],
+        ["--brake: given twice"],
+    ),
     ("rope --t_brake alone", ROPE + ["--t_brake", "0.01"], ["--t_brake goes with --t_stop"]),
     (
         "rope kbm brake",
@@ -197,6 +207,7 @@ CASES = parameter_cases() + [
     ("lin --F0 alone", LIN + ["--F0", "1"], ["--F0 goes with --p"]),
     ("lin --p alone", LIN + ["--p", "15"], ["--p goes with --F0"]),
     ("lin --p 0", LIN + ["--F0", "1", "--p", "0"], ["--p must be finite and > 0 [1/s]"]),
+    ("lin --k twice", LIN + ["--k", "15"], ["argument --k: given twice"]),
     ("lin --x0 nan", LIN + ["--x0", "nan"], ["argument --x0", "not a finite"]),
     ("lin --v0 inf", LIN + ["--v0", "-inf"], ["argument --v0", "not a finite"]),
     # -- table ------------------------------------------------------------------------------------
@@ -229,6 +240,11 @@ CASES = parameter_cases() + [
         ["--eps must be finite and in [0, 1] (got 2)"],
     ),
     ("sweep axis negative", put(SWEEP, "--mu", "-1,0"), ["--mu must be finite and >= 0 [kg/s]"]),
+    (
+        "sweep axis twice",
+        SWEEP + ["--eps", "0:1:2"],
+        ["argument --eps: given twice (0:1:3 and 0:1:2)"],
+    ),
     ("sweep unknown axis", SWEEP + ["--bogus", "0:1:2"], ["unrecognized arguments: --bogus"]),
     (
         "sweep no axis",
