@@ -347,6 +347,16 @@ CASES = parameter_cases() + [
     ("sweep --out a directory", SWEEP + ["--out", "{tmp}"], ["argument --out", "is a directory"]),
     ("sweep --out empty", SWEEP + ["--out", ""], ["argument --out", "empty"]),
     (
+        "sweep --out and --plot one file",
+        SWEEP + ["--out", "{tmp}/s.png", "--plot", "{tmp}/s.png"],
+        ["--out and --plot name the same file", "give two paths"],
+    ),
+    (
+        "sweep --netcdf and --out one file",
+        SWEEP + ["--netcdf", "{tmp}/s.nc", "--out", "{tmp}/./s.nc"],
+        ["--out and --netcdf name the same file"],
+    ),
+    (
         "sweep --netcdf missing dir",
         SWEEP + ["--netcdf", "{tmp}/no/s.nc"],
         ["argument --netcdf", "does not exist"],

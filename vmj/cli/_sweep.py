@@ -343,6 +343,24 @@ def gather(spec, args, force: bool):
     return scalars, axes
 
 
+def _distinct_outputs(args) -> None:
+    """Refuse two outputs that name the same file: the one written last replaced the other
+    (a device such as /dev/null may take several)."""
+    import os
+
+    from .._files import _special
+
+    seen = {}
+    for flag in ("--out", "--netcdf", "--plot", "--error-plot", "--store"):
+        path = getattr(args, flag[2:].replace("-", "_"), None)
+        if path is None or _special(path):
+            continue
+        key = os.path.realpath(path)
+        if key in seen:
+            raise ValueError(f"{seen[key]} and {flag} name the same file {path!r}; give two paths")
+        seen[key] = flag
+
+
 def run(args) -> int:
     import numpy as np
 
@@ -357,6 +375,7 @@ def run(args) -> int:
                 "--method energy is the energy map of a rope of fixed length: it needs --u 0 "
                 f"(got {speeds[0]:g})"
             )
+    _distinct_outputs(args)
     plots = getattr(args, "plot", None) or getattr(args, "error_plot", None)
     if plots and (list(axes)[:2] != ["eps", "mu"] or len(axes) > 3):
         raise ValueError(
