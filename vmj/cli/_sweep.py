@@ -435,8 +435,11 @@ def run(args) -> int:
     try:
         with traced_checks():
             result = how.evaluate(args, g, scalars)
-    except ValueError as e:  # the store's messages name the Python argument
-        raise ValueError(str(e).replace("resume=True", "--resume")) from None
+    except ValueError as e:  # the store's and the cluster's messages name the Python argument
+        message = str(e).replace("resume=True", "--resume")
+        if args.scheduler is not None and message.startswith("client "):
+            message = "--scheduler " + message.removeprefix("client ")
+        raise ValueError(message) from None
     except vmj.SweepError as e:  # some chunks raised; the others are in the store, if any
         print(f"vmj: error: {e}", file=sys.stderr)
         return 1
