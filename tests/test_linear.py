@@ -285,6 +285,15 @@ def test_cli_json(capsys):
     assert out["damped_frequency"] is None and out["log_decrement"] is None
 
 
+@pytest.mark.parametrize("c,says", [("2", "critically damped (eta = 1)"), ("10", "over-damped")])
+def test_cli_text_says_why_a_non_oscillating_response_is_n_a(capsys, c, says):
+    """The text printed `n/a` for the damped frequency, decrement and free amplitude of an
+    oscillator with eta >= 1 without saying why."""
+    assert cli_main(["linear", "--m", "1", "--c", c, "--k", "1", "--x0", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "A = n/a" in out and says in out and "does not oscillate" in out
+
+
 @pytest.mark.parametrize(
     "argv",
     [
