@@ -368,6 +368,17 @@ def test_a_creeping_mass_until_it_vanishes_has_no_nan_turning_point():
     assert np.all(np.isfinite(np.asarray(seq.times)))
 
 
+def test_a_frictionless_mass_that_creeps_has_not_stopped():
+    """Without dry friction the mass never sticks. Over-damped (mu = 1000 kg/s, three times
+    the critical damping) it creeps towards x = 0: the smoothed solve said "came to rest for
+    good: |spring force| <= static friction" where the spring force was 3.6 N and the friction
+    0. The exact solver and the energy balance report the step limit (no velocity zero)."""
+    m = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 1000.0, vmj.Coulomb(0.0))
+    for method in ("exact", "smooth"):
+        seq = vmj.turning_points(m, A0, 6, method=method)
+        assert not bool(seq.stopped) and int(seq.result) == vmj.RESULTS.step_limit, method
+
+
 def test_mass_exhaustion_is_reported_not_nan():
     m = vmj.VariableMass(1.0, C, -3.0, 0.0, 0.0, vmj.Coulomb(1.0))  # mass gone at t = 1/3 s
     for method in ("exact", "smooth", "energy"):
