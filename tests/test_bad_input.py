@@ -276,6 +276,11 @@ CASES = parameter_cases() + [
         ["--set m0 has 3 values; --set takes one value; give --m0 for an axis"],
     ),
     (
+        "sweep set a0 axis",
+        with_set(SWEEP, "m0=5,c=4900,delta=3,FT=14.7,a0=0.01:0.02:2"),
+        ["--set a0 has 2 values; --set takes one value; an initial condition is not swept"],
+    ),
+    (
         "sweep set and axis",
         with_set(SWEEP, "eps=0,m0=5,c=4900,delta=3,FT=14.7,a0=0.06"),
         ["eps is given both as --eps and in --set"],

@@ -312,9 +312,12 @@ def gather(spec, args, force: bool):
             raise ValueError(f"--set: {e}") from None
         if p.name in raw:
             raise ValueError(f"--set gives {p.name} twice")
-        values = parse_axis(
-            f"--set {name}", text, 1, f"--set takes one value; give --{p.name} for an axis"
+        axis = (
+            f"give --{p.name} for an axis"
+            if p.field is not None
+            else "an initial condition is not swept"  # (there is no --a0 axis)
         )
+        values = parse_axis(f"--set {name}", text, 1, f"--set takes one value; {axis}")
         raw[p.name] = (values[0], f"--set {name}")
     for p in spec.fields:  # the axes in the order of the table
         text = getattr(args, p.name)
