@@ -129,6 +129,11 @@ CASES = parameter_cases() + [
     ),
     ("vm --method", put(VM, "--method", "rk4"), ["argument --method", "invalid choice"]),
     ("vm unknown option", VM + ["--bogus", "1"], ["unrecognized arguments: --bogus"]),
+    (
+        "vm option twice",
+        VM + ["--m0", "6"],
+        ["argument --m0: given twice (5 and 6); give it once"],
+    ),
     ("vm missing", VM[:4], ["required: --eps, --mu, --delta, --c, --a0"]),
     ("vm empty value", put(VM, "--mu", ""), ["argument --mu", "not a number"]),
     # -- decay rope -------------------------------------------------------------------------------
@@ -165,6 +170,11 @@ CASES = parameter_cases() + [
         ROPE + ["--brake", "0", "1", "--t_brake", "0"],
         ["--brake or --t_brake"],
     ),
+    (
+        "rope --brake twice",
+        ROPE + ["--brake", "0", "1", "--brake", "0", "2"],
+        ["--brake: given twice"],
+    ),
     ("rope --t_brake alone", ROPE + ["--t_brake", "0.01"], ["--t_brake goes with --t_stop"]),
     (
         "rope kbm brake",
@@ -197,6 +207,7 @@ CASES = parameter_cases() + [
     ("lin --F0 alone", LIN + ["--F0", "1"], ["--F0 goes with --p"]),
     ("lin --p alone", LIN + ["--p", "15"], ["--p goes with --F0"]),
     ("lin --p 0", LIN + ["--F0", "1", "--p", "0"], ["--p must be finite and > 0 [1/s]"]),
+    ("lin --k twice", LIN + ["--k", "15"], ["argument --k: given twice"]),
     ("lin --x0 nan", LIN + ["--x0", "nan"], ["argument --x0", "not a finite"]),
     ("lin --v0 inf", LIN + ["--v0", "-inf"], ["argument --v0", "not a finite"]),
     # -- table ------------------------------------------------------------------------------------
@@ -229,6 +240,11 @@ CASES = parameter_cases() + [
         ["--eps must be finite and in [0, 1] (got 2)"],
     ),
     ("sweep axis negative", put(SWEEP, "--mu", "-1,0"), ["--mu must be finite and >= 0 [kg/s]"]),
+    (
+        "sweep axis twice",
+        SWEEP + ["--eps", "0:1:2"],
+        ["argument --eps: given twice (0:1:3 and 0:1:2)"],
+    ),
     ("sweep unknown axis", SWEEP + ["--bogus", "0:1:2"], ["unrecognized arguments: --bogus"]),
     (
         "sweep no axis",
@@ -258,6 +274,11 @@ CASES = parameter_cases() + [
         "sweep set axis",
         with_set(SWEEP, "m0=1:2:3,c=4900,delta=3,FT=14.7,a0=0.06"),
         ["--set m0 has 3 values; --set takes one value; give --m0 for an axis"],
+    ),
+    (
+        "sweep set a0 axis",
+        with_set(SWEEP, "m0=5,c=4900,delta=3,FT=14.7,a0=0.01:0.02:2"),
+        ["--set a0 has 2 values; --set takes one value; an initial condition is not swept"],
     ),
     (
         "sweep set and axis",
@@ -331,6 +352,16 @@ CASES = parameter_cases() + [
     ("sweep --out a directory", SWEEP + ["--out", "{tmp}"], ["argument --out", "is a directory"]),
     ("sweep --out empty", SWEEP + ["--out", ""], ["argument --out", "empty"]),
     (
+        "sweep --out and --plot one file",
+        SWEEP + ["--out", "{tmp}/s.png", "--plot", "{tmp}/s.png"],
+        ["--out and --plot name the same file", "give two paths"],
+    ),
+    (
+        "sweep --netcdf and --out one file",
+        SWEEP + ["--netcdf", "{tmp}/s.nc", "--out", "{tmp}/./s.nc"],
+        ["--out and --netcdf name the same file"],
+    ),
+    (
         "sweep --netcdf missing dir",
         SWEEP + ["--netcdf", "{tmp}/no/s.nc"],
         ["argument --netcdf", "does not exist"],
@@ -344,6 +375,12 @@ CASES = parameter_cases() + [
         "sweep rope brake alone",
         ["sweep", "rope", "--T", "0,1", "--set", "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=1,t_brake=1"],
         ["--set t_brake goes with --t_stop"],
+    ),
+    (
+        "sweep rope t_brake axis past t_stop",
+        ["sweep", "rope", "--T", "0,1", "--t_brake", "0,2"]
+        + ["--set", "m=2,A=1.74,e=0.8e6,l0=10,u=0,a0=1,t_stop=1"],
+        ["--set t_stop must be > --t_brake [s] (got 1 <= 2)"],
     ),
     (
         "sweep rope a0 0",
@@ -581,7 +618,15 @@ API = [
         "T must be finite and >= 0",
     ),
     ("l0", lambda: vmj.ConstantSpeed(0.0), "l0 must be finite and > 0"),
-    ("t_stop", lambda: vmj.Braking(10.0, 1.0, 2.0, 1.0), "t_stop must be finite and > t_brake"),
+    ("t_stop", lambda: vmj.Braking(10.0, 1.0, 2.0, 1.0), "t_stop must be > t_brake [s]"),
+    (
+        "grid t_brake past t_stop",
+        lambda: vmj.grid(
+            vmj.Rope(2.0, 1e-4, 1e11, 0.0, 0.0, 0.0, vmj.Braking(10.0, 1.0, 0.5, 1.0)),
+            t_brake=[0.0, 2.0],
+        ),
+        "t_stop must be > t_brake [s]",
+    ),
     ("k", lambda: vmj.LinearOscillator(1.0, 1.0, 0.0), "k must be finite and > 0"),
     (
         "grid axis",

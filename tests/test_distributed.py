@@ -322,11 +322,24 @@ def test_bad_arguments(points, tmp_path):
         vmj.sweep(vmj.turning_points, points, store=str(tmp_path / "s.zarr"), resume="yes", **KW)
     with pytest.raises(ValueError, match="client must be a dask.distributed.Client"):
         vmj.sweep(vmj.turning_points, points, client=3, **KW)
+    # Dask's own messages ("invalid literal for int()") named no argument
+    with pytest.raises(ValueError, match="client 'tcp://127.0.0.1:abc' is not a scheduler"):
+        vmj.sweep(vmj.turning_points, points, client="tcp://127.0.0.1:abc", **KW)
     (tmp_path / "plain").mkdir()
     with pytest.raises(ValueError, match="is not a vmj store"):
         vmj.sweep(vmj.turning_points, points, store=str(tmp_path / "plain"), resume=True, **KW)
     with pytest.raises(ValueError, match="items must not be empty"):
         vmj.map_chunks(norms, [])
+
+
+def test_cli_bad_scheduler_address(capsys):
+    from vmj.cli import main
+
+    argv = ["sweep", "variable-mass", "--eps", "0,1", "--method", "energy", "--n", "2"]
+    argv += ["--set", "m0=5,c=4900,delta=3,mu=2,FT=14.7,a0=0.06", "--scheduler", "bogus"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("vmj: error: --scheduler 'bogus' is not a scheduler address"), err
 
 
 def synthetic_records(count):

@@ -218,8 +218,13 @@ def test_bad_input(make, name):
 
 
 def test_free_amplitude_needs_underdamping():
-    with pytest.raises(Exception, match="under-damped"):
+    # concrete values: a ValueError (it was equinox's runtime error, its reason mid-message)
+    with pytest.raises(ValueError, match=r"under-damped .* \(got eta = 2\.6"):
         vmj.LinearOscillator(1.0, 20.0, 14.5).free_amplitude(0.01, 0.0)
+    with pytest.raises(ValueError, match="under-damped"):
+        vmj.LinearOscillator(1.0, 20.0, 14.5).settling_time(0.01, 0.0)
+    with pytest.raises(Exception, match="under-damped"):  # traced: at run time
+        jax.jit(lambda c: vmj.LinearOscillator(1.0, c, 14.5).free_amplitude(0.01, 0.0))(20.0)
 
 
 def _cli_json(capsys, argv):
@@ -283,6 +288,15 @@ def test_cli_json(capsys):
     assert out["forced_phase"] == pytest.approx(np.pi - 0.0712, abs=1e-3)
     out = _cli_json(capsys, ["linear", "--m", "1", "--c", "10", "--k", "1", "--json"])
     assert out["damped_frequency"] is None and out["log_decrement"] is None
+
+
+@pytest.mark.parametrize("c,says", [("2", "critically damped (eta = 1)"), ("10", "over-damped")])
+def test_cli_text_says_why_a_non_oscillating_response_is_n_a(capsys, c, says):
+    """The text printed `n/a` for the damped frequency, decrement and free amplitude of an
+    oscillator with eta >= 1 without saying why."""
+    assert cli_main(["linear", "--m", "1", "--c", c, "--k", "1", "--x0", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "A = n/a" in out and says in out and "does not oscillate" in out
 
 
 @pytest.mark.parametrize(

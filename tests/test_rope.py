@@ -279,6 +279,19 @@ def test_cli_json_shape(capsys):
     assert out["method"] == "exact" and max(out["times"]) <= 0.06 and len(out["times"]) == 5
 
 
+def test_cli_kbm_of_a_mass_friction_holds_from_the_start(capsys):
+    """With A T above the spring force at the release the mass never moves (the exact solver
+    has no turning point); the averaged envelope decayed it to 0 in 5 ms all the same."""
+    i = CLI.index("--T")
+    argv = CLI[: i + 1] + ["1e6"] + CLI[i + 2 :]
+    argv += ["--u", "0", "--a0", "1", "--t1", "0.05", "--method", "kbm"]
+    assert main(argv + ["--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["times"] == [0.0] and out["amplitudes"] == [pytest.approx(0.01)] and out["stopped"]
+    assert main(argv) == 0
+    assert "the mass does not move" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     "extra",
     [
@@ -288,7 +301,11 @@ def test_cli_json_shape(capsys):
     ],
 )
 def test_cli_bad_input_exit_2(capsys, extra):
-    assert main(CLI + extra + ["--method", "kbm"]) == 2
+    base = list(CLI)
+    if "--T" in extra:  # (an option may be given once)
+        i = base.index("--T")
+        del base[i : i + 2]
+    assert main(base + extra + ["--method", "kbm"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("vmj: error:") and err.count("\n") == 1
 
@@ -314,3 +331,13 @@ def test_a_rope_run_out_says_so():
     seq = vmj.turning_points(vmj.Rope.paper(u=3.0, T=4.0), 0.04, 6000)
     assert int(seq.result) == vmj.RESULTS.length_exhausted
     assert 3.3333 < float(np.asarray(seq.times)[int(seq.count) - 1]) < 10 / 3
+
+
+def test_a_lowered_rope_that_runs_out_of_steps_is_not_run_out():
+    """Lowered, the rope only grows: a swing too slow for the substeps (a cross-section of
+    1e-24 m^2: a half-period of about 1e8 s) ends at the step limit. It said "the rope length
+    l(t) reaches zero" (the substeps are bounded by l/|l'| either way)."""
+    r = vmj.Rope.paper(u=-3.0, T=0.0)
+    slow = vmj.Rope(r.m, 1e-24, r.e, r.b, r.d, r.T, r.length)
+    seq = vmj.turning_points(slow, 0.04, 6000)
+    assert int(seq.result) == vmj.RESULTS.step_limit and int(seq.count) == 0

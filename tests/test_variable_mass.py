@@ -356,6 +356,29 @@ def test_one_lane_solve_matches_the_batched_program():
     np.testing.assert_allclose(jac_one, jac, rtol=1e-11, atol=1e-14)
 
 
+def test_a_creeping_mass_until_it_vanishes_has_no_nan_turning_point():
+    """Mass-proportional friction holds the mass until it has fallen to c a0/(f g) (t = 5/9 s);
+    the mass then creeps after the falling equilibrium -f g m(t)/c, its velocity only touching
+    zero, until the mass is gone (t = 5/3 s). With many substeps the march reached the zero-mass
+    singularity, where Newton broke down: a turning point with NaN time and position was
+    counted."""
+    m = vmj.VariableMass(5.0, 4900.0, -3.0, 0.0, 2.0, vmj.MassProportional(0.3, 9.81))
+    seq = vmj.turning_points(m, 0.002, 5, vmj.Exact(max_substeps=200))
+    assert int(seq.count) == 0 and int(seq.result) == vmj.RESULTS.mass_exhausted
+    assert np.all(np.isfinite(np.asarray(seq.times)))
+
+
+def test_a_frictionless_mass_that_creeps_has_not_stopped():
+    """Without dry friction the mass never sticks. Over-damped (mu = 1000 kg/s, three times
+    the critical damping) it creeps towards x = 0: the smoothed solve said "came to rest for
+    good: |spring force| <= static friction" where the spring force was 3.6 N and the friction
+    0. The exact solver and the energy balance report the step limit (no velocity zero)."""
+    m = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 1000.0, vmj.Coulomb(0.0))
+    for method in ("exact", "smooth"):
+        seq = vmj.turning_points(m, A0, 6, method=method)
+        assert not bool(seq.stopped) and int(seq.result) == vmj.RESULTS.step_limit, method
+
+
 def test_mass_exhaustion_is_reported_not_nan():
     m = vmj.VariableMass(1.0, C, -3.0, 0.0, 0.0, vmj.Coulomb(1.0))  # mass gone at t = 1/3 s
     for method in ("exact", "smooth", "energy"):

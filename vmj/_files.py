@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import stat
 import tempfile
 
@@ -41,13 +42,26 @@ def check_writable(path, name: str = "path") -> str:
 
 
 @contextlib.contextmanager
-def replacing(path, name: str = "path"):
+def replacing(path, name: str = "path", seekable: bool = False):
     """Context manager yielding a temporary path next to `path`; on success the temporary file
     replaces `path` atomically (with the permissions a new file would get, or those of the file
-    it replaces); on any error it is removed and `path` is left as it was."""
+    it replaces); on any error it is removed and `path` is left as it was. A device or a pipe
+    is written to in place, or, for a writer that needs a `seekable` file (NetCDF's HDF5,
+    which failed on /dev/null), through a temporary file copied into it."""
     path = check_writable(path, name)
     if _special(path):
-        yield path
+        if not seekable:
+            yield path
+            return
+        fd, tmp = tempfile.mkstemp(suffix=os.path.splitext(path)[1] or None, prefix=".vmj-")
+        os.close(fd)
+        try:
+            yield tmp
+            with open(tmp, "rb") as src, open(path, "wb") as dst:
+                shutil.copyfileobj(src, dst)
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
         return
     path = os.path.realpath(path)  # a symbolic link: the file it points to
     folder = os.path.dirname(path)

@@ -13,13 +13,15 @@ def closed_form_cycle(eps, Omega, max_reversals: int) -> dict:
     drive speed `Omega`, arrays padded to `max_reversals + 1` slip intervals.
 
     `k* = floor((eps - 1)/2 - 1e-5)` reversals (16) (the `1e-5` makes eps = 3, 5, 7, ... land
-    on the lower `k*`: at those values the disk stops with `|xi| = 1` exactly and sticks);
+    on the lower `k*`: at those values the disk stops with `|xi| = 1` exactly and sticks), and
+    at least 0: the printed formula gives -1 for `eps <= 1 + 2e-5`, where the disk slips once
+    and sticks (the exact solver's margin, `REVERSAL_MARGIN`, is the same);
     `tau_k = 2 {pi [1 - (-1)^k]/2 + (-1)^(k+1) arctan((2k - (eps + 1))/Omega)}` (14);
     `xi_k = (-1)^k (2k - eps)` (13); `A_k = sqrt((2k - (eps + 1))^2 + Omega^2)` (12);
     slip time (17), stick time `tau^* = (eps + (-1)^k* (eps - 2(k* + 1)))/Omega` (19) and
     period (20)."""
     n = max_reversals + 1
-    kstar = jnp.floor((eps - 1.0) / 2.0 - 1e-5).astype(jnp.int32)  # (16)
+    kstar = jnp.maximum(jnp.floor((eps - 1.0) / 2.0 - 1e-5), 0.0).astype(jnp.int32)  # (16)
     k = jnp.arange(1, n + 1)
     sign_k = jnp.where(k % 2 == 0, 1.0, -1.0)  # (-1)^k
     used = k <= kstar + 1

@@ -8,10 +8,9 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, ArrayLike
 
-from .._checks import AbstractParams, _float, _is_traced, anything, check, nonnegative, positive
+from .._checks import AbstractParams, _float, anything, nonnegative, positive
 
 __all__ = ["LengthProfile", "ConstantSpeed", "Braking"]
 
@@ -101,10 +100,10 @@ class Braking(LengthProfile):
         "t_stop": (positive, "> 0 [s]"),
     }
 
-    def __check_init__(self):
-        gap = self.t_stop - self.t_brake
-        if not _is_traced(gap):
-            check("t_stop", np.asarray(gap), positive, "> t_brake [s] (t_stop - t_brake)")
+    # a relation, not a check at construction alone: `vmj.grid` and `eqx.tree_at` rebuild the
+    # profile without `__init__`, and `validated` checks relations (a grid of t_brake past
+    # t_stop was swept)
+    _relations: ClassVar[dict] = {"t_stop": (lambda p: p.t_stop > p.t_brake, "> t_brake [s]")}
 
     def local(self, t):
         t = _float(t)

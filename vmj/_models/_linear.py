@@ -16,9 +16,10 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array
 
-from .._checks import _float, nonnegative, positive
+from .._checks import _float, _is_traced, nonnegative, positive
 from .._exported import filter_jit
 from .._laws._forcing import Forcing, NoForcing
 from ._base import AbstractAnalytic
@@ -113,13 +114,16 @@ class LinearOscillator(AbstractAnalytic):
         """Free response `x = A e^{-eta omega_c t} sin(omega_3 t + alpha)` (under-damped):
         returns `(A, alpha)` [m, rad], `A = sqrt(x0^2 + ((v0 + eta omega_c x0)/omega_3)^2)`.
         (The book writes `sin(omega_3 t - alpha)` with its alpha of opposite sign.)"""
-        b, wd = self.decay_rate, self.damped_frequency
-        wd = eqx.error_if(
-            wd,
-            jnp.any(self.damping_ratio >= 1),
-            "free_amplitude/transient/settling_time need an under-damped "
-            "oscillator (damping ratio eta < 1); use response() otherwise",
+        b, wd, eta = self.decay_rate, self.damped_frequency, self.damping_ratio
+        message = (
+            "free_amplitude/transient/settling_time need an under-damped oscillator (damping "
+            "ratio eta = c/(2 sqrt(k m)) < 1); use response() otherwise"
         )
+        if _is_traced(eta):
+            wd = eqx.error_if(wd, jnp.any(eta >= 1), message)
+        elif np.any(np.asarray(eta) >= 1):  # a ValueError, as every concrete check
+            got = np.asarray(eta)
+            raise ValueError(f"{message} (got eta = {got.item() if got.ndim == 0 else got})")
         B = (v0 + b * x0) / wd
         return jnp.sqrt(x0**2 + B**2), jnp.arctan2(x0, B)
 

@@ -238,7 +238,10 @@ class Rope(AbstractEnergyMap):
         h_len = jnp.where(moving, RHO_LENGTH * l / jnp.where(moving, jnp.abs(rate), 1.0), jnp.inf)
         brk = self.length.next_break(t)
         h = jnp.minimum(jnp.minimum(h_omega, h_len), brk - t)
-        return h, h_len < h_omega, jnp.where(h >= brk - t, brk, t + h)
+        # limited by the approach of the zero-length time only while the rope shortens: a
+        # lowered rope that runs out of steps (a very slow swing) has not run out of length
+        # (it is reported as the step limit)
+        return h, (h_len < h_omega) & (rate < 0), jnp.where(h >= brk - t, brk, t + h)
 
     def half_period(self, t, scale):
         """`pi / omega_tangent(scale)` at time `t` [s]."""

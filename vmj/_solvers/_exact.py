@@ -249,7 +249,11 @@ def march_to_velocity_zero(
     limited = limited | (lax.stop_gradient(reached) >= (1 - 1e-6) * model.lifetime())
     t_guess = t0 + model.half_period(t0, scale)
     t1, x1 = _velocity_zero(model, cs, t, x, v, s, h, t_guess, one_lane)
-    return found & jnp.logical_not(inaccurate), limited, t1, x1
+    # a zero whose Newton iterations broke down (a velocity that only touches zero, or a
+    # series next to the zero-mass singularity) is no turning point: it was counted with NaN
+    # time and position (a creeping mass-proportional friction with --max-substeps 200)
+    ok = jnp.isfinite(t1) & jnp.isfinite(x1)
+    return found & jnp.logical_not(inaccurate) & ok, limited, t1, x1
 
 
 def _velocity_zero(model, cs, t, x, v, s, h, t_guess, one_lane: bool):

@@ -272,7 +272,10 @@ class Smoothed(AbstractSolver):
         positions = jnp.where(valid, positions, jnp.where(count > 0, positions[last], x0))
         previous = jnp.concatenate([x0[None], positions[:-1]])
         crossed = valid & (positions * previous < 0)
-        creeping = (count < n) & (jnp.abs(model.observe(y_end)[1]) <= slow)
+        # crept to the horizon where the stick rule holds: a frictionless mass that only
+        # slows down (over-damped, or a mass that grows without bound) has not stopped
+        x_end, v_end = model.observe(y_end)[:2]
+        creeping = (count < n) & (jnp.abs(v_end) <= slow) & model.rest(t_end, x_end)[2]
         stopped = stuck | creeping
         incomplete = (count < n) & jnp.logical_not(stopped)
         exhausted = incomplete & (t_end >= 0.998 * model.lifetime())

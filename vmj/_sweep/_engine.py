@@ -222,7 +222,14 @@ def cluster(client):
         with lc, distributed.Client(lc) as c:
             yield c
         return
-    with distributed.Client(client) as c:
+    try:
+        connected = distributed.Client(client)
+    except (ValueError, TypeError) as e:  # not an address: Dask's message names no argument
+        raise ValueError(
+            f"client {client!r} is not a scheduler address ({e}); give one such as "
+            "'tcp://host:8786', or 'local'"
+        ) from None
+    with connected as c:
         yield c
 
 

@@ -196,7 +196,7 @@ class SweepResult:
     def to_netcdf(self, path: str) -> None:
         """Write `to_xarray()` to a NetCDF file (needs the optional extra `vmj[xarray]`)."""
         data = self.to_xarray()
-        with replacing(path) as tmp:
+        with replacing(path, seekable=True) as tmp:
             data.to_netcdf(tmp)
 
     @staticmethod

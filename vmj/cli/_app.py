@@ -105,13 +105,44 @@ NEGATIVE = re.compile(
 )
 
 
+#: the namespace attribute in which `_Once` keeps the options given so far (removed after
+#: parsing)
+_GIVEN = "_vmj_given"
+
+
+class _Once(argparse._StoreAction):
+    """An option with a value may be given once: argparse keeps the last of `--m0 5 --m0 6`
+    silently (a list option such as `--set` joins its values instead: `Joined`)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault(_GIVEN, {})
+        shown = " ".join(
+            f"{v:g}" if isinstance(v, float) else str(v)
+            for v in (values if isinstance(values, list) else [values])
+        )
+        if self.dest in given:
+            raise argparse.ArgumentError(
+                self, f"given twice ({given[self.dest]} and {shown}); give it once"
+            )
+        given[self.dest] = shown
+        super().__call__(parser, namespace, values, option_string)
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument error is one line on stderr (`vmj: error: ...`), exit status 2; negative
-    numbers with exponents and axes are values, not options."""
+    numbers with exponents and axes are values, not options; an option with a value may be
+    given once (`_Once`)."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = NEGATIVE
+        self.register("action", None, _Once)
+        self.register("action", "store", _Once)
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, rest = super().parse_known_args(args, namespace)
+        namespace.__dict__.pop(_GIVEN, None)
+        return namespace, rest
 
     def error(self, message):
         where = self.prog.removeprefix("vmj").strip()

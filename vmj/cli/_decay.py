@@ -173,9 +173,6 @@ def rope_model(args, t1_flag: str = "--t1"):
             raise ValueError("give --brake or --t_brake/--t_stop, not both")
         values["t_brake"] = (args.brake[0], "--brake T_BRAKE")
         values["t_stop"] = (args.brake[1], "--brake T_STOP")
-    brake, stop = values.get("t_brake"), values.get("t_stop")
-    if brake is not None and stop is not None and not stop[0] > brake[0]:
-        raise ValueError(f"{stop[1]} must be > {brake[1]} [s] (got {stop[0]:g} <= {brake[0]:g})")
     values = spec.resolve(values, technical=args.units == "technical")
     rope = spec.build(values)
     if not args.t1 > 0:
@@ -203,13 +200,20 @@ def _rope(args) -> int:
     if args.method == "kbm":
         if "t_brake" in values:
             raise ValueError("--method kbm needs a constant speed (no --brake, --t_brake)")
-        times = np.linspace(0.0, args.t1, n + 1)  # at least every half period
-        amps = np.asarray(vmj.kbm_amplitude(rope, a0, jnp.asarray(times)))
-        stopped = bool(amps[-1] <= 0)
-        message = (
-            "friction stops the averaged motion" if stopped else "first-order averaged envelope"
-        )
         failed = False
+        if bool(rope.rest(0.0, -a0)[2]):  # the envelope would decay a mass that never moves
+            times, amps, stopped = np.zeros(1), np.full(1, a0), True
+            message = (
+                "the mass does not move: |spring force| <= static friction A T at the release "
+                "(no motion to average)"
+            )
+        else:
+            times = np.linspace(0.0, args.t1, n + 1)  # at least every half period
+            amps = np.asarray(vmj.kbm_amplitude(rope, a0, jnp.asarray(times)))
+            stopped = bool(amps[-1] <= 0)
+            message = (
+                "friction stops the averaged motion" if stopped else "first-order averaged envelope"
+            )
     else:
         seq = vmj.turning_points(rope, a0, n, method=args.method, **exact_options(args))
         got = seq.reached()

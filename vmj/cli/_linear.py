@@ -81,6 +81,13 @@ def run(args) -> int:
         f"free response x = A exp(-eta omega_c t) sin(omega_3 t + alpha): "
         f"A = {fmt(A, 'm')}, alpha = {fmt(alpha, 'rad')}",
     ]
+    eta = out["damping_ratio"]
+    if eta is not None and eta >= 1:
+        lines.append(
+            f"{'critically damped (eta = 1)' if eta == 1 else 'over-damped (eta > 1)'}: the free "
+            "motion does not oscillate, so it has no damped frequency, decrement or amplitude "
+            "(n/a; null in --json)"
+        )
     if forced:
         D = float(got["forced_amplitude"])
         lines.append(

@@ -16,7 +16,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["Param", "ModelSpec", "MODELS", "add_options", "given"]
+__all__ = ["Param", "Above", "ModelSpec", "MODELS", "add_options", "given"]
 
 
 @dataclass(frozen=True)
@@ -75,15 +75,36 @@ _POSITIVE_LENGTH = (lambda x: x > 0, "> 0 [m]")
 
 
 @dataclass(frozen=True)
+class Above:
+    """A range across two parameters: `name` must be above `other` (its unit in `unit`) at
+    every point, as the model's `_relations` demand (stated here with the user's spelling)."""
+
+    name: str
+    other: str
+    unit: str
+
+    def check(self, values: dict) -> None:
+        """`values`: `{name: (SI values, flag)}`, several values for a sweep's axis; every
+        combination must hold."""
+        if self.name in values and self.other in values:
+            (high, flag), (low, other_flag) = values[self.name], values[self.other]
+            if not min(high) > max(low):
+                raise ValueError(
+                    f"{flag} must be > {other_flag} {self.unit} (got {min(high):g} <= {max(low):g})"
+                )
+
+
+@dataclass(frozen=True)
 class ModelSpec:
     """A model of the command line: its parameters (model fields first, then the initial
-    conditions; a sweep's axes follow this order, as `vmj.grid`'s) and `build(values)` from
-    `{name: SI value}` to the vmj model."""
+    conditions; a sweep's axes follow this order, as `vmj.grid`'s), `build(values)` from
+    `{name: SI value}` to the vmj model, and the ranges across parameters (`Above`)."""
 
     name: str
     params: tuple
     build: Callable
     summary: str
+    relations: tuple = ()
 
     def param(self, name: str) -> Param:
         """The parameter spelled `name` (or one of its aliases); `ValueError` listing the known
@@ -100,15 +121,22 @@ class ModelSpec:
     def fields(self) -> tuple:
         return tuple(p for p in self.params if p.field is not None)
 
-    def resolve(self, values: dict, technical: bool = False, spell=lambda n: f"--{n}") -> dict:
+    def resolve(
+        self, values: dict, technical: bool = False, spell=lambda n: f"--{n}", axes=None
+    ) -> dict:
         """Check `{name: (value, flag)}` (the flag as spelled by the user) parameter by
-        parameter and across parameters (missing, alternatives, requirements); fill in the
-        defaults. `spell(name)` says how a missing parameter is given. Returns
-        `{name: SI value}`."""
+        parameter and across parameters (missing, alternatives, requirements, `relations`);
+        fill in the defaults. `spell(name)` says how a missing parameter is given; `axes`
+        (a sweep's `{name: SI values}`, each checked) replaces a parameter's single value in
+        the relations. Returns `{name: SI value}`."""
         out = {
             name: self.param(name).check(value, flag, technical)
             for name, (value, flag) in values.items()
         }
+        axes = axes or {}
+        spread = {name: (axes.get(name, [out[name]]), flag) for name, (_, flag) in values.items()}
+        for relation in self.relations:
+            relation.check(spread)
         missing, groups = [], {}
         for p in self.params:
             if p.group is not None:
@@ -261,6 +289,7 @@ ROPE = ModelSpec(
     ),
     _rope,
     "mass on a hoisting rope of varying length with friction between the wires (Osinski)",
+    (Above("t_stop", "t_brake", "[s]"),),
 )
 
 

@@ -312,9 +312,12 @@ def gather(spec, args, force: bool):
             raise ValueError(f"--set: {e}") from None
         if p.name in raw:
             raise ValueError(f"--set gives {p.name} twice")
-        values = parse_axis(
-            f"--set {name}", text, 1, f"--set takes one value; give --{p.name} for an axis"
+        axis = (
+            f"give --{p.name} for an axis"
+            if p.field is not None
+            else "an initial condition is not swept"  # (there is no --a0 axis)
         )
+        values = parse_axis(f"--set {name}", text, 1, f"--set takes one value; {axis}")
         raw[p.name] = (values[0], f"--set {name}")
     for p in spec.fields:  # the axes in the order of the table
         text = getattr(args, p.name)
@@ -338,8 +341,27 @@ def gather(spec, args, force: bool):
         raw,
         technical,
         spell=lambda n: f"--set {n}=" if spec.param(n).field is None else f"--{n}/--set {n}=",
+        axes=axes,
     )
     return scalars, axes
+
+
+def _distinct_outputs(args) -> None:
+    """Refuse two outputs that name the same file: the one written last replaced the other
+    (a device such as /dev/null may take several)."""
+    import os
+
+    from .._files import _special
+
+    seen = {}
+    for flag in ("--out", "--netcdf", "--plot", "--error-plot", "--store"):
+        path = getattr(args, flag[2:].replace("-", "_"), None)
+        if path is None or _special(path):
+            continue
+        key = os.path.realpath(path)
+        if key in seen:
+            raise ValueError(f"{seen[key]} and {flag} name the same file {path!r}; give two paths")
+        seen[key] = flag
 
 
 def run(args) -> int:
@@ -356,6 +378,7 @@ def run(args) -> int:
                 "--method energy is the energy map of a rope of fixed length: it needs --u 0 "
                 f"(got {speeds[0]:g})"
             )
+    _distinct_outputs(args)
     plots = getattr(args, "plot", None) or getattr(args, "error_plot", None)
     if plots and (list(axes)[:2] != ["eps", "mu"] or len(axes) > 3):
         raise ValueError(
@@ -415,8 +438,11 @@ def run(args) -> int:
     try:
         with traced_checks():
             result = how.evaluate(args, g, scalars)
-    except ValueError as e:  # the store's messages name the Python argument
-        raise ValueError(str(e).replace("resume=True", "--resume")) from None
+    except ValueError as e:  # the store's and the cluster's messages name the Python argument
+        message = str(e).replace("resume=True", "--resume")
+        if args.scheduler is not None and message.startswith("client "):
+            message = "--scheduler " + message.removeprefix("client ")
+        raise ValueError(message) from None
     except vmj.SweepError as e:  # some chunks raised; the others are in the store, if any
         print(f"vmj: error: {e}", file=sys.stderr)
         return 1
