@@ -279,6 +279,17 @@ def test_cli_json_shape(capsys):
     assert out["method"] == "exact" and max(out["times"]) <= 0.06 and len(out["times"]) == 5
 
 
+def test_cli_status_is_of_the_time_shown(capsys):
+    """Turning points after --t1 are not shown, and the solve's status (of a time after it) is
+    not either: a --t1 before the first turning point printed 'reached every requested
+    turning point' over an empty table."""
+    for t1, shown in (("0.005", 0), ("0.03", 2)):
+        assert main(CLI + ["--u", "-3", "--a0", "1", "--t1", t1]) == 0
+        out = capsys.readouterr().out
+        assert f"status: reached --t1 {t1} s ({shown} turning points before it)" in out
+        assert len(out.strip().splitlines()) == 2 + shown
+
+
 def test_cli_kbm_of_a_mass_friction_holds_from_the_start(capsys):
     """With A T above the spring force at the release the mass never moves (the exact solver
     has no turning point); the averaged envelope decayed it to 0 in 5 ms all the same."""

@@ -221,6 +221,8 @@ def _rope(args) -> int:
         times, amps = got["times"][keep], got["amplitudes"][keep]
         stopped = bool(seq.stopped) and bool(np.all(keep))
         message, failed = cli_message(seq.message), bool(seq.failed)
+        if not keep.all():  # the solve's own status is of a time after --t1
+            message = f"reached --t1 {args.t1:g} s ({int(keep.sum())} turning points before it)"
         if int(seq.count) == n and not stopped and not failed and keep.all():
             raise RuntimeError("internal: the turning-point count estimate was too small")
     out = {
