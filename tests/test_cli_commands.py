@@ -462,7 +462,7 @@ def test_sweep_store_and_resume(tmp_path, capsys):
         "6",
     ]
     assert main(base + ["--store", store, "--out", str(tmp_path / "a.csv")]) == 0
-    capsys.readouterr()
+    assert capsys.readouterr().out.endswith(f"; wrote {tmp_path / 'a.csv'}; stored in {store}\n")
     assert main(base + ["--store", store]) == 2
     assert "pass --resume to continue it" in capsys.readouterr().err
     assert main(base + ["--store", store, "--resume", "--out", str(tmp_path / "b.csv")]) == 0
@@ -484,3 +484,15 @@ def test_linear_undamped_resonance_is_explained(capsys):
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "forced_amplitude inf: 1;" in out and "undamped resonance (c = 0" in out
+
+
+def test_sweep_figure_is_drawn_and_named(tmp_path, capsys):
+    """`--plot` draws the swings over (eps, mu) and the summary names every file written."""
+    fig, csv = tmp_path / "s.png", tmp_path / "s.csv"
+    argv = ["sweep", "variable-mass", "--eps", "0:1:3", "--mu", "0:10:3", "--method", "energy"]
+    argv += ["--set", "m0=5,c=4900,delta=3,FT=14.7,a0=0.06", "--out", str(csv), "--plot", str(fig)]
+    assert main(argv) == 0
+    assert capsys.readouterr().out.endswith(f"; wrote {csv}; wrote {fig}\n")
+    assert (
+        fig.stat().st_size > 10_000 and len(csv.read_text().splitlines()) == 2 + 9
+    )  # (the layout line, the header)

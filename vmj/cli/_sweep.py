@@ -467,8 +467,11 @@ def run(args) -> int:
     head = f"sweep: {points} points ({shape}), method {args.method}"
     if how.turning_points:
         head += f", {args.n} swings"
-    written = [f"wrote {p}" for p in (args.out, args.netcdf) if p]
-    if not (written or plots or args.store):
+    paths = (args.out, args.netcdf, getattr(args, "plot", None), getattr(args, "error_plot", None))
+    written = [f"wrote {p}" for p in dict.fromkeys(p for p in paths if p)]
+    if args.store:
+        written.append(f"stored in {args.store}")
+    if not written:
         written = ["nothing written (--out CSV, --netcdf NC, --plot PNG or --store keep it)"]
     print("; ".join([f"{head}, {elapsed:.2f} s", *summary, *written]))
     for line in lines:
