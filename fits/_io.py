@@ -1546,7 +1546,7 @@ def _pendulum_decrements(angle) -> tuple:
     return A / s, 2 * I1 / (math.pi * A * s), 3 * (s - A * np.cos(A)) / (A * A * s)
 
 
-def _dry_level(t, x, peak, angle_unit=None) -> list:
+def _dry_level(t, x, peak, angle_unit=None, cut=None) -> list:
     """The dry-friction level seen at the maxima and at the minima of a decay [signal units],
     from the decay of each side's amplitudes `a` (about the local centre) over a period:
     `a[j] - a[j+1] = 4 xF g_c + c1 a g_v + c2 a^2 g_q` (Coulomb, viscous and quadratic
@@ -1564,20 +1564,31 @@ def _dry_level(t, x, peak, angle_unit=None) -> list:
     omega 2-4 of its standard errors off: docs/signals.md, "The level under a drifting
     zero"). A side's gain and a drift both move the local centres with time, and the extrema
     alone cannot always tell them apart (the amplitude falls linearly under dry friction
-    alone); the fit can, with `asym` and `drift`."""
+    alone); the fit can, with `asym` and `drift`.
+
+    `cut` marks extrema a saturated sensor cut off (`_clipped`): they are in the sequence, so
+    that the others keep their places, and take part in neither a local centre nor a
+    decrement. (Until 2026-11-28 the extrema left were passed on their own: a record clipped
+    on both sides keeps a run of one side's extrema, whose "local centres" lay among them,
+    and the level came out 0: the turning points were timed up to 1.1 ms late, the fit's
+    omega 6 standard errors off.)"""
     t, x, peak = np.asarray(t, float)[1:], np.asarray(x, float)[1:], np.asarray(peak)[1:]
+    cut = np.zeros(x.size, dtype=bool) if cut is None else np.asarray(cut, dtype=bool)[1:]
     c = np.zeros_like(x)
-    if x.size >= 5:  # (a line through at least 3 local centres)
-        c = np.polyval(np.polyfit(t[1:-1], _local_centres(x), 1), t)
+    whole = ~(cut[:-2] | cut[1:-1] | cut[2:])  # successive extrema, none cut off
+    if np.count_nonzero(whole) >= 3:  # (a line through at least 3 local centres)
+        c = np.polyval(np.polyfit(t[1:-1][whole], _local_centres(x)[whole], 1), t)
     out = []
     for side in (peak, ~peak):
-        a = np.abs(x[side] - c[side])
-        if a.size < 6:
+        j = np.nonzero(side & ~cut)[0]
+        a = np.abs(x[j] - c[j])
+        period = np.diff(j) == 2  # the side's successive extrema, a period apart
+        if np.count_nonzero(period) < 5:
             out.append(0.0)
             continue
-        d = a[:-1] - a[1:]
-        mid = 0.5 * (a[:-1] + a[1:])  # (the loss rate at the period's middle: second order)
-        shapes = np.ones((3, a.size - 1))
+        d = (a[:-1] - a[1:])[period]
+        mid = (0.5 * (a[:-1] + a[1:]))[period]  # (the loss rate at the period's middle)
+        shapes = np.ones((3, d.size))
         if angle_unit is not None:
             shapes = np.array(_pendulum_decrements(mid * angle_unit))
         A = np.column_stack([shapes[0], mid * shapes[1], mid**2 * shapes[2]])
@@ -1909,7 +1920,7 @@ def _extract(signal: Signal, found: _Found, min_amplitude, angle_unit, decay) ->
     # a dry-friction level bends every turning point (`_refine`): measured from the decay of
     # the extrema refined without it, then each extremum refined again with it
     refined = refine((0.0, 0.0))
-    kinks = _dry_level(refined[~clipped, 0], refined[~clipped, 1], peak[~clipped], angle_unit)
+    kinks = _dry_level(refined[:, 0], refined[:, 1], peak, angle_unit, clipped)
     if max(kinks) > 0:
         refined = refine(kinks)
     if per_half < _SMOOTH_MIN:
@@ -1939,8 +1950,10 @@ def _extract(signal: Signal, found: _Found, min_amplitude, angle_unit, decay) ->
         # Judged by the first sample itself: the local fit of an extremum at the edge is
         # one-sided, and for a record that starts mid-swing its vertex may lie far beyond the
         # data, beyond even the next swing
+        # (a first sample at a saturated sensor's level is at the extremum it cut off, which
+        # lies beyond the level; the vertex fitted to the next one's flat run may lie beyond it)
         c = np.median(_local_centres(xk[1:]))
-        if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
+        if not clipped[0] and abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
     meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
     if fast:
