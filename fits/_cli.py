@@ -310,10 +310,11 @@ def run(args) -> int:
         records = [
             fits.read_record(path, series=series, decay=args.decay, **reading) for path in args.FILE
         ]
-    free = args.fit or _DEFAULT_FREE[model]
+    free = _DEFAULT_FREE[model] if args.fit is None else args.fit  # (`--fit ""`: no names)
     if args.fit is None and model == "oscillator" and any(r.times is None for r in records):
         free = "zeta,xF,a0,offset"
     names = _names(free, "--fit")
+    note = None  # printed once the fit has run: an error is one line
     if args.fit is None:  # the default set: without what --set fixed
         names = tuple(n for n in names if n not in given)
         why = None
@@ -327,10 +328,9 @@ def run(args) -> int:
             why = "amplitudes only (distances from its centre), which an offset does not change"
         if "offset" in names and why:
             names = tuple(n for n in names if n != "offset")
-            print(
+            note = (
                 f"vmj: note: offset not fitted: the record holds {why} (held at its default, "
-                "the record's centre; --set offset=VALUE holds another value)",
-                file=sys.stderr,
+                "the record's centre; --set offset=VALUE holds another value)"
             )
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
@@ -355,6 +355,8 @@ def run(args) -> int:
                 "and stiffness (omega, zeta, xF in the signal's units), pendulum for an "
                 "angle, rope for a hoisting rope"
             ) from None
+    if note:
+        print(note, file=sys.stderr)
     if args.plot:
         fits.plot_fit(result, args.plot)
     if args.json:

@@ -464,6 +464,16 @@ CASES = parameter_cases() + [
         ["--set takes NAME=VALUE"],
     ),
     (
+        "fit --fit empty",  # (was the default set)
+        ["fit", "{tmp}/good.csv", "--fit", ""] + FIT,
+        ["--fit NAME", "nothing to identify"],
+    ),
+    (
+        "fit series of amplitudes",  # (the default set's note came first: two lines)
+        ["fit", "{tmp}/good.csv", "--residuals", "series"] + FIT,
+        ["good.csv", "needs a raw signal"],
+    ),
+    (
         "fit --model",
         ["fit", "{tmp}/good.csv", "--model", "spring"],
         ["argument --model", "invalid choice"],
