@@ -474,6 +474,16 @@ CASES = parameter_cases() + [
         ["good.csv", "needs a raw signal"],
     ),
     (
+        "fit too few peaks",
+        ["fit", "{tmp}/three.csv"] + FIT,
+        ["three.csv", "3 turning points are too few", "--fit"],
+    ),
+    (
+        "fit omega without times",
+        ["fit", "{tmp}/three.csv", "--fit", "omega,zeta"] + FIT,
+        ["omega can only be fitted from a record with times", "--fit"],
+    ),
+    (
         "fit --model",
         ["fit", "{tmp}/good.csv", "--model", "spring"],
         ["argument --model", "invalid choice"],
@@ -508,6 +518,7 @@ def files(tmp_path_factory):
         "bom.csv": b"\xef\xbb\xbfk,amplitude\n1,10.0\n2,x\n3,8.6\n",
         "crlf.csv": b"k,amplitude\r\n1,10.0\r\n2,x\r\n3,8.6\r\n",
         "good.csv": b"k,amplitude\n1,10.0\n2,9.3\n3,8.62\n4,7.95\n5,7.3\n6,6.67\n",
+        "three.csv": b"k,amplitude\n0,10.0\n1,9.3\n2,8.62\n",
     }
     for name, data in content.items():
         (tmp / name).write_bytes(data)
