@@ -722,8 +722,10 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
             )
         intervals[nm] = (float(lo), float(hi))
     warn += _decays_left_out(prob.records)
-    for rec in prob.records:
-        steeper = _steepening(rec) if space.constant_laws else None
+    for rec, peaks in zip(prob.records, prob.turning or prob.records):
+        # (a series fit's: of its turning points; its samples' "amplitudes" rise and fall
+        # within every swing, and a clean free decay was told it was forced)
+        steeper = _steepening(peaks) if space.constant_laws else None
         if steeper:
             warn.append(steeper)
         if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:
