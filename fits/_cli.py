@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 
 from vmj.cli import Joined, emit, figure_path, input_file, number, parse_set
@@ -29,6 +30,17 @@ _ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180}
 TIME_UNITS = ("s", "ms", "us", "ns", "min")
 #: the default limit on a file's data rows (kept equal to `fits.MAX_ROWS` by a test)
 MAX_ROWS = 2_000_000
+
+
+def _record_file(text: str) -> str:
+    """A FILE of `vmj fit` (argparse type): `vmj.cli.input_file`'s checks of the path (missing,
+    a directory, unreadable), not its UTF-8 check: the content is `fits.read_record`'s to
+    judge, which reads UTF-16 with a byte-order mark and Windows-1252 as well (a spreadsheet's
+    `Winkel [°]`) and names the line of a bad cell or binary data. (Until 2026-11-28 such a
+    file was refused: "not a UTF-8 text file".)"""
+    if os.path.isfile(text) and os.access(text, os.R_OK):
+        return text
+    return input_file(text)
 
 
 def _settings(text: str) -> dict:
@@ -130,7 +142,7 @@ def _names(text: str | None, option: str) -> tuple:
 def add_arguments(p):
     p.add_argument(
         "FILE",
-        type=input_file,
+        type=_record_file,
         nargs="+",
         help="peak-sequence CSV (k|cycle|time, amplitude|position[, crossed]) or a raw "
         "signal (see --series); several files are fitted jointly (see --shared)",
@@ -148,7 +160,7 @@ def add_arguments(p):
         help="parameters to fit (default: variable-mass FT,mu; oscillator "
         "omega,zeta,xF,a0,offset, without omega for records without times; rope T;"
         " pendulum omega,zeta,xF,cq,b2,a0,offset,asym; without the names given with --set, "
-        "and without offset for a table of one side's peaks)",
+        "and without offset for a table of one side's peaks or of amplitudes)",
     )
     p.add_argument(
         "--set",
@@ -298,21 +310,27 @@ def run(args) -> int:
         records = [
             fits.read_record(path, series=series, decay=args.decay, **reading) for path in args.FILE
         ]
-    free = args.fit or _DEFAULT_FREE[model]
+    free = _DEFAULT_FREE[model] if args.fit is None else args.fit  # (`--fit ""`: no names)
     if args.fit is None and model == "oscillator" and any(r.times is None for r in records):
         free = "zeta,xF,a0,offset"
     names = _names(free, "--fit")
+    note = None  # printed once the fit has run: an error is one line
     if args.fit is None:  # the default set: without what --set fixed
         names = tuple(n for n in names if n not in given)
-        if "offset" in names and any(len({int(k) % 2 for k in r.k}) == 1 for r in records):
+        why = None
+        if any(len({int(k) % 2 for k in r.k}) == 1 for r in records):
             # one side's peaks: an offset o shifts every peak alike, which the decay takes as
             # dry friction (xF - o (1 - r)/(1 + r) per half-swing ratio r): not both
+            why = "one side's peaks only, where a sensor offset cannot be told from dry friction"
+        elif any(not r.sides_known for r in records):
+            # amplitudes: distances from the centre, compared with the model's |y|, which no
+            # offset changes (fitted, it had no standard error: not converged)
+            why = "amplitudes only (distances from its centre), which an offset does not change"
+        if "offset" in names and why:
             names = tuple(n for n in names if n != "offset")
-            print(
-                "vmj: note: offset not fitted: the record holds one side's peaks only, where "
-                "a sensor offset cannot be told from dry friction (held at its default, the "
-                "record's centre; --set offset=VALUE holds another value)",
-                file=sys.stderr,
+            note = (
+                f"vmj: note: offset not fitted: the record holds {why} (held at its default, "
+                "the record's centre; --set offset=VALUE holds another value)"
             )
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
@@ -337,6 +355,8 @@ def run(args) -> int:
                 "and stiffness (omega, zeta, xF in the signal's units), pendulum for an "
                 "angle, rope for a hoisting rope"
             ) from None
+    if note:
+        print(note, file=sys.stderr)
     if args.plot:
         fits.plot_fit(result, args.plot)
     if args.json:

@@ -738,11 +738,14 @@ def _problem(space, records, givens, free, shared):
             raise ValueError(
                 f"{rec.source or 'record'}: {len(rec)} turning points are too few "
                 f"for {per_record} free parameters (need at least "
-                f"{per_record + 1})"
+                f"{per_record + 1}): fit fewer (free in Python, --fit on the command line)"
             )
         for name in ("omega", "drift"):
             if name in free and rec.times is None:
-                raise ValueError(f"{name} can only be fitted from a record with times")
+                raise ValueError(
+                    f"{name} can only be fitted from a record with times: leave it out of the "
+                    f"fitted parameters (free in Python, --fit on the command line)"
+                )
         centre = rec.centre if "offset" in space.names else 0.0
         decs.append(decrement(rec, centre))
     return _Problem(recs, [dict(g) for g in givens], tuple(free), tuple(shared), decs)

@@ -1546,7 +1546,7 @@ def _pendulum_decrements(angle) -> tuple:
     return A / s, 2 * I1 / (math.pi * A * s), 3 * (s - A * np.cos(A)) / (A * A * s)
 
 
-def _dry_level(t, x, peak, angle_unit=None) -> list:
+def _dry_level(t, x, peak, angle_unit=None, cut=None, tail=None) -> list:
     """The dry-friction level seen at the maxima and at the minima of a decay [signal units],
     from the decay of each side's amplitudes `a` (about the local centre) over a period:
     `a[j] - a[j+1] = 4 xF g_c + c1 a g_v + c2 a^2 g_q` (Coulomb, viscous and quadratic
@@ -1564,26 +1564,49 @@ def _dry_level(t, x, peak, angle_unit=None) -> list:
     omega 2-4 of its standard errors off: docs/signals.md, "The level under a drifting
     zero"). A side's gain and a drift both move the local centres with time, and the extrema
     alone cannot always tell them apart (the amplitude falls linearly under dry friction
-    alone); the fit can, with `asym` and `drift`."""
+    alone); the fit can, with `asym` and `drift`. A side of fewer than 6 extrema takes the
+    level of both sides' decrements per half-swing (`2 xF` each) before the `tail` (the
+    extrema beyond the first swing below the floor: where a decay of few swings sticks, the
+    noise's at rest); 0 where those are fewer than 5 too.
+
+    `cut` marks extrema a saturated sensor cut off (`_clipped`): they are in the sequence, so
+    that the others keep their places, and take part in neither a local centre nor a
+    decrement. (Until 2026-11-28 the extrema left were passed on their own: a record clipped
+    on both sides keeps a run of one side's extrema, whose "local centres" lay among them,
+    and the level came out 0: the turning points were timed up to 1.1 ms late, the fit's
+    omega 6 standard errors off.)"""
     t, x, peak = np.asarray(t, float)[1:], np.asarray(x, float)[1:], np.asarray(peak)[1:]
+    cut = np.zeros(x.size, dtype=bool) if cut is None else np.asarray(cut, dtype=bool)[1:]
     c = np.zeros_like(x)
-    if x.size >= 5:  # (a line through at least 3 local centres)
-        c = np.polyval(np.polyfit(t[1:-1], _local_centres(x), 1), t)
-    out = []
-    for side in (peak, ~peak):
-        a = np.abs(x[side] - c[side])
-        if a.size < 6:
-            out.append(0.0)
-            continue
-        d = a[:-1] - a[1:]
-        mid = 0.5 * (a[:-1] + a[1:])  # (the loss rate at the period's middle: second order)
-        shapes = np.ones((3, a.size - 1))
+    whole = ~(cut[:-2] | cut[1:-1] | cut[2:])  # successive extrema, none cut off
+    if np.count_nonzero(whole) >= 3:  # (a line through at least 3 local centres)
+        c = np.polyval(np.polyfit(t[1:-1][whole], _local_centres(x)[whole], 1), t)
+
+    def level(use, step):
+        """The level from the decrements between the extrema `use` `step` half-swings apart
+        (2: a side's, 4 xF each; 1: both sides', 2 xF each); None with fewer than 5."""
+        j = np.nonzero(use & ~cut)[0]
+        a = np.abs(x[j] - c[j])
+        pair = np.diff(j) == step
+        if np.count_nonzero(pair) < 5:
+            return None
+        d = (a[:-1] - a[1:])[pair]
+        mid = (0.5 * (a[:-1] + a[1:]))[pair]  # (the loss rate at the pair's middle)
+        shapes = np.ones((3, d.size))
         if angle_unit is not None:
             shapes = np.array(_pendulum_decrements(mid * angle_unit))
         A = np.column_stack([shapes[0], mid * shapes[1], mid**2 * shapes[2]])
-        level = float(np.linalg.lstsq(A, d, rcond=None)[0][0]) / 4
-        out.append(min(max(level, 0.0), max(float(np.median(d / shapes[0])), 0.0) / 4))
-    return out
+        got = float(np.linalg.lstsq(A, d, rcond=None)[0][0]) / (2 * step)
+        return min(max(got, 0.0), max(float(np.median(d / shapes[0])), 0.0) / (2 * step))
+
+    # a side of fewer than 6 extrema: both sides' level (a decay that sticks after a few
+    # swings; 0 until 2026-11-28: dry friction of 8 % of a0, 7 turning points, their times
+    # 1-14 ms late and the fit's omega 19.92 [19.85, 19.995] for 20)
+    out = [level(peak, 2), level(~peak, 2)]
+    if None in out:
+        both = level(np.ones(x.size, dtype=bool) if tail is None else ~np.asarray(tail)[1:], 1)
+        out = [both if v is None else v for v in out]
+    return [0.0 if v is None else v for v in out]
 
 
 def _decays(y, idx, h, starts_at_edge: bool) -> list:
@@ -1909,7 +1932,10 @@ def _extract(signal: Signal, found: _Found, min_amplitude, angle_unit, decay) ->
     # a dry-friction level bends every turning point (`_refine`): measured from the decay of
     # the extrema refined without it, then each extremum refined again with it
     refined = refine((0.0, 0.0))
-    kinks = _dry_level(refined[~clipped, 0], refined[~clipped, 1], peak[~clipped], angle_unit)
+    tail = np.zeros(idx.size, dtype=bool)  # beyond a swing below the floor (cut below)
+    small = np.nonzero(np.abs(np.diff(refined[:, 1])) < 2 * floor)[0]
+    tail[small[0] + 1 if small.size else idx.size :] = True
+    kinks = _dry_level(refined[:, 0], refined[:, 1], peak, angle_unit, clipped, tail)
     if max(kinks) > 0:
         refined = refine(kinks)
     if per_half < _SMOOTH_MIN:
@@ -1939,8 +1965,10 @@ def _extract(signal: Signal, found: _Found, min_amplitude, angle_unit, decay) ->
         # Judged by the first sample itself: the local fit of an extremum at the edge is
         # one-sided, and for a record that starts mid-swing its vertex may lie far beyond the
         # data, beyond even the next swing
+        # (a first sample at a saturated sensor's level is at the extremum it cut off, which
+        # lies beyond the level; the vertex fitted to the next one's flat run may lie beyond it)
         c = np.median(_local_centres(xk[1:]))
-        if abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
+        if not clipped[0] and abs(y_clean[0] - c) < 0.98 * abs(xk[2] - c):
             tk, xk, one_sided, clipped = tk[1:], xk[1:], False, clipped[1:]
     meta = {"hysteresis": h, "min_amplitude": floor, "angle_unit": angle_unit, "kink": kinks}
     if fast:

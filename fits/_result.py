@@ -134,8 +134,8 @@ def _interval(lo, hi) -> str:
         lo, hi = float(lo), float(hi)
     except (TypeError, ValueError):
         return "[nan, nan]"
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return f"[{_fmt(lo)}, {_fmt(hi)}]"
+    if not (np.isfinite(lo) and np.isfinite(hi)):  # (an open end: inf)
+        return f"[{lo if np.isinf(lo) else _fmt(lo)}, {hi if np.isinf(hi) else _fmt(hi)}]"
     width, size = abs(hi - lo), max(abs(lo), abs(hi))
     digits = (
         6 if width <= 0 or size <= 0 else int(min(15, max(6, np.ceil(np.log10(size / width)) + 3)))
@@ -641,6 +641,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     warn = []
     # a slot held at a bound: its 95 % one-sided limit away from it, where it was profiled
     limits = {s: v for s in range(q) if job.bound_hit[s] for v in (ends or {}).get(s, {}).values()}
+    # ends of the 95 % region that the data do not bound (`fits._solve._open_end`)
+    unbounded = {} if ends is None else ends.get("open", {})
     for s, nm in enumerate(names):
         if job.bound_hit[s]:
             if not _at_user_bound(job, s):
@@ -688,6 +690,8 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
         converged = False if n_dof < 2 else converged
     if any(active[s] and not np.isfinite(se_c[s]) for s in range(q)):
         converged = False  # a parameter without a standard error is not determined
+    if any(active[s] for s, _ in unbounded):
+        converged = False  # nor one whose 95 % region the data leave open
     # intervals
     intervals = {}
     for s, nm in enumerate(names):
@@ -696,10 +700,20 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
             intervals[nm] = (float(min(ends_s)), float(max(ends_s)))
             continue
         got = {} if ends is None else ends.get(s, {})
+        t = job.transforms[s]
+        for side, bound in ((-1, t.lo), (1, t.hi)):
+            if (s, side) in unbounded:  # the end is the parameter's range's (None in JSON)
+                got = {**got, side: bound}
+                reach = unbounded[s, side]
+                warn.append(
+                    f"{nm} is not determined by these data: its 95 % profile-likelihood region "
+                    f"reaches {reach:.3g} [{space.unit(job.slots[s][0])}] and goes on "
+                    f"{'above' if side > 0 else 'below'} it (the estimate {est[s]:.3g}): the "
+                    f"interval is open there"
+                )
         wald = 1.96 * se_c[s]
         lo = got.get(-1, est[s] - wald)
         hi = got.get(1, est[s] + wald)
-        t = job.transforms[s]
         lo, hi = max(lo, t.lo), min(hi, t.hi)
         if len(got) < 2 and np.isfinite(wald) and ends is not None:
             warn.append(
@@ -708,8 +722,10 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
             )
         intervals[nm] = (float(lo), float(hi))
     warn += _decays_left_out(prob.records)
-    for rec in prob.records:
-        steeper = _steepening(rec) if space.constant_laws else None
+    for rec, peaks in zip(prob.records, prob.turning or prob.records):
+        # (a series fit's: of its turning points; its samples' "amplitudes" rise and fall
+        # within every swing, and a clean free decay was told it was forced)
+        steeper = _steepening(peaks) if space.constant_laws else None
         if steeper:
             warn.append(steeper)
         if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:

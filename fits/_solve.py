@@ -455,7 +455,8 @@ def _profiles(requests, shape):
     region is the bound. A slot that the solver held at a bound (`job.bound_hit`) gets the one
     end away from it, its 95 % one-sided limit (target `2.71 inflation`, `_CHI2_90`). Returns
     per request `{slot: {-1: lo, +1: hi}}` for the ends found (the others failed), None where
-    none was wanted."""
+    none was wanted, and under the key `"open"` `{(slot, side): v}` for the ends the data do
+    not bound (`_open_end`): `v` the farthest point found inside the region."""
     state = []  # one per interval end: its request, slot and side, and where it stands
     bases = {}  # per request: its job's solve arrays at the optimum
     for n, request in enumerate(requests):
@@ -506,7 +507,22 @@ def _profiles(requests, shape):
     for st in state:
         if st["ok"]:
             ends[st["request"]].setdefault(st["slot"], {})[st["side"]] = st["v"]
+        elif _open_end(st, requests[st["request"]]):
+            ends[st["request"]].setdefault("open", {})[st["slot"], st["side"]] = st["inside"][0]
     return ends
+
+
+def _open_end(st, request) -> bool:
+    """Whether the failed interval end `st` is one the data do not bound: no point beyond the
+    95 % region was found, and the farthest point inside lies beyond twice the Wald end. The
+    profile is then far flatter than the curvature at the estimate says (a ridge of the
+    least-squares surface: variable-mass peaks without times, fitted for FT, mu and c, put
+    FT = 141 N inside the region of an estimate 4.9 +- 6.2 N; the Wald interval [0, 17] was
+    reported and the fit "converged")."""
+    job, _, est, se, inflation, _ = request
+    wald = 1.96 * se[st["slot"]] * math.sqrt(max(inflation, 1.0))
+    reach = abs(st["inside"][0] - est[st["slot"]])
+    return st["outside"] is None and np.isfinite(wald) and reach > 2 * wald
 
 
 def _profile_end(request: int, slot: int, side: int, est: float, start: float, bound, p, target):

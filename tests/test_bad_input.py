@@ -477,7 +477,8 @@ CASES = parameter_cases() + [
     ("fit empty name", ["fit", ""] + FIT, ["argument FILE", "empty file name"]),
     ("fit empty file", ["fit", "{tmp}/empty.csv"] + FIT, ["empty.csv", "empty"]),
     ("fit binary file", ["fit", "{tmp}/binary.csv"] + FIT, ["binary.csv", "not a text file"]),
-    ("fit latin-1 file", ["fit", "{tmp}/latin.csv"] + FIT, ["latin.csv", "not a UTF-8 text"]),
+    # (a file's encoding is the reader's to judge: Windows-1252 read, the bad cell named)
+    ("fit latin-1 file", ["fit", "{tmp}/latin.csv"] + FIT, ["latin.csv", "line 3", "'9\u00e9'"]),
     ("fit header only", ["fit", "{tmp}/header.csv"] + FIT, ["header.csv", "no data rows"]),
     ("fit one row", ["fit", "{tmp}/onerow.csv"] + FIT, ["onerow.csv", "only 1 data row"]),
     ("fit non-numeric", ["fit", "{tmp}/text.csv"] + FIT, ["text.csv", "line 3", "amplitude"]),
@@ -498,6 +499,26 @@ CASES = parameter_cases() + [
         "fit --set no =",
         ["fit", "{tmp}/good.csv", "--model", "oscillator", "--set", "zeta"],
         ["--set takes NAME=VALUE"],
+    ),
+    (
+        "fit --fit empty",  # (was the default set)
+        ["fit", "{tmp}/good.csv", "--fit", ""] + FIT,
+        ["--fit NAME", "nothing to identify"],
+    ),
+    (
+        "fit series of amplitudes",  # (the default set's note came first: two lines)
+        ["fit", "{tmp}/good.csv", "--residuals", "series"] + FIT,
+        ["good.csv", "needs a raw signal"],
+    ),
+    (
+        "fit too few peaks",
+        ["fit", "{tmp}/three.csv"] + FIT,
+        ["three.csv", "3 turning points are too few", "--fit"],
+    ),
+    (
+        "fit omega without times",
+        ["fit", "{tmp}/three.csv", "--fit", "omega,zeta"] + FIT,
+        ["omega can only be fitted from a record with times", "--fit"],
     ),
     (
         "fit --model",
@@ -534,6 +555,7 @@ def files(tmp_path_factory):
         "bom.csv": b"\xef\xbb\xbfk,amplitude\n1,10.0\n2,x\n3,8.6\n",
         "crlf.csv": b"k,amplitude\r\n1,10.0\r\n2,x\r\n3,8.6\r\n",
         "good.csv": b"k,amplitude\n1,10.0\n2,9.3\n3,8.62\n4,7.95\n5,7.3\n6,6.67\n",
+        "three.csv": b"k,amplitude\n0,10.0\n1,9.3\n2,8.62\n",
     }
     for name, data in content.items():
         (tmp / name).write_bytes(data)

@@ -241,6 +241,40 @@ def test_three_swings_are_flagged(variable_mass_batch):
     assert any("degrees of freedom" in w for w in r.warnings)
 
 
+def test_a_parameter_the_data_do_not_bound_is_not_determined():
+    """Peaks of a shrinking mass (delta = 3 kg/s) without times, fitted for FT, mu and the
+    stiffness c: only their combinations per half-swing are in the data, along a ridge of the
+    least-squares surface. The Jacobian keeps full rank (correlation 0.9999) and the fit
+    "converged" with FT 4.9 +- 6.2 N, 95 % [0, 17] (Wald: the profile failed), though the
+    profile had found FT = 141 N inside the region (truth 14.7), c = 4.7e4 N/m (estimate 1620).
+    The ends the data do not bound are open (the parameter's range's: null in JSON), said in
+    the warnings, and the fit is not converged; with times (the period), all three are."""
+    model = vmj.VariableMass(PAPER["m0"], PAPER["c"], 3.0, 0.0, 2.0, fits.AffineFriction(14.7, 0.0))
+    seq = vmj.turning_points(model, 0.15, 24, method="exact")
+    n = int(seq.count)
+    rng = np.random.default_rng(0)
+    pos = np.concatenate([[-0.15], np.asarray(seq.positions)[:n]]) + rng.normal(0, 3e-4, n + 1)
+    times = np.concatenate([[0.0], np.asarray(seq.times)[:n]]) + rng.normal(0, 1e-4, n + 1)
+    given = {"m0": PAPER["m0"], "c": PAPER["c"], "delta": 3.0, "eps": 0.0, "a0": 0.15}
+    free = ("FT", "mu", "c")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        peaks = fits.fit(fits.record_from_sequence(positions=pos), "variable-mass", free, given)
+        timed = fits.fit(
+            fits.record_from_sequence(positions=pos, times=times), "variable-mass", free, given
+        )
+    assert not peaks.converged
+    for name in ("FT", "c"):
+        assert peaks.intervals[name][1] == math.inf, (name, peaks.intervals)
+        assert any(w.startswith(f"{name} is not determined by these data") for w in peaks.warnings)
+    assert peaks.to_json()["intervals"]["FT"][1] is None
+    assert "inf]" in peaks.report()
+    assert timed.converged and not any("not determined" in w for w in timed.warnings)
+    for name, truth in (("FT", 14.7), ("mu", 2.0)):  # (30 seeds: every interval held the
+        lo, hi = timed.intervals[name]  # truth in 27-28 of 30)
+        assert lo < truth < hi, name
+
+
 # -- joint fits --------------------------------------------------------------------------------
 OSC = {"omega": 20.0, "zeta": 0.01, "xF": 0.05}
 
