@@ -640,12 +640,11 @@ def _strictly_increasing(values, tab: _Table, name: str):
 
 
 # -- peak sequences ----------------------------------------------------------------------------
-#: the columns of a peak table by their names' first word (case-insensitive)
+#: the columns of a peak table by their names' first word (case-insensitive); the time column
+#: by the raw signals' rule (`_TIME_NAME`)
 _PEAK_ROLES = {
     "k": "k",
     "cycle": "cycle",
-    "time": "time",
-    "t": "time",
     "amplitude": "amplitude",
     "peak": "amplitude",
     "position": "position",
@@ -658,14 +657,19 @@ _COUNTS = {"no", "nr", "number", "num", "#", "index", "idx", "count", "n"}
 
 
 def _peak_role(name: str) -> str | None:
-    """What a peak table's column holds, from its name: its first word, less a unit (`Time
-    (s)`, `time_ms`, `t/min`, `Amplitude [mm]`, `amplitude_mm`); `None` for another column,
-    and for a count of the peaks (`Peak No.`, `peak #`, `peak_index`: half-swings or periods,
-    the name does not say)."""
+    """What a peak table's column holds, from its name: its first word, less a unit
+    (`Amplitude [mm]`, `amplitude_mm`, `k`, `cycle`, `crossed`), and the time as a raw
+    signal's time column is named (`_TIME_NAME`: `Time (s)`, `time_ms`, `t/min`, `Zeit [ms]`,
+    `Timestamp`, `Elapsed (s)`, `Peak time`); `None` for another column, and for a count of
+    the peaks (`Peak No.`, `peak #`, `peak_index`: half-swings or periods, the name does not
+    say)."""
     words = re.split(r"[\s(\[_/.]+", name.strip().lower())
     if words[0] == "peak" and len(words) > 1 and words[1] in _COUNTS:
         return None
-    return _PEAK_ROLES.get(words[0])
+    role = _PEAK_ROLES.get(words[0])
+    if (role is None or words[0] == "peak") and _TIME_NAME.search(name.strip()):
+        return "time"
+    return role
 
 
 def _samples_of_motion(x) -> str | None:
@@ -688,8 +692,9 @@ def _samples_of_motion(x) -> str | None:
 def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> Record:
     """Read a peak sequence from a CSV file with a header line.
 
-    Columns, by the first word of their names (case-insensitive; a unit after it, as in
-    `Time (ms)` or `time_ms`, is read, and times are converted to seconds): `k` (the
+    Columns, by the first word of their names (case-insensitive), the time column as a raw
+    signal's is named (`Time (ms)`, `time_ms`, `Zeit [ms]`, `Timestamp`; a unit at the end of
+    its name is read, and times are converted to seconds): `k` (the
     half-swing index, `0` the initial deflection: successive rows of a table of both sides'
     peaks are `k`, `k + 1`) or `cycle` (full periods, for a table of one side's peaks as a
     logarithmic-decrement table lists them: `k = 2 cycle`), and/or `time` (or `t`);
@@ -710,9 +715,12 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
     """
     text, source = _text(path, max_rows)
     tab = _table(text, source, need_header=True)
-    names = {}
+    names, times_at = {}, []
     for i, h in enumerate(tab.header):
         role = _peak_role(h)
+        if role == "time":  # several: the finest, as a raw signal's (below)
+            times_at.append(i)
+            continue
         if role in names:
             _fail(
                 source,
@@ -729,6 +737,11 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
         )
     if "k" in names and "cycle" in names:
         _fail(source, "give 'k' (half-swings) or 'cycle' (full periods), not both")
+    if times_at:
+        names["time"] = times_at[0]
+        if len(times_at) > 1:  # (`Timestamp`, `Time_Elapsed(s)`)
+            column = _stamps(tab, times_at, _column_names(tab))[1]
+            names["time"] = _column_names(tab).index(column)
     wanted = [c for c in ("k", "cycle", "time", "amplitude", "position", "crossed") if c in names]
     values = dict(zip(wanted, _columns(tab, [names[c] for c in wanted])))
     n = len(values[wanted[0]])
@@ -2117,16 +2130,7 @@ def read_record(
         except ValueError as err:
             if series is None and raw_given and _reads_as_peaks(path, max_rows):
                 named = [n for n, v in raw.items() if v is not None]
-                named += ["clock"] if clock != "auto" else []
-                flags = ", ".join("--" + n.replace("_", "-") for n in named)
-                several = len(named) > 1
-                source = path.source if isinstance(path, _Loaded) else os.fspath(path)
-                raise ValueError(
-                    f"{source}: a table of turning points, but the raw-signal option"
-                    f"{'s' if several else ''} {', '.join(named)} ({flags} on the command line) "
-                    f"{'were' if several else 'was'} given: leave {'them' if several else 'it'}"
-                    " out to read the table"
-                ) from None
+                _peaks_with_raw_options(path, named + (["clock"] if clock != "auto" else []))
             if not_peaks is None or path.text.count("\n") > _PEAK_TABLE_ROWS:
                 raise
             raise ValueError(
@@ -2138,6 +2142,19 @@ def read_record(
             "signals (series=True)"
         )
     return read_peaks(path, max_rows=max_rows)
+
+
+def _peaks_with_raw_options(path, named: list):
+    """Raise the error for a peak table read with the raw-signal options `named`."""
+    flags = ", ".join("--" + n.replace("_", "-") for n in named)
+    several = len(named) > 1
+    source = path.source if isinstance(path, _Loaded) else os.fspath(path)
+    raise ValueError(
+        f"{source}: a table of turning points, but the raw-signal option"
+        f"{'s' if several else ''} {', '.join(named)} ({flags} on the command line) "
+        f"{'were' if several else 'was'} given: leave {'them' if several else 'it'}"
+        " out to read the table"
+    ) from None
 
 
 def _reads_as_peaks(path, max_rows) -> bool:
@@ -2159,7 +2176,18 @@ def read_decays(path: str | os.PathLike, **kwargs) -> list:
         if name in kwargs:
             raise ValueError(f"read_decays reads raw signals, every decay: no {name}=")
     angle_unit = kwargs.pop("angle_unit", None)
-    return _every_decay(read_signal(path, **kwargs), angle_unit)
+    try:
+        return _every_decay(read_signal(path, **kwargs), angle_unit)
+    except ValueError:
+        if _reads_as_peaks(path, kwargs.get("max_rows", MAX_ROWS)):
+            named = [n for n, v in kwargs.items() if v is not None and n not in ("max_rows",)]
+            _peaks_with_raw_options(
+                path,
+                ["decay"]
+                + [n for n in named if n != "clock"]
+                + (["clock"] if kwargs.get("clock", "auto") != "auto" else []),
+            )
+        raise
 
 
 @_naming_other_columns

@@ -413,6 +413,7 @@ class _Assessed:
     blocks: list  # slices of the used residuals `r`, one per block
     block_names: list
     r: np.ndarray  # the residuals that count
+    J: np.ndarray  # their Jacobian, every slot's column (a held slot's too)
     info: dict  # `_information`
     active: np.ndarray  # the slots the solver moved
     inflation: float  # of the covariance, for correlated residuals (`fits._stats.covariance`)
@@ -434,7 +435,26 @@ class _Assessed:
         if not (self.active.any() and job.out["ok"] and self.full_rank and settings["intervals"]):
             return None
         s2 = job.rss / max(self.n_dof, 1)
-        return (job, self.prob, self.est, self.se_gn, self.inflation, s2)
+        return (job, self.prob, self.est, self._held_se(s2), self.inflation, s2)
+
+    def _held_se(self, s2) -> np.ndarray:
+        """The Gauss-Newton standard errors, and for a slot held at a bound the one it would
+        have if freed alone (its Jacobian column's part orthogonal to the moved slots'): the
+        scale of its profile's one-sided limit. (Without it the profile started a tenth of
+        the slot's transform scale away, 1 for an interval: `xF` of a clean viscous decay
+        bounded to 0:0.5 by the user got no limit, where bounded by its physical range, 0 and
+        up, it got 4.4e-08.)"""
+        se = self.se_gn.copy()
+        J = self.J
+        Ja = J[:, self.active]
+        for s in np.flatnonzero(self.job.bound_hit & ~self.active):
+            j = J[:, s]
+            if Ja.shape[1]:
+                j = j - Ja @ np.linalg.lstsq(Ja, j, rcond=None)[0]
+            norm2 = float(j @ j)
+            if norm2 > 0 and np.isfinite(norm2):
+                se[s] = math.sqrt(s2 / norm2)
+        return se
 
 
 def _assess(job, prob, shape) -> _Assessed:
@@ -478,6 +498,7 @@ def _assess(job, prob, shape) -> _Assessed:
         blocks=blocks,
         block_names=block_names,
         r=r,
+        J=J,
         info=info,
         active=active,
         inflation=inflation,
@@ -645,17 +666,31 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     unbounded = {} if ends is None else ends.get("open", {})
     for s, nm in enumerate(names):
         if job.bound_hit[s]:
+            unit = space.unit(job.slots[s][0])
+            limit = (
+                f"; its 95 % one-sided limit {nm} {'<=' if limits[s] > job.held[s] else '>='}"
+                f" {limits[s]:.3g} [{unit}]"
+                if s in limits
+                else ""
+            )
             if not _at_user_bound(job, s):
-                unit = space.unit(job.slots[s][0])
-                limit = (
-                    f"; its 95 % one-sided limit {nm} {'<=' if limits[s] > job.held[s] else '>='}"
-                    f" {limits[s]:.3g} [{unit}]"
-                    if s in limits
-                    else ""
-                )
                 warn.append(
                     f"{nm} ran into its bound {job.held[s]:.6g} [{unit}]: held there (a sub-model "
                     f"fits as well; see model_comparison){limit}"
+                )
+            else:  # the user's bound: not flagged (`converged`), but said
+                what = (
+                    f"its interval [{min(job.held[s], limits[s]):.6g}, "
+                    f"{max(job.held[s], limits[s]):.6g}] is the bound and {nm}'s 95 % one-sided "
+                    "limit"
+                    if s in limits
+                    else "no interval"
+                    + ("" if ends is None else " (its one-sided limit was not found)")
+                )
+                warn.append(
+                    f"{nm} is held at {job.held[s]:.6g} [{unit}], the bound set for it (--bounds, "
+                    f"bounds=): the data put it there or beyond, so it has no standard error, and "
+                    f"{what}"
                 )
         elif not np.isfinite(se_c[s]):
             warn.append(f"{nm} is not identified by these data: no standard error")

@@ -511,6 +511,11 @@ CASES = parameter_cases() + [
         ["good.csv", "needs a raw signal"],
     ),
     (
+        "fit a peak table --decay all",  # (was "found only 0 turning points ... --signal-col")
+        ["fit", "{tmp}/good.csv", "--decay", "all"] + FIT,
+        ["good.csv", "a table of turning points", "--decay", "leave it out"],
+    ),
+    (
         "fit too few peaks",
         ["fit", "{tmp}/three.csv"] + FIT,
         ["three.csv", "3 turning points are too few", "--fit"],

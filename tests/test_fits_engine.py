@@ -83,6 +83,11 @@ def test_converged_rules_at_bounds(viscous_decay):
     assert plain.stderr["xF"] is None and plain.stderr_gn["xF"] is None  # never 0
     assert bounded.converged is True
     assert not any("ran into its bound" in w for w in bounded.warnings)
+    # ... but said: the value is the user's bound, the interval that bound and a limit
+    held = [w for w in bounded.warnings if w.startswith("xF is held at 0")]
+    assert len(held) == 1 and "the bound set for it (--bounds" in held[0], bounded.warnings
+    assert "95 % one-sided limit" in held[0] and bounded.stderr["xF"] is None
+    assert bounded.intervals["xF"][0] == 0 < bounded.intervals["xF"][1]
     assert bounded.params["omega"] == pytest.approx(plain.params["omega"], rel=1e-8)
 
 

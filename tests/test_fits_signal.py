@@ -206,6 +206,35 @@ def test_peak_columns_by_their_names_first_word(tmp_path):
         fits.read_peaks(_write(tmp_path, "k,height\n0,1\n1,0.9\n"))
 
 
+@pytest.mark.parametrize(
+    "name, scale",
+    [
+        ("Zeit [ms]", 1e-3),
+        ("time [ms]", 1e-3),
+        ("t (s)", 1.0),
+        ("Timestamp", 1.0),
+        ("Elapsed (us)", 1e-6),
+        ("Peak time [ms]", 1e-3),
+    ],
+)
+def test_peak_tables_read_the_time_column_as_raw_signals_do(tmp_path, name, scale):
+    """A peak table's time column is named as a raw signal's may be, its unit honoured (until
+    2026-11-28 by its first word only: `Zeit [ms]` was refused, or beside a `k` column dropped
+    without a word)."""
+    rows = "\n0,10\n150,9\n300,8.1\n"
+    assert np.allclose(
+        fits.read_peaks(_write(tmp_path, f"{name},amplitude" + rows)).times,
+        [0, 150 * scale, 300 * scale],
+    )
+    rows = "\n0,0,10\n1,150,9\n2,300,8.1\n"
+    rec = fits.read_peaks(_write(tmp_path, f"k,{name},amplitude" + rows))
+    assert np.allclose(rec.times, [0, 150 * scale, 300 * scale])
+    # of several time columns, the finest (a coarse elapsed time beside the stamps)
+    rows = "\n0,0,10\n0,150,9\n0.3,300,8.1\n"
+    rec = fits.read_peaks(_write(tmp_path, f"Time_Elapsed(s),{name},amplitude" + rows))
+    assert np.allclose(rec.times, [0, 150 * scale, 300 * scale])
+
+
 def test_the_signal_is_the_last_column_that_is_not_the_time(tmp_path):
     """A header `angle,time`: the signal is `angle`, by default and with the time named."""
     t = np.arange(400) * 0.01
