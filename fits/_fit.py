@@ -566,14 +566,20 @@ def _start_from(job, sub):
 
 def _adopt(job, sub, problems, shape):
     """`job` ended worse than its nested sub-model: take the sub-model's solution (the slots it
-    holds held at its values) and evaluate it."""
+    holds held at its values, the slots it moved free again at theirs) and evaluate it. (Until
+    2026-11-28 a slot `job` had held at a bound stayed held there: a joint oscillator fit
+    whose zeta and xF had run into 0 took the viscous fit's values but kept zeta at 0, and
+    was reported with 3 times the viscous fit's residual sum of squares.)"""
     vals = _values_of(sub)
+    moved = {slot for i, slot in enumerate(sub.slots) if sub.code[i] != HELD}
     for s, (name, r) in enumerate(job.slots):
-        if name not in sub.free:
+        t = job.transforms[s]
+        if (name, r) in moved:
+            job.code[s], job.bound_hit[s] = t.code, False
+        else:
             rr = 0 if r is None else r
             job.code[s] = HELD
             job.held[s] = vals[rr][name]
-            t = job.transforms[s]
             job.bound_hit[s] = job.held[s] in (t.lo, t.hi)
     job.p = _coordinates(job, vals)
     out = _solve(job.space, [_job_arrays(job, problems[job.problem], shape)], shape)[0]

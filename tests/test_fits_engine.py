@@ -345,6 +345,40 @@ def test_joint_fit_narrows_the_shared_intervals(releases):
     assert len(joint.correlation) == 3
 
 
+def test_a_model_worse_than_its_sub_model_takes_its_solution_with_its_slots_free(
+    releases, monkeypatch
+):
+    """A model that ended worse than a nested sub-model (stuck in another basin with a slot
+    held at a bound) takes the sub-model's solution, the slots the sub-model moved free again.
+    Until 2026-11-28 a slot held at a bound stayed held: a joint oscillator fit of three
+    measured records whose zeta and xF had run into 0 took the viscous fit's values but kept
+    zeta at 0, and was reported with 3 times the viscous fit's residual sum of squares."""
+    import fits._fit as F
+    from fits._params import HELD
+
+    records, _ = releases
+    real = F._passes
+
+    def stuck(jobs, problems, shape, settings):
+        real(jobs, problems, shape, settings)
+        both = next(j for j in jobs if j.headline)
+        s = [name for name, _ in both.slots].index("zeta")
+        both.code[s], both.held[s], both.bound_hit[s] = HELD, 0.0, True
+        both.rss = math.inf
+        F._never_worse(both, F._best_nested(both, jobs), problems, shape)
+
+    monkeypatch.setattr(F, "_passes", stuck)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(
+            records, "oscillator", RELEASE_FREE, shared=("omega", "zeta", "xF"), intervals=False
+        )
+    comp = r.model_comparison
+    assert comp["both"]["rss"] <= comp["viscous"]["rss"] * (1 + 1e-9)
+    assert r.params["zeta"] == pytest.approx(comp["viscous"]["params"]["zeta"], rel=1e-6)
+    assert not any(w.startswith("zeta ran into its bound") for w in r.warnings)
+
+
 def test_a_joint_fits_rms_is_over_all_its_records():
     """A joint fit's position and time RMS pool every record's residuals, leaving out those
     that are no datum (a release at the signal's first samples; before, the position RMS was
