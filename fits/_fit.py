@@ -564,6 +564,16 @@ def _start_from(job, sub):
     job.p = _coordinates(job, _values_of(sub))
 
 
+def _free_where_moved(job, other) -> set:
+    """Free again the slots of `job` held at a bound that `other` (started from, or taken)
+    moved; returns the slots `other` moved."""
+    moved = {slot for i, slot in enumerate(other.slots) if other.code[i] != HELD}
+    for s, slot in enumerate(job.slots):
+        if slot in moved and job.bound_hit[s]:
+            job.code[s], job.bound_hit[s] = job.transforms[s].code, False
+    return moved
+
+
 def _adopt(job, sub, problems, shape):
     """`job` ended worse than its nested sub-model: take the sub-model's solution (the slots it
     holds held at its values, the slots it moved free again at theirs) and evaluate it. (Until
@@ -571,12 +581,10 @@ def _adopt(job, sub, problems, shape):
     whose zeta and xF had run into 0 took the viscous fit's values but kept zeta at 0, and
     was reported with 3 times the viscous fit's residual sum of squares.)"""
     vals = _values_of(sub)
-    moved = {slot for i, slot in enumerate(sub.slots) if sub.code[i] != HELD}
+    moved = _free_where_moved(job, sub)
     for s, (name, r) in enumerate(job.slots):
         t = job.transforms[s]
-        if (name, r) in moved:
-            job.code[s], job.bound_hit[s] = t.code, False
-        else:
+        if (name, r) not in moved:
             rr = 0 if r is None else r
             job.code[s] = HELD
             job.held[s] = vals[rr][name]
@@ -693,7 +701,9 @@ def _restart_from_larger(jobs, problems, shape):
         larger = [b for b in jobs if b.out is not None and _nested_in(job, b) and b.rss < job.rss]
         if larger:
             twin = _twin(job)
-            twin.p = _coordinates(twin, _values_of(min(larger, key=lambda b: b.rss)))
+            best = min(larger, key=lambda b: b.rss)
+            _free_where_moved(twin, best)  # (a slot held at a bound in the other basin)
+            twin.p = _coordinates(twin, _values_of(best))
             twins[id(job)] = twin
     if not twins:
         return

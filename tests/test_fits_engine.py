@@ -379,6 +379,34 @@ def test_a_model_worse_than_its_sub_model_takes_its_solution_with_its_slots_free
     assert not any(w.startswith("zeta ran into its bound") for w in r.warnings)
 
 
+def test_a_sub_model_restarted_from_a_larger_one_frees_its_slots(releases, monkeypatch):
+    """A sub-model that ended worse than a larger model it is nested in is solved again from
+    that model's optimum, the slots it had held at a bound in its own basin free again (they
+    stayed held: the viscous fit, its zeta stuck at 0, could not leave 0)."""
+    import fits._fit as F
+    from fits._params import HELD
+
+    records, _ = releases
+    real = F._restart_from_larger
+
+    def stuck(jobs, problems, shape):
+        viscous = next(j for j in jobs if j.label == "viscous")
+        s = [name for name, _ in viscous.slots].index("zeta")
+        viscous.code[s], viscous.held[s], viscous.bound_hit[s] = HELD, 0.0, True
+        viscous.rss = math.inf
+        real(jobs, problems, shape)
+
+    monkeypatch.setattr(F, "_restart_from_larger", stuck)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = fits.fit(
+            records, "oscillator", RELEASE_FREE, shared=("omega", "zeta", "xF"), intervals=False
+        )
+    viscous = r.model_comparison["viscous"]
+    assert viscous["params"]["zeta"] > 0.5 * OSC["zeta"], viscous
+    assert viscous["rss"] >= r.model_comparison["both"]["rss"] * (1 - 1e-9)
+
+
 def test_a_joint_fits_rms_is_over_all_its_records():
     """A joint fit's position and time RMS pool every record's residuals, leaving out those
     that are no datum (a release at the signal's first samples; before, the position RMS was
