@@ -632,6 +632,21 @@ API = [
         "a real number",
     ),
     ("a0 text", lambda: vmj.turning_points(vmj.VariableMass(**_vm()), "x", 3), "a0 must be"),
+    (
+        "a0 array",  # was taken and broke the result's shapes (count (2,), message a TypeError)
+        lambda: vmj.turning_points(vmj.VariableMass(**_vm()), np.array([0.06, 0.03]), 3),
+        "a0 must be a scalar (got shape",
+    ),
+    (
+        "a0 array, energy balance",  # was an error from inside lax.scan
+        lambda: vmj.energy_balance(vmj.VariableMass(**_vm()), np.array([0.06]), 3),
+        "a0 must be a scalar (got shape",
+    ),
+    (
+        "t1 array",  # was 'Cannot stack arrays with different numbers of dimensions'
+        lambda: vmj.simulate(vmj.VariableMass(**_vm()), -0.06, 0.0, [0.1, 0.2]),
+        "t1 must be a scalar (got shape",
+    ),
     ("Omega", lambda: vmj.StickSlip(6.3, 0.0), "Omega must be finite and > 0"),
     ("stick-slip eps", lambda: vmj.StickSlip(1.0, 1.0), "eps must be finite and > 1"),
     (

@@ -71,10 +71,17 @@ def check(name: str, value, ok: Callable, allowed: str):
     return check_all([(name, value, ok, allowed)])[0]
 
 
-def scalar(value):
+def scalar(name: str, value):
     """A checked scalar argument as an array of JAX's default float type: a NumPy array for
     concrete values (a compiled entry point takes it without a device round trip or a
-    recompilation for Python floats), traced values unchanged but cast."""
+    recompilation for Python floats), traced values unchanged but cast. An array of any other
+    shape is a `ValueError` naming the argument (the solvers' arrays have one lane: an array
+    of `a0` broke the results' shapes; a sweep or `jax.vmap` maps over several)."""
+    if np.ndim(value) != 0:
+        raise ValueError(
+            f"{name} must be a scalar (got shape {np.shape(value)}); "
+            "for several values use jax.vmap or vmj.sweep"
+        )
     if _is_traced(value):
         return jnp.asarray(value, dtype=default_float())
     return np.asarray(value, dtype=default_float())
