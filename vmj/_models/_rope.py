@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
@@ -94,13 +95,17 @@ class Rope(AbstractEnergyMap):
         """Build from technical units as printed in the paper: `m` [kG s^2/m], `A` [cm^2],
         `e`, `b`, `d`, `T` [kG/cm^2]; the profile stays in metres and seconds."""
         kg_cm2 = KGF * 1e4
+
+        def si(x, factor):  # NumPy for numbers and lists; JAX arrays (traced ones too) as such
+            return x * factor if isinstance(x, jax.Array) else np.multiply(x, factor)
+
         return cls(
-            np.multiply(m, KGF),
-            np.multiply(A, 1e-4),
-            np.multiply(e, kg_cm2),
-            np.multiply(b, kg_cm2),
-            np.multiply(d, kg_cm2),
-            np.multiply(T, kg_cm2),
+            si(m, KGF),
+            si(A, 1e-4),
+            si(e, kg_cm2),
+            si(b, kg_cm2),
+            si(d, kg_cm2),
+            si(T, kg_cm2),
             length,
         )
 
