@@ -179,7 +179,7 @@ def turning_points(
       returning it in `result`. With `throw=False` check `result`/`message`.
 
     **Returns:** a [`vmj.DecaySequence`][]. Differentiable with `jax.grad`/`jax.jacfwd` with
-    respect to every model parameter and `a0`.
+    respect to every model parameter and `a0` (with [`vmj.Smoothed`][]: reverse mode only).
     """
     warn_if_float32()
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
