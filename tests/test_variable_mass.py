@@ -406,6 +406,14 @@ def test_a_turning_point_just_before_the_mass_runs_out():
     assert int(more.result) == vmj.RESULTS.mass_exhausted
 
 
+def test_the_message_of_a_batch_says_how_to_read_it():
+    """`.message` of a vmapped result was `TypeError: only 0-dimensional arrays can be
+    converted to Python scalars`."""
+    seqs = jax.vmap(lambda mu: vmj.energy_balance(model(mu=mu), A0, 3))(np.array([2.0, 9.0]))
+    with pytest.raises(ValueError, match=r"a message is of one solve; this result holds 2"):
+        _ = seqs.message
+
+
 @pytest.mark.parametrize("delta", [1e3, 1e6])
 def test_runaway_growing_mass_has_no_turning_point(delta):
     # m x'' - (delta (1 - 2 eps) - 2 mu)/2 x' + c x = ...: with delta = 1e3 kg/s and m0 = 5 kg

@@ -54,7 +54,13 @@ class RESULTS(enum.IntEnum):
     @classmethod
     def describe(cls, code: ArrayLike) -> str:
         """The message of a (concrete, scalar) status code."""
-        return cls(int(np.asarray(code))).message
+        code = np.asarray(code)
+        if code.ndim != 0:  # (int() of it was a TypeError that named no status)
+            raise ValueError(
+                f"a message is of one solve; this result holds {code.size} (shape "
+                f"{code.shape}): vmj.RESULTS(int(c)).message for each code c of result"
+            )
+        return cls(int(code)).message
 
 
 def _host(code):
