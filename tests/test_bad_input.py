@@ -643,6 +643,11 @@ API = [
         "a0 must be a scalar (got shape",
     ),
     (
+        "kbm a0 array",  # was 'Gradient only defined for scalar-output functions'
+        lambda: vmj.kbm_amplitude(vmj.Rope.paper(u=3.0, T=4.0), [0.01, 0.04], [0.0, 1.0]),
+        "a0 must be a scalar (got shape",
+    ),
+    (
         "t1 array",  # was 'Cannot stack arrays with different numbers of dimensions'
         lambda: vmj.simulate(vmj.VariableMass(**_vm()), -0.06, 0.0, [0.1, 0.2]),
         "t1 must be a scalar (got shape",

@@ -25,6 +25,7 @@ from .._checks import (
     check,
     nonnegative,
     positive,
+    scalar,
     validated,
     warn_if_float32,
 )
@@ -295,7 +296,7 @@ def _averaged_inputs(rope, a0, t):
         )
     require_scalar_fields(rope)
     rope = validated(rope)
-    a0 = _float(check("a0", a0, positive, "> 0 [m]"))
+    a0 = _float(scalar("a0", check("a0", a0, positive, "> 0 [m]")))
     t = check("t", t, lambda x: x >= 0, ">= 0 [s]")
     check_horizon(rope, t, "t")
     return rope, a0, _float(t)
