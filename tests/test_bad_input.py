@@ -15,6 +15,7 @@ import subprocess
 import sys
 
 import cli_args
+import jax
 import numpy as np
 import pytest
 
@@ -643,6 +644,11 @@ API = [
         "a0 must be a scalar (got shape",
     ),
     (
+        "n traced",  # was "n must be an integer >= 1 (got JitTracer(~int64[]))"
+        lambda: jax.jit(lambda n: vmj.turning_points(vmj.VariableMass(**_vm()), 0.06, n))(3),
+        "n must be a static integer >= 1",
+    ),
+    (
         "kbm a0 array",  # was 'Gradient only defined for scalar-output functions'
         lambda: vmj.kbm_amplitude(vmj.Rope.paper(u=3.0, T=4.0), [0.01, 0.04], [0.0, 1.0]),
         "a0 must be a scalar (got shape",
@@ -721,6 +727,14 @@ def _fit(**kw):
     args = {"free": ("FT", "mu"), "given": dict(m0=5, c=4900, delta=3, eps=0), **kw}
     records = [record, fits.read_record(record.source)] if args.pop("twice", False) else record
     return fits.fit(records, "variable-mass", args.pop("free"), **args)
+
+
+def test_a_concrete_integer_array_is_an_integer():
+    """`n = jnp.array(3)` (a concrete 0-d integer array, e.g. from `jnp.argmax`) was refused as
+    not an integer."""
+    m = vmj.VariableMass(**_vm())
+    assert vmj.energy_balance(m, 0.06, np.int64(3)).positions.shape == (3,)
+    assert vmj.energy_balance(m, 0.06, jax.numpy.array(3)).positions.shape == (3,)
 
 
 @pytest.mark.parametrize("name,call,message", API, ids=[a[0] for a in API])

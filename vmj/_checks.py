@@ -124,7 +124,20 @@ def check_all(items) -> list:
 
 
 def check_int(name: str, value, minimum: int) -> int:
-    """Check a static integer (an array shape, an iteration count)."""
+    """Check a static integer (an array shape, an iteration count). A concrete 0-d integer
+    array is taken; a traced one is refused with how to keep it static."""
+    if _is_traced(value):
+        raise ValueError(
+            f"{name} must be a static integer >= {minimum} (it sets an array shape), not a "
+            "traced value: pass a Python int, e.g. with jax.jit(..., static_argnums=...) or "
+            "equinox.filter_jit"
+        )
+    if (
+        isinstance(value, (np.ndarray, jax.Array))
+        and value.ndim == 0
+        and np.issubdtype(value.dtype, np.integer)
+    ):
+        value = int(value)
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum} (got {value!r})")
     return int(value)
