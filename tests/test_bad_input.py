@@ -644,6 +644,11 @@ API = [
         "a0 must be a scalar (got shape",
     ),
     (
+        "complex field",  # the real part was kept with only a ComplexWarning
+        lambda: vmj.Coulomb(np.complex128(14.7 + 1e-20j)),
+        "vmj's parameters are real numbers",
+    ),
+    (
         "n traced",  # was "n must be an integer >= 1 (got JitTracer(~int64[]))"
         lambda: jax.jit(lambda n: vmj.turning_points(vmj.VariableMass(**_vm()), 0.06, n))(3),
         "n must be a static integer >= 1",
