@@ -84,7 +84,7 @@ def scalar(name: str, value):
     recompilation for Python floats), traced values unchanged but cast. An array of any other
     shape is a `ValueError` naming the argument (the solvers' arrays have one lane: an array
     of `a0` broke the results' shapes; a sweep or `jax.vmap` maps over several)."""
-    if np.ndim(value) != 0:
+    if not isinstance(value, float) and np.ndim(value) != 0:
         raise ValueError(
             f"{name} must be a scalar (got shape {np.shape(value)}); "
             "for several values use jax.vmap or vmj.sweep"
@@ -133,6 +133,8 @@ def check_all(items) -> list:
 def check_int(name: str, value, minimum: int) -> int:
     """Check a static integer (an array shape, an iteration count). A concrete 0-d integer
     array is taken; a traced one is refused with how to keep it static."""
+    if type(value) is int and value >= minimum:
+        return value  # the common case, first: a warm solve costs tens of microseconds
     if _is_traced(value):
         raise ValueError(
             f"{name} must be a static integer >= {minimum} (it sets an array shape), not a "
