@@ -15,6 +15,7 @@ import subprocess
 import sys
 
 import cli_args
+import jax
 import numpy as np
 import pytest
 
@@ -637,6 +638,36 @@ API = [
         "a real number",
     ),
     ("a0 text", lambda: vmj.turning_points(vmj.VariableMass(**_vm()), "x", 3), "a0 must be"),
+    (
+        "a0 array",  # was taken and broke the result's shapes (count (2,), message a TypeError)
+        lambda: vmj.turning_points(vmj.VariableMass(**_vm()), np.array([0.06, 0.03]), 3),
+        "a0 must be a scalar (got shape",
+    ),
+    (
+        "a0 array, energy balance",  # was an error from inside lax.scan
+        lambda: vmj.energy_balance(vmj.VariableMass(**_vm()), np.array([0.06]), 3),
+        "a0 must be a scalar (got shape",
+    ),
+    (
+        "complex field",  # the real part was kept with only a ComplexWarning
+        lambda: vmj.Coulomb(np.complex128(14.7 + 1e-20j)),
+        "vmj's parameters are real numbers",
+    ),
+    (
+        "n traced",  # was "n must be an integer >= 1 (got JitTracer(~int64[]))"
+        lambda: jax.jit(lambda n: vmj.turning_points(vmj.VariableMass(**_vm()), 0.06, n))(3),
+        "n must be a static integer >= 1",
+    ),
+    (
+        "kbm a0 array",  # was 'Gradient only defined for scalar-output functions'
+        lambda: vmj.kbm_amplitude(vmj.Rope.paper(u=3.0, T=4.0), [0.01, 0.04], [0.0, 1.0]),
+        "a0 must be a scalar (got shape",
+    ),
+    (
+        "t1 array",  # was 'Cannot stack arrays with different numbers of dimensions'
+        lambda: vmj.simulate(vmj.VariableMass(**_vm()), -0.06, 0.0, [0.1, 0.2]),
+        "t1 must be a scalar (got shape",
+    ),
     ("Omega", lambda: vmj.StickSlip(6.3, 0.0), "Omega must be finite and > 0"),
     ("stick-slip eps", lambda: vmj.StickSlip(1.0, 1.0), "eps must be finite and > 1"),
     (
@@ -706,6 +737,14 @@ def _fit(**kw):
     args = {"free": ("FT", "mu"), "given": dict(m0=5, c=4900, delta=3, eps=0), **kw}
     records = [record, fits.read_record(record.source)] if args.pop("twice", False) else record
     return fits.fit(records, "variable-mass", args.pop("free"), **args)
+
+
+def test_a_concrete_integer_array_is_an_integer():
+    """`n = jnp.array(3)` (a concrete 0-d integer array, e.g. from `jnp.argmax`) was refused as
+    not an integer."""
+    m = vmj.VariableMass(**_vm())
+    assert vmj.energy_balance(m, 0.06, np.int64(3)).positions.shape == (3,)
+    assert vmj.energy_balance(m, 0.06, jax.numpy.array(3)).positions.shape == (3,)
 
 
 @pytest.mark.parametrize("name,call,message", API, ids=[a[0] for a in API])

@@ -450,3 +450,18 @@ def test_the_energy_map_reports_a_swing_at_the_separatrix():
     assert int(seq.result) == vmj.RESULTS.map_diverged and "separatrix" in seq.message
     assert np.all(np.isfinite(np.asarray(seq.times)))
     assert int(vmj.turning_points(model, 3.14, 3).count) == 3
+
+
+def test_a_pendulum_stuck_near_the_top_has_finite_reverse_gradients():
+    """Released at 3.14 rad with a static level 0.01 (|sin 3.14| = 0.0016 below it) the
+    pendulum stays put: x_2 = -a0, d x_2 / d(a0, omega, xF) = (-1, 0, 0). The energy map's
+    discarded swing from there (over the top) took the square root of a negative chord and its
+    reciprocal, and jax.grad was NaN (jax.jacfwd and the exact solver gave the right value)."""
+
+    def x2(p):
+        a0, omega, xF = p
+        model = vmj.Oscillator.pendulum(omega, 0.01, xF)
+        return vmj.turning_points(model, a0, 4, vmj.EnergyBalance()).positions[1]
+
+    p = jnp.array([3.14, 6.0, 0.01])
+    np.testing.assert_array_equal(np.asarray(jax.grad(x2)(p)), [-1.0, 0.0, 0.0])

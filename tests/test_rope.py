@@ -190,6 +190,19 @@ def test_gradient_matches_finite_differences():
         assert abs(g[i] - fd) <= 1e-5 * abs(fd) + 1e-12, (i, g[i], fd)
 
 
+def test_technical_units_constructor_is_differentiable():
+    """`Rope.paper`/`Rope.from_technical` under `jax.grad` (it converted with NumPy: a
+    TracerArrayConversionError): d x_4 / d T [m per kG/cm^2] vs central differences."""
+
+    def peak(T):
+        return vmj.turning_points(vmj.Rope.paper(u=3.0, T=T), 0.04, 4).positions[-1]
+
+    g = float(jax.grad(peak)(4.0))
+    h = 1e-4
+    fd = (float(peak(4.0 + h)) - float(peak(4.0 - h))) / (2 * h)
+    assert abs(g - fd) <= 1e-6 * abs(fd), (g, fd)
+
+
 def test_smooth_matches_exact():
     r = vmj.Rope.paper(u=3.0, T=4.0)
     ex = vmj.turning_points(r, jnp.asarray(0.04), 12, max_substeps=10)

@@ -392,6 +392,28 @@ def test_mass_exhaustion_is_reported_not_nan():
             vmj.turning_points(m, A0, 40, method=method, throw=True)
 
 
+def test_a_turning_point_just_before_the_mass_runs_out():
+    """delta = -100 kg/s from 5 kg: the mass is gone at t = 0.05 s and the first turning point
+    is at 0.04989 s (0.011 kg left), which the default 8 substeps (each at most a quarter of
+    the time left) cannot reach and 50 can. The message said only that the mass reaches zero
+    before the next turning point; it now names the substeps as well."""
+    m = vmj.VariableMass(5.0, C, -100.0, 0.3, 2.0, vmj.Coulomb(14.7))
+    seq = vmj.turning_points(m, 0.06, 2)
+    assert int(seq.result) == vmj.RESULTS.mass_exhausted and int(seq.count) == 0
+    assert "max_substeps" in seq.message
+    more = vmj.turning_points(m, 0.06, 2, vmj.Exact(max_substeps=50))
+    assert int(more.count) == 1 and 0.0498 < float(more.times[0]) < 0.05
+    assert int(more.result) == vmj.RESULTS.mass_exhausted
+
+
+def test_the_message_of_a_batch_says_how_to_read_it():
+    """`.message` of a vmapped result was `TypeError: only 0-dimensional arrays can be
+    converted to Python scalars`."""
+    seqs = jax.vmap(lambda mu: vmj.energy_balance(model(mu=mu), A0, 3))(np.array([2.0, 9.0]))
+    with pytest.raises(ValueError, match=r"a message is of one solve; this result holds 2"):
+        _ = seqs.message
+
+
 @pytest.mark.parametrize("delta", [1e3, 1e6])
 def test_runaway_growing_mass_has_no_turning_point(delta):
     # m x'' - (delta (1 - 2 eps) - 2 mu)/2 x' + c x = ...: with delta = 1e3 kg/s and m0 = 5 kg

@@ -48,8 +48,15 @@ def default_float() -> np.dtype:
 def _float(x) -> jax.Array:
     """A float array of JAX's default float type (float64 with x64 enabled). A Python number or
     NumPy array is cast by NumPy and put on the device as it is: `jnp.asarray` would run (and,
-    in a new process, load or compile) a conversion program for it."""
+    in a new process, load or compile) a conversion program for it. A complex value is a
+    ValueError: the cast kept its real part with only a ComplexWarning (a complex-step
+    derivative, `F = 14.7 + 1e-20j`, came out 0)."""
     dtype = default_float()
+    if isinstance(x, complex) or getattr(getattr(x, "dtype", None), "kind", "") == "c":
+        raise ValueError(
+            f"vmj's parameters are real numbers (got the complex {x!r}); for derivatives use "
+            "jax.grad, jax.jvp or jax.jacfwd"
+        )
     if isinstance(x, jax.Array) or _is_traced(x):
         return jnp.asarray(x, dtype=dtype)
     return jax.device_put(np.asarray(x, dtype=dtype))
@@ -71,10 +78,17 @@ def check(name: str, value, ok: Callable, allowed: str):
     return check_all([(name, value, ok, allowed)])[0]
 
 
-def scalar(value):
+def scalar(name: str, value):
     """A checked scalar argument as an array of JAX's default float type: a NumPy array for
     concrete values (a compiled entry point takes it without a device round trip or a
-    recompilation for Python floats), traced values unchanged but cast."""
+    recompilation for Python floats), traced values unchanged but cast. An array of any other
+    shape is a `ValueError` naming the argument (the solvers' arrays have one lane: an array
+    of `a0` broke the results' shapes; a sweep or `jax.vmap` maps over several)."""
+    if not isinstance(value, float) and np.ndim(value) != 0:
+        raise ValueError(
+            f"{name} must be a scalar (got shape {np.shape(value)}); "
+            "for several values use jax.vmap or vmj.sweep"
+        )
     if _is_traced(value):
         return jnp.asarray(value, dtype=default_float())
     return np.asarray(value, dtype=default_float())
@@ -117,7 +131,22 @@ def check_all(items) -> list:
 
 
 def check_int(name: str, value, minimum: int) -> int:
-    """Check a static integer (an array shape, an iteration count)."""
+    """Check a static integer (an array shape, an iteration count). A concrete 0-d integer
+    array is taken; a traced one is refused with how to keep it static."""
+    if type(value) is int and value >= minimum:
+        return value  # the common case, first: a warm solve costs tens of microseconds
+    if _is_traced(value):
+        raise ValueError(
+            f"{name} must be a static integer >= {minimum} (it sets an array shape), not a "
+            "traced value: pass a Python int, e.g. with jax.jit(..., static_argnums=...) or "
+            "equinox.filter_jit"
+        )
+    if (
+        isinstance(value, (np.ndarray, jax.Array))
+        and value.ndim == 0
+        and np.issubdtype(value.dtype, np.integer)
+    ):
+        value = int(value)
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum} (got {value!r})")
     return int(value)

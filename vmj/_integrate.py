@@ -179,14 +179,14 @@ def turning_points(
       returning it in `result`. With `throw=False` check `result`/`message`.
 
     **Returns:** a [`vmj.DecaySequence`][]. Differentiable with `jax.grad`/`jax.jacfwd` with
-    respect to every model parameter and `a0`.
+    respect to every model parameter and `a0` (with [`vmj.Smoothed`][]: reverse mode only).
     """
     warn_if_float32()
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
     n = check_int("n", n, 1)
     concrete = require_scalar_fields(model)
     model = _checked(solver, model, "turning_points")
-    a0 = scalar(check("a0", a0, *type(model).release_range(model)))
+    a0 = scalar("a0", check("a0", a0, *type(model).release_range(model)))
     if isinstance(solver, Smoothed):
         solver = solver.with_defaults(model, a0, 0.0)
     elif concrete and not _is_traced(a0):
@@ -285,7 +285,7 @@ def decay_trajectory(
     n = check_int("n", n, 1)
     require_scalar_fields(model)
     model = _checked(solver, model, "turning_points")
-    a0 = scalar(check("a0", a0, *type(model).release_range(model)))
+    a0 = scalar("a0", check("a0", a0, *type(model).release_range(model)))
     ts = check("ts", jnp.asarray(ts, dtype=default_float()), anything, "times [s]")
     if ts.ndim != 1:
         raise ValueError(f"ts must be a 1-D array of times [s] (got shape {ts.shape})")
@@ -335,9 +335,9 @@ def simulate(
     require_scalar_fields(model)
     model = _checked(solver, model, "simulate")
     unit = model.position_unit
-    x0 = scalar(check("x0", x0, anything, f"a real number [{unit}]"))
-    v0 = scalar(check("v0", v0, anything, f"a real number [{unit}/s]"))
-    t1 = scalar(check("t1", t1, positive, "> 0 [s]"))
+    x0 = scalar("x0", check("x0", x0, anything, f"a real number [{unit}]"))
+    v0 = scalar("v0", check("v0", v0, anything, f"a real number [{unit}/s]"))
+    t1 = scalar("t1", check("t1", t1, positive, "> 0 [s]"))
     check_horizon(model, t1)
     if _is_traced(t1) or _is_traced(model.lifetime()):
         t1 = guard(t1, t1 >= model.lifetime(), f"t1 must be below {model.lifetime_text}")

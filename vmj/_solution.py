@@ -54,7 +54,13 @@ class RESULTS(enum.IntEnum):
     @classmethod
     def describe(cls, code: ArrayLike) -> str:
         """The message of a (concrete, scalar) status code."""
-        return cls(int(np.asarray(code))).message
+        code = np.asarray(code)
+        if code.ndim != 0:  # (int() of it was a TypeError that named no status)
+            raise ValueError(
+                f"a message is of one solve; this result holds {code.size} (shape "
+                f"{code.shape}): vmj.RESULTS(int(c)).message for each code c of result"
+            )
+        return cls(int(code)).message
 
 
 def _host(code):
@@ -68,14 +74,16 @@ _MESSAGES = {
     RESULTS.stopped: "the mass came to rest for good: |spring force| <= static friction at a "
     "turning point",
     RESULTS.mass_exhausted: "the mass m0 + delta*t reaches zero (at t = m0/|delta|) before the "
-    "next turning point; the solve stopped there",
+    "next turning point (for vmj.Exact: or so close to it that the substeps ran out first; "
+    "a larger max_substeps may reach a turning point just before); the solve stopped there",
     RESULTS.step_limit: "no velocity zero within the step limit: the motion is overdamped, "
     "creeping (raise max_substeps if it is only slow), or does not turn back (a pendulum "
     "over the top: a restoring law that does not hold the swing)",
     RESULTS.solver_failed: "the smoothed ODE solve failed (step limit or non-finite state); try a "
     "larger smoothing or max_steps",
-    RESULTS.length_exhausted: "the rope length l(t) reaches zero before the next turning point; "
-    "the solve stopped there",
+    RESULTS.length_exhausted: "the rope length l(t) reaches zero before the next turning point "
+    "(for vmj.Exact: or so close to it that the substeps ran out first; a larger max_substeps "
+    "may reach a turning point just before); the solve stopped there",
     RESULTS.unbounded: "no turning point: the energy of the swing is above the potential barrier "
     "(the motion is unbounded)",
     RESULTS.too_many_reversals: "more reversals per cycle than max_reversals: raise max_reversals "

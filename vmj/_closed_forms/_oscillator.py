@@ -45,8 +45,13 @@ def chord_swing(law, omega, r1, r2):
     x, w, cos = swing_nodes(r1, r2)
     half = 0.5 * (r2 - r1)
     q = (law.chord(x, r1 - x) - law.chord(x, r2 - x)) / (r1 - r2)  # V[r1, r2, x]
-    root = jnp.sqrt(jnp.where(q > 0, 2 * q, 0.0))
-    return x, w * half * cos, omega * half * cos * root, jnp.sum(w / root) / omega
+    # (the square root and its reciprocal of positive q only: at q <= 0, with 0 and inf taken
+    # as constants, their infinite derivatives meet no zero cotangent, which made reverse-mode
+    # gradients NaN through a swing that was discarded, e.g. a pendulum stuck at the release)
+    real = q > 0
+    root = jnp.sqrt(jnp.where(real, 2 * q, 1.0))
+    time = jnp.sum(jnp.where(real, w / root, jnp.inf)) / omega
+    return x, w * half * cos, omega * half * cos * jnp.where(real, root, 0.0), time
 
 
 def _dry_turning_point(law, x, s, kinetic):

@@ -209,4 +209,21 @@ class LinearOscillator(AbstractAnalytic):
         B = w0 + b * y0
         xh = e * (y0 * C + B * S)
         vh = e * (y0 * dC + B * dS) - b * xh
-        return xh + xp, vh + vp
+        x, v = xh + xp, vh + vp
+        # Undamped near resonance, the steady part H = Q/(k - m p^2) and the free part that
+        # cancels it at t = 0 grow without bound, and their sum loses digits (about eps times
+        # k/|k - m p^2|): at p = sqrt(k/m) (rounded, not exactly resonant) x was 0 for every t.
+        # There the response is written as a divided difference, exact through resonance: with
+        # K'' + w^2 K = e^{ipt} from rest, K = (e^{ipt} - cos wt - i (p/w) sin wt)/(w^2 - p^2)
+        # in sines of half-sums and half-differences, sigma = sin((p - w) t/2)/(p - w) =
+        # (t/2) sinc(...). (Within that band, as at exact resonance before, the derivative in
+        # c at c = 0 is not carried: the undamped formula has no c.)
+        w = self.natural_frequency
+        sig = 0.5 * t * jnp.sinc((p - w) * t / (2 * jnp.pi))
+        sh, ch = jnp.sin(0.5 * (p + w) * t), jnp.cos(0.5 * (p + w) * t)
+        K = (2 * sh * sig + 1j * (jnp.sin(w * t) / w - 2 * ch * sig)) / (p + w)
+        dK = (jnp.sin(p * t) + 2 * w * ch * sig + 2j * p * sh * sig) / (p + w)
+        x_u = x0 * jnp.cos(w * t) + v0 * jnp.sin(w * t) / w + jnp.imag(Q * K) / self.m
+        v_u = -x0 * w * jnp.sin(w * t) + v0 * jnp.cos(w * t) + jnp.imag(Q * dK) / self.m
+        undamped = (self.c == 0) & (jnp.abs(self.k - self.m * p**2) <= 1e-3 * self.k)
+        return jnp.where(undamped, x_u, x), jnp.where(undamped, v_u, v)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
@@ -24,6 +25,7 @@ from .._checks import (
     check,
     nonnegative,
     positive,
+    scalar,
     validated,
     warn_if_float32,
 )
@@ -94,13 +96,17 @@ class Rope(AbstractEnergyMap):
         """Build from technical units as printed in the paper: `m` [kG s^2/m], `A` [cm^2],
         `e`, `b`, `d`, `T` [kG/cm^2]; the profile stays in metres and seconds."""
         kg_cm2 = KGF * 1e4
+
+        def si(x, factor):  # NumPy for numbers and lists; JAX arrays (traced ones too) as such
+            return x * factor if isinstance(x, jax.Array) else np.multiply(x, factor)
+
         return cls(
-            np.multiply(m, KGF),
-            np.multiply(A, 1e-4),
-            np.multiply(e, kg_cm2),
-            np.multiply(b, kg_cm2),
-            np.multiply(d, kg_cm2),
-            np.multiply(T, kg_cm2),
+            si(m, KGF),
+            si(A, 1e-4),
+            si(e, kg_cm2),
+            si(b, kg_cm2),
+            si(d, kg_cm2),
+            si(T, kg_cm2),
             length,
         )
 
@@ -290,7 +296,7 @@ def _averaged_inputs(rope, a0, t):
         )
     require_scalar_fields(rope)
     rope = validated(rope)
-    a0 = _float(check("a0", a0, positive, "> 0 [m]"))
+    a0 = _float(scalar("a0", check("a0", a0, positive, "> 0 [m]")))
     t = check("t", t, lambda x: x >= 0, ">= 0 [s]")
     check_horizon(rope, t, "t")
     return rope, a0, _float(t)

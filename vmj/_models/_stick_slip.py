@@ -219,8 +219,8 @@ class StickSlipCycle(eqx.Module):
 
     @property
     def message(self) -> str:
-        code = RESULTS(int(np.asarray(self.result)))
-        return "limit cycle found" if code == RESULTS.successful else code.message
+        message = RESULTS.describe(self.result)  # (a batch: a ValueError saying how to read it)
+        return "limit cycle found" if int(self.result) == RESULTS.successful else message
 
     @property
     def failed(self) -> Array:

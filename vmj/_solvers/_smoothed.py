@@ -49,6 +49,11 @@ class Smoothed(AbstractSolver):
       for a trajectory.
     - `ode_solver`: a diffrax solver (default: Dopri8, as `diffrax.Dopri8()` with its stages
       written out, which is faster on CPUs; `Kvaerno5()` for stiff models such as stick-slip).
+
+    Derivatives: reverse mode only (`jax.grad`, `jax.jacrev`, `vmj.sensitivity(...,
+    mode="reverse")`). diffrax's checkpointed adjoint has no forward mode: `jax.jacfwd` and
+    `jax.jvp` of a smoothed solve raise JAX's "can't apply forward-mode autodiff (jvp) to a
+    custom_vjp function".
     """
 
     smoothing: Array | None = None
