@@ -86,6 +86,16 @@ def test_max_substeps_reaches_a_fast_growing_mass(capsys):
     assert code == 2 and err.startswith("vmj: error: --max-substeps applies to --method exact")
 
 
+def test_a_shrinking_mass_names_the_commands_options(capsys):
+    """The status of a mass that runs out names the exact method and its substeps as the
+    command spells them (the library's message says vmj.Exact and max_substeps)."""
+    code, out, _ = run(capsys, with_value(ARGS, "--delta", "-100") + ["--n", "12", "--json"])
+    message = json.loads(out)["message"]
+    assert code == 0 and "reaches zero" in message
+    assert "--method exact" in message and "a larger --max-substeps" in message
+    assert "vmj.Exact" not in message and " max_substeps" not in message
+
+
 def test_nan_argument_exits_2(capsys):
     with pytest.raises(SystemExit) as e:
         main(with_value(ARGS, "--mu", "nan"))

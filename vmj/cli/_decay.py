@@ -74,8 +74,8 @@ def exact_options(args, method: str | None = None) -> dict:
 
 
 def cli_message(message: str) -> str:
-    """A status message with the command's spelling of the step limit's option."""
-    return message.replace("raise max_substeps", "raise --max-substeps")
+    """A status message with the command's spelling of the exact solver and its step limit."""
+    return message.replace("max_substeps", "--max-substeps").replace("vmj.Exact", "--method exact")
 
 
 def turning_point_limit(args, n: int, what: str) -> None:
