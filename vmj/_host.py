@@ -1,4 +1,5 @@
-"""Host memory settings for large sweeps on the CPU.
+"""Host memory settings for large sweeps on the CPU, and the memory free for new buffers
+(`available_memory`: a sweep's chunk size, the room for an entry point's results).
 
 XLA:CPU takes every compiled call's output and temporary buffers from `malloc`. glibc serves
 blocks above its mmap threshold with fresh `mmap`s and gives freed memory back to the operating
@@ -16,9 +17,11 @@ the same.
 from __future__ import annotations
 
 import ctypes
+import math
+import os
 import platform
 
-__all__ = ["retain_host_memory"]
+__all__ = ["retain_host_memory", "available_memory"]
 
 _M_TRIM_THRESHOLD = -1  # glibc <malloc.h>
 _M_MMAP_THRESHOLD = -3
@@ -57,3 +60,33 @@ def retain_host_memory(limit: int = 2**30) -> bool:
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     mallopt.restype = ctypes.c_int
     return bool(mallopt(_M_MMAP_THRESHOLD, limit)) and bool(mallopt(_M_TRIM_THRESHOLD, limit))
+
+
+def available_memory(device, enough: float = math.inf) -> int | None:
+    """Bytes of memory free for new buffers on `device` (the host's available memory for a
+    CPU), or None if unknown. On a CPU, the host's free memory (less than what it has available)
+    when that is `enough` already (one system call: reading `/proc/meminfo` is a file's
+    opening, 17-140 us of a sweep's fixed cost)."""
+    if device.platform != "cpu":
+        try:
+            stats = device.memory_stats() or {}
+            return int(stats["bytes_limit"] - stats.get("bytes_in_use", 0))
+        except Exception:
+            return None
+    try:
+        free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        if free >= enough:
+            return free
+    except (ValueError, OSError, AttributeError):
+        pass
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None

@@ -16,6 +16,7 @@ from ._checks import (
     anything,
     check,
     check_int,
+    check_room,
     default_float,
     guard,
     positive,
@@ -58,6 +59,12 @@ __all__ = [
     "stick_slip_simulate",
     "linear_simulate",
 ]
+
+#: memory per turning point of a solve's results (times, positions, amplitudes, crossing
+#: flags: 27 bytes measured for the exact and smoothed solvers, n = 10^6 -> 4 * 10^6) and per
+#: substep of `decay_trajectory`'s table of the half-swings' polynomials (2.5 kB measured per
+#: turning point with 8 substeps) [bytes]
+TURNING_POINT_BYTES, SUBSTEP_BYTES = 32, 320
 
 _METHODS = {"exact": Exact, "smooth": Smoothed, "energy": EnergyBalance, "closed": ClosedForm}
 
@@ -184,6 +191,7 @@ def turning_points(
     warn_if_float32()
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
     n = check_int("n", n, 1)
+    check_room("n", n, TURNING_POINT_BYTES)
     concrete = require_scalar_fields(model)
     model = _checked(solver, model, "turning_points")
     a0 = scalar("a0", check("a0", a0, *type(model).release_range(model)))
@@ -290,6 +298,7 @@ def decay_trajectory(
     if ts.ndim != 1:
         raise ValueError(f"ts must be a 1-D array of times [s] (got shape {ts.shape})")
     substeps = getattr(solver, "max_substeps", None) or type(model).exact_substeps
+    check_room("n", n, TURNING_POINT_BYTES + SUBSTEP_BYTES * substeps)
     traj = _decay_trajectory(model, a0, ts, n, solver, substeps)
     return throw_if_failed(traj, traj.result, throw)
 
@@ -332,6 +341,7 @@ def simulate(
     warn_if_float32()
     solver = _solver(solver, None, smoothing, None, Smoothed)
     n_save = check_int("n_save", n_save, 2)
+    check_room("n_save", n_save, TURNING_POINT_BYTES)
     require_scalar_fields(model)
     model = _checked(solver, model, "simulate")
     unit = model.position_unit

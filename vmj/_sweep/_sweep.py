@@ -30,6 +30,7 @@ from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
 from .._checks import check_int, mark_checked, validated, warn_if_float32
 from .._exported import exported_cache_directory, exported_jit, joined_leaves, split_arrays
+from .._host import available_memory
 from .._solution import RESULTS
 from .._version import __version__
 from ._engine import (
@@ -482,36 +483,6 @@ def chunk_plan(n: int, limit: int, lanes: int, multiple: int = 1) -> int:
     k = -(-k // lanes) * lanes if n >= lanes else k
     chunk = -(-n // k)
     return -(-chunk // multiple) * multiple
-
-
-def available_memory(device, enough: float = math.inf) -> int | None:
-    """Bytes of memory free for new buffers on `device` (the host's available memory for a
-    CPU), or None if unknown. On a CPU, the host's free memory (less than what it has available)
-    when that is `enough` already (one system call: reading `/proc/meminfo` is a file's
-    opening, 17-140 us of a sweep's fixed cost)."""
-    if device.platform != "cpu":
-        try:
-            stats = device.memory_stats() or {}
-            return int(stats["bytes_limit"] - stats.get("bytes_in_use", 0))
-        except Exception:
-            return None
-    try:
-        free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        if free >= enough:
-            return free
-    except (ValueError, OSError, AttributeError):
-        pass
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
 
 
 def chunk_bytes(job, chunk: int) -> int | None:
