@@ -47,6 +47,7 @@ from ._io import (
     EDGE_RELEASE,
     HELD_RELEASE,
     Record,
+    _local_centres,
     extract_turning_points,
     in_metres,
     sample_window,
@@ -737,6 +738,26 @@ def _extracted_for(space, rec: Record, given: dict) -> Record:
     )
 
 
+def _decrement_centre(space, rec: Record, free, given: dict) -> float:
+    """The zero that the decrement method (the quick look and the fit's start) measures the
+    amplitudes from: none for a model without an offset; the offset given; for a table of
+    turning points whose offset is fitted, the median of the local centres of its successive
+    turning points (a table's centre is 0: a table of a sensor's readings about 2, amplitude
+    10, read r = 0.60 per half-swing and zeta = 0.16 beside the fit's 0.0099, until
+    2026-11-28); else the record's centre (the offset's default: a raw signal's estimate)."""
+    if "offset" not in space.names:
+        return 0.0
+    if "offset" in given:
+        return float(given["offset"])
+    if "offset" in free and rec.signal is None and rec.sides_known:
+        k = np.asarray(rec.k)
+        successive = (np.diff(k)[:-1] == 1) & (np.diff(k)[1:] == 1)
+        if np.count_nonzero(successive) >= 3:
+            centres = _local_centres(np.asarray(rec.positions, dtype=float))
+            return float(np.median(centres[successive]))
+    return rec.centre
+
+
 def _problem(space, records, givens, free, shared):
     recs = []
     for rec, given in zip(records, givens):
@@ -748,7 +769,7 @@ def _problem(space, records, givens, free, shared):
     for rec, given in zip(recs, givens):
         _fixed_values(space, rec, free, given)  # a parameter without a value: its name first
     decs = []
-    for rec in recs:
+    for rec, given in zip(recs, givens):
         per_record = len(free) if len(recs) == 1 else len(free) - len(shared)
         if len(rec) <= per_record:
             raise ValueError(
@@ -762,8 +783,7 @@ def _problem(space, records, givens, free, shared):
                     f"{name} can only be fitted from a record with times: leave it out of the "
                     f"fitted parameters (free in Python, --fit on the command line)"
                 )
-        centre = rec.centre if "offset" in space.names else 0.0
-        decs.append(decrement(rec, centre))
+        decs.append(decrement(rec, _decrement_centre(space, rec, free, given)))
     return _Problem(recs, [dict(g) for g in givens], tuple(free), tuple(shared), decs)
 
 
