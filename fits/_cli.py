@@ -12,7 +12,7 @@ import math
 import os
 import sys
 
-from vmj.cli import Joined, emit, figure_path, input_file, number, parse_set
+from vmj.cli import Joined, count, emit, figure_path, input_file, number, parse_set
 
 __all__ = ["add_arguments", "run", "MODELS", "TIME_UNITS", "MAX_ROWS"]
 
@@ -263,6 +263,13 @@ def add_arguments(p):
         "--optimizer", choices=("lm", "adam"), default="lm", help="optimizer (default: %(default)s)"
     )
     p.add_argument(
+        "--adam-steps",
+        type=count,
+        metavar="N",
+        help="with --optimizer adam: its steps (default 3000; converged where the step that "
+        "remains is below 0.1 standard errors)",
+    )
+    p.add_argument(
         "--json",
         action="store_true",
         help="print one JSON object: model, params, stderr, stderr_gn, intervals, "
@@ -287,6 +294,8 @@ def run(args) -> int:
     shared = _names(args.shared, "--shared")
     if shared and len(args.FILE) < 2 and args.decay != "all":
         raise ValueError("--shared needs several FILEs (or --decay all)")
+    if args.adam_steps is not None and args.optimizer != "adam":
+        raise ValueError("--adam-steps applies to --optimizer adam")
     if "angle_unit" in space.names:
         if args.angle_unit is not None:  # else the signal column's name, or degrees
             given["angle_unit"] = _ANGLE_UNITS[args.angle_unit]
@@ -346,6 +355,7 @@ def run(args) -> int:
                 loss=args.loss,
                 optimizer=args.optimizer,
                 residuals=args.residuals,
+                **({} if args.adam_steps is None else {"adam_steps": args.adam_steps}),
             )
         except MissingParameters as err:
             if args.model is not None:

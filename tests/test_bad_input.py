@@ -507,6 +507,16 @@ CASES = parameter_cases() + [
         ["--fit NAME", "nothing to identify"],
     ),
     (
+        "fit --adam-steps without adam",
+        ["fit", "{tmp}/good.csv", "--adam-steps", "10"] + FIT,
+        ["--adam-steps applies to --optimizer adam"],
+    ),
+    (
+        "fit --adam-steps 0",
+        ["fit", "{tmp}/good.csv", "--optimizer", "adam", "--adam-steps", "0"] + FIT,
+        ["argument --adam-steps", "integer >= 1"],
+    ),
+    (
         "fit series of amplitudes",  # (the default set's note came first: two lines)
         ["fit", "{tmp}/good.csv", "--residuals", "series"] + FIT,
         ["good.csv", "needs a raw signal"],

@@ -551,3 +551,18 @@ def test_the_decrement_of_a_table_is_measured_from_its_centre(tmp_path):
     assert dec["centre"] == pytest.approx(2.0, abs=0.01)
     assert dec["zeta"] == pytest.approx(0.01, rel=0.05)
     assert dec["xF"] == pytest.approx(0.05, rel=0.1)
+
+
+def test_cli_hands_adam_steps_to_the_fit(tmp_path, monkeypatch):
+    """`vmj fit --optimizer adam --adam-steps N` is `fits.fit(..., adam_steps=N)`."""
+    seen = {}
+
+    def fit(*args, **kwargs):
+        seen.update(kwargs)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(fits, "fit", fit)
+    table = _csv(tmp_path / "t.csv", [np.arange(6), 10.0 - np.arange(6)], "k,amplitude")
+    argv = ["fit", table, "--model", "oscillator", "--optimizer", "adam", "--adam-steps", "77"]
+    assert main(argv) == 2
+    assert seen["optimizer"] == "adam" and seen["adam_steps"] == 77
