@@ -737,11 +737,11 @@ def read_peaks(path: str | os.PathLike, *, max_rows: int | None = MAX_ROWS) -> R
         )
     if "k" in names and "cycle" in names:
         _fail(source, "give 'k' (half-swings) or 'cycle' (full periods), not both")
-    if times_at:
+    if len(times_at) == 1:
         names["time"] = times_at[0]
-        if len(times_at) > 1:  # (`Timestamp`, `Time_Elapsed(s)`)
-            column = _stamps(tab, times_at, _column_names(tab))[1]
-            names["time"] = _column_names(tab).index(column)
+    elif times_at:  # (`Timestamp`, `Time_Elapsed(s)`)
+        columns = _column_names(tab)
+        names["time"] = columns.index(_stamps(tab, times_at, columns)[1])
     wanted = [c for c in ("k", "cycle", "time", "amplitude", "position", "crossed") if c in names]
     values = dict(zip(wanted, _columns(tab, [names[c] for c in wanted])))
     n = len(values[wanted[0]])
@@ -2130,7 +2130,7 @@ def read_record(
         except ValueError as err:
             if series is None and raw_given and _reads_as_peaks(path, max_rows):
                 named = [n for n, v in raw.items() if v is not None]
-                _peaks_with_raw_options(path, named + (["clock"] if clock != "auto" else []))
+                _peaks_with_raw_options(path, named, clock)
             if not_peaks is None or path.text.count("\n") > _PEAK_TABLE_ROWS:
                 raise
             raise ValueError(
@@ -2144,8 +2144,10 @@ def read_record(
     return read_peaks(path, max_rows=max_rows)
 
 
-def _peaks_with_raw_options(path, named: list):
-    """Raise the error for a peak table read with the raw-signal options `named`."""
+def _peaks_with_raw_options(path, named: list, clock: str = "auto"):
+    """Raise the error for a peak table read with the raw-signal options `named` (and `clock`
+    where it is not `"auto"`)."""
+    named = [n for n in named if n != "clock"] + (["clock"] if clock != "auto" else [])
     flags = ", ".join("--" + n.replace("_", "-") for n in named)
     several = len(named) > 1
     source = path.source if isinstance(path, _Loaded) else os.fspath(path)
@@ -2180,13 +2182,8 @@ def read_decays(path: str | os.PathLike, **kwargs) -> list:
         return _every_decay(read_signal(path, **kwargs), angle_unit)
     except ValueError:
         if _reads_as_peaks(path, kwargs.get("max_rows", MAX_ROWS)):
-            named = [n for n, v in kwargs.items() if v is not None and n not in ("max_rows",)]
-            _peaks_with_raw_options(
-                path,
-                ["decay"]
-                + [n for n in named if n != "clock"]
-                + (["clock"] if kwargs.get("clock", "auto") != "auto" else []),
-            )
+            named = [n for n, v in kwargs.items() if v is not None and n != "max_rows"]
+            _peaks_with_raw_options(path, ["decay", *named], kwargs.get("clock", "auto"))
         raise
 
 
