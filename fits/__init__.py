@@ -11,30 +11,25 @@
 See docs/fits.md.
 """
 
-from vmj import AffineFriction  # re-exported: it lived here before vmj 0.2
-
 from ._clock import recover_clock
 from ._decrement import decrement
+from ._extract import extract_turning_points
 from ._fit import LOSSES, OPTIMIZERS, FitResult, fit, fit_batch
-from ._io import (
+from ._io import read_decays, read_record
+from ._record import (
     EDGE_RELEASE,
     HELD_RELEASE,
-    MAX_ROWS,
     ROWS_AS_HALF_SWINGS,
-    TIME_UNITS,
     Record,
-    Signal,
-    extract_turning_points,
-    read_decays,
     read_peaks,
-    read_record,
-    read_signal,
     record_from_sequence,
 )
 from ._report import paper_records, plot_fit
 from ._result import text_report
 from ._sensor import sensor_start
+from ._signal import Signal, read_signal
 from ._space import FORWARDS
+from ._text import MAX_ROWS, TIME_UNITS
 
 __all__ = [
     "Record",
@@ -57,7 +52,6 @@ __all__ = [
     "fit_batch",
     "FitResult",
     "FORWARDS",
-    "AffineFriction",
     "LOSSES",
     "OPTIMIZERS",
     "paper_records",

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from ._io import Record
+from ._record import Record
 
 __all__ = ["decrement", "starting_guess"]
 

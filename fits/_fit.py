@@ -43,15 +43,7 @@ import vmj
 from vmj.cli import name_list
 
 from ._decrement import decrement, starting_guess
-from ._io import (
-    EDGE_RELEASE,
-    HELD_RELEASE,
-    Record,
-    _local_centres,
-    extract_turning_points,
-    in_metres,
-    sample_window,
-)
+from ._extract import extract_turning_points, local_centres, sample_window
 from ._models import SPACES
 from ._params import (
     HELD,
@@ -65,6 +57,7 @@ from ._params import (
     transform_for,
     warn_if_float32,
 )
+from ._record import EDGE_RELEASE, HELD_RELEASE, Record, in_metres
 from ._result import FitResult, _assess, _information, _result, _robust_scale, _values_of
 from ._solve import _TUNING, _job_arrays, _profiles, _rss, _Shape, _solve
 from ._space import FORWARDS, Space, series_space
@@ -723,7 +716,7 @@ def _restart_from_larger(jobs, problems, shape):
 def _extracted_for(space, rec: Record, given: dict) -> Record:
     """`rec`, or where it was extracted from a raw signal and `space` reads the signal as an
     angle (its `angle_unit`) but the extraction did not, the same signal extracted again with
-    that unit (the dry-friction level from a pendulum's decrements, `fits._io._dry_level`)."""
+    that unit (the dry-friction level from a pendulum's decrements, `fits._extract._dry_level`)."""
     if "angle_unit" not in space.names or rec.signal is None or "min_amplitude" not in rec.meta:
         return rec
     unit = float(given.get("angle_unit", space.default("angle_unit", rec)))
@@ -753,7 +746,7 @@ def _decrement_centre(space, rec: Record, free, given: dict) -> float:
         k = np.asarray(rec.k)
         successive = (np.diff(k)[:-1] == 1) & (np.diff(k)[1:] == 1)
         if np.count_nonzero(successive) >= 3:
-            centres = _local_centres(np.asarray(rec.positions, dtype=float))
+            centres = local_centres(np.asarray(rec.positions, dtype=float))
             return float(np.median(centres[successive]))
     return rec.centre
 

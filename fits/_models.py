@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import vmj
 
-from ._io import Record
 from ._pendulum import PENDULUM
+from ._record import Record
 from ._space import SOLVERS, Space, first_amplitude, friction_variants, record_centre
 
 __all__ = ["SPACES"]

@@ -46,9 +46,10 @@ import numpy as np
 import vmj
 
 from ._decrement import decrement
-from ._io import ANGLE_UNIT, Record, value_name
+from ._record import Record, value_name
 from ._sensor import _opposite, sensor_start
 from ._space import Space, Variant, first_amplitude, record_centre
+from ._text import ANGLE_UNIT
 
 __all__ = ["PENDULUM", "DEGREE", "DISSIPATION_SETS", "FREE"]
 

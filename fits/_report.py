@@ -8,8 +8,10 @@ import numpy as np
 
 import vmj
 
-from ._io import Signal, extract_turning_points, record_from_sequence, sample_window
+from ._extract import extract_turning_points, sample_window
+from ._record import record_from_sequence
 from ._result import FitResult, _field, _fmt, _short
+from ._signal import Signal
 
 __all__ = ["plot_fit", "paper_records"]
 

@@ -12,8 +12,8 @@ import numpy as np
 
 from vmj.cli import jsonable
 
-from ._io import ROWS_AS_HALF_SWINGS, Record, value_name
 from ._params import HELD
+from ._record import ROWS_AS_HALF_SWINGS, Record, value_name
 from ._stats import RANK_RTOL, covariance, diagnostics
 
 __all__ = ["FitResult"]

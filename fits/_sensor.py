@@ -29,7 +29,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._io import Record, Signal, extract_turning_points
+from ._extract import extract_turning_points
+from ._record import Record
+from ._signal import Signal
 
 __all__ = ["sensor_start"]
 

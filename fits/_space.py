@@ -24,8 +24,8 @@ import numpy as np
 
 import vmj
 
-from ._io import Record
 from ._params import Interval, Positive, Real, Transform, transform_for
+from ._record import Record
 
 __all__ = ["Space", "Variant", "FORWARDS", "SOLVERS", "series_space"]
 

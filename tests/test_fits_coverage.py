@@ -42,7 +42,7 @@ def _ar1(rng, n, rho):
 
 def _variable_mass_records(forward):
     model = vmj.VariableMass(
-        PAPER["m0"], PAPER["c"], 0.0, 0.0, VM_TRUTH["mu"], fits.AffineFriction(VM_TRUTH["FT"], 0.0)
+        PAPER["m0"], PAPER["c"], 0.0, 0.0, VM_TRUTH["mu"], vmj.AffineFriction(VM_TRUTH["FT"], 0.0)
     )
     seq = vmj.turning_points(model, VM_A0, 24, method=forward)
     m = int(seq.count)

@@ -177,7 +177,7 @@ AMPLITUDE_CASES = {
 
 def _amplitude_record(law, delta, mu):
     value = PAPER[law]
-    friction = fits.AffineFriction(value if law == "FT" else 0.0, value if law == "f" else 0.0)
+    friction = vmj.AffineFriction(value if law == "FT" else 0.0, value if law == "f" else 0.0)
     model = vmj.VariableMass(PAPER["m0"], PAPER["c"], delta, 0.0, mu, friction)
     seq = vmj.turning_points(model, PAPER["a0"], 40)
     n = int(seq.count)
@@ -254,7 +254,7 @@ def test_a_parameter_the_data_do_not_bound_is_not_determined():
     profile had found FT = 141 N inside the region (truth 14.7), c = 4.7e4 N/m (estimate 1620).
     The ends the data do not bound are open (the parameter's range's: null in JSON), said in
     the warnings, and the fit is not converged; with times (the period), all three are."""
-    model = vmj.VariableMass(PAPER["m0"], PAPER["c"], 3.0, 0.0, 2.0, fits.AffineFriction(14.7, 0.0))
+    model = vmj.VariableMass(PAPER["m0"], PAPER["c"], 3.0, 0.0, 2.0, vmj.AffineFriction(14.7, 0.0))
     seq = vmj.turning_points(model, 0.15, 24, method="exact")
     n = int(seq.count)
     rng = np.random.default_rng(0)

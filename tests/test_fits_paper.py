@@ -1,7 +1,7 @@
 """Acceptance of the variable-mass fits (issue 5): synthetic records of the exact model with noise
 0.2 % of a0, and the monograph columns of the paper's 16 table columns.
 
-Both friction laws go through one compiled solver (fits.AffineFriction, free parameters as data,
+Both friction laws go through one compiled solver (vmj.AffineFriction, free parameters as data,
 records of equal bucketed length and equal batch size), so the module compiles once.
 """
 
@@ -23,7 +23,7 @@ SEEDS = (11, 12)
 
 def _synthetic(law: str, delta: float, seed: int):
     value = PAPER[law]
-    friction = fits.AffineFriction(value if law == "FT" else 0.0, value if law == "f" else 0.0)
+    friction = vmj.AffineFriction(value if law == "FT" else 0.0, value if law == "f" else 0.0)
     model = vmj.VariableMass(PAPER["m0"], PAPER["c"], delta, 0.0, MU_SYNTH, friction)
     seq = vmj.turning_points(model, A0, 12)
     n = int(seq.count)

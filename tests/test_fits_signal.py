@@ -665,7 +665,7 @@ def test_mains_hum_on_the_signal(per_period, hum, spikes):
             assert lo <= value <= hi, (name, value, (lo, hi))
         assert any("a faster oscillation rides on the signal (50 Hz" in w for w in r.warnings)
         # the samples of a fit on the whole time series: less the hum's sinusoid
-        from fits._io import sample_window
+        from fits._extract import sample_window
 
         ts, ys = sample_window(hum_record)
         clean = np.interp(ts + hum_record.time_origin, t, y)
@@ -1049,7 +1049,7 @@ def test_the_quartics_bias_at_a_pendulums_large_swings_is_removed(synthetic_sign
     values are the quartic's, unchanged."""
     from scipy.special import ellipj, ellipk
 
-    import fits._io as io
+    import fits._extract as io
 
     amplitude, omega = 120.0, 21.7
     k = math.sin(math.radians(amplitude) / 2)
@@ -1077,11 +1077,11 @@ def _pendulum(zeta=0.0, xF=0.0, cq=0.0):
 
 def test_a_pendulums_decrements_against_the_exact_solver():
     """The shapes of a pendulum's Coulomb, viscous and quadratic-drag decrements per
-    half-swing (`fits._io._pendulum_decrements`, relative to the linear oscillator's `2 xF`,
+    half-swing (`fits._extract._pendulum_decrements`, relative to the linear oscillator's `2 xF`,
     `pi zeta A`, `4 cq A^2 / 3`) against the exact solver's half-swings from 120 and 60 deg
     (each law alone, weak: the shapes are first order in the damping), at the half-swing's
     mean amplitude: within 1e-6 (2.418 for Coulomb at 120 deg)."""
-    from fits._io import _pendulum_decrements
+    from fits._extract import _pendulum_decrements
 
     for a0 in (120.0, 60.0):
         for i, (law, linear) in enumerate(
@@ -1283,11 +1283,11 @@ def test_critical_damping_is_refused(pendulum):
 
 
 def test_a_raw_signal_in_millimetres_is_scaled_to_metres_for_the_si_models(tmp_path):
-    """`fits._io.in_metres` (what a fit of an SI model reads, `fits._fit._problem`): a raw
+    """`fits._record.in_metres` (what a fit of an SI model reads, `fits._fit._problem`): a raw
     signal whose column is `x_mm` becomes the same record in metres, positions, centre, noise
     and samples alike, the unit named in its meta; a column without a unit (or in m) is left
     as it is; one named in an angle unit is refused."""
-    from fits._io import in_metres
+    from fits._record import in_metres
 
     t, x, _ = _oscillator_signal(20.0, 0.01, 0.5, 10.0, 1.0, 8.0, seed=3, n_spikes=0)
     for name, unit, scale in (

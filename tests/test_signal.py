@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 import fits
-from fits._io import _noise
+from fits._extract import _noise
 
 HERE = os.path.dirname(__file__)
 P80 = os.path.join(HERE, "..", "fits", "data", "80P.txt")
@@ -448,7 +448,7 @@ def test_header_below_notes_and_above_units(tmp_path, above, time_name, signal_n
 
 
 def test_clock_times():
-    from fits._io import _parse_time
+    from fits._text import _parse_time
 
     for text, seconds in [
         ("12:00:01.5", 43201.5),
