@@ -81,7 +81,17 @@ class SweepResult:
     chunks: int = field(default=1, compare=False)
     computed: int = field(default=0, compare=False)
     resumed: int = field(default=0, compare=False)
-    attrs: dict = field(default_factory=dict, compare=False)
+    #: `attrs`, or the function that makes them when first asked for
+    _attrs: Any = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def attrs(self) -> dict:
+        if callable(self._attrs):
+            object.__setattr__(self, "_attrs", self._attrs())
+        return self._attrs
+
+    def __getstate__(self):  # (pickled with its attrs made: the function may be a lambda)
+        return {**self.__dict__, "_attrs": self.attrs}
 
     def columns(self) -> dict[str, np.ndarray]:
         """Flat columns, one row per point (C order): the parameters, then every field of
@@ -173,7 +183,7 @@ class SweepResult:
                 else flat.astype(float).astype(kind)
             )
             values[name] = conv.reshape(shape + tuple(inner))
-        return SweepResult(values, tuple(meta["dims"]), coords, shape, attrs=meta.get("attrs", {}))
+        return SweepResult(values, tuple(meta["dims"]), coords, shape, _attrs=meta.get("attrs", {}))
 
     def to_xarray(self):
         """An `xarray.Dataset` with one variable per field of `values` (needs the optional
@@ -251,5 +261,5 @@ class SweepResult:
             1,
             meta["n_chunks"],
             resumed=meta["n_chunks"],
-            attrs=meta.get("attrs", {}),
+            _attrs=meta.get("attrs", {}),
         )
