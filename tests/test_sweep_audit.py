@@ -158,14 +158,16 @@ def test_exports_say_what_produced_them_and_the_units_of_their_coordinates(model
     """The Dataset (and so the NetCDF file) had no attributes at all: neither the model, the
     solver nor the units of the swept parameters."""
     xr = pytest.importorskip("xarray")
-    fg = vmj.grid(model, F=[10.0, 14.7], mu=[0.0, 2.0])  # (a nested parameter: friction.F)
+    fg = vmj.grid(
+        vmj.VariableMass(5.0, 4900.0, 0.1, 0.0, 2.0, model.friction), F=[10.0, 14.7], mu=[0.0, 2.0]
+    )  # (a nested parameter: friction.F)
     path = str(tmp_path / "s.zarr")
     r = vmj.sweep(vmj.turning_points, fg, a0=A0, n=N, solver=vmj.EnergyBalance(), store=path)
     want = {
         "model": "VariableMass(friction=Coulomb)",
         "function": "vmj._integrate.turning_points",
         "solver_arguments": "a0=0.06, n=6, solver=EnergyBalance()",
-        "fixed_parameters": "m0=5 kg, c=4900 N/m, delta=3 kg/s, eps=0",
+        "fixed_parameters": "m0=5 kg, c=4900 N/m, delta=0.1 kg/s, eps=0",  # (not 0.10000000000000001)
         "vmj_version": vmj.__version__,
     }
     ds = r.to_xarray()

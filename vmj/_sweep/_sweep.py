@@ -911,7 +911,7 @@ def _provenance(fn, model, solver_args) -> dict:
         unit = _unit(getattr(type(owner), "_limits", {}).get(path[-1]))
         value = np.asarray(_get(model, path))
         if value.ndim == 0:
-            fixed.append(f"{name}={value.item():.17g}" + (f" {unit}" if unit else ""))
+            fixed.append(f"{name}={_number(value.item())}" + (f" {unit}" if unit else ""))
         elif unit:
             units[name] = unit
     return {
@@ -952,11 +952,17 @@ def _describe_model(model) -> str:
     return f"{type(model).__name__}({', '.join(laws)})"
 
 
+def _number(x) -> str:
+    """`x` in the fewest digits that give it back exactly (`5`, `14.7`, `0.1`)."""
+    text = f"{x:.15g}"
+    return text if float(text) == x else repr(x)
+
+
 def _describe_value(value) -> str:
     """A parameter in words: a scalar exactly, an array by its size, range and digest."""
     a = np.asarray(value)
     if a.ndim == 0:
-        return f"{a.item():.17g}"
+        return _number(a.item())
     return f"{a.size} values in [{np.nanmin(a):.6g}, {np.nanmax(a):.6g}] ({digest(a)[:8]})"
 
 
