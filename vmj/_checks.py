@@ -282,8 +282,22 @@ def _problems(m, traced: bool = True) -> list:
 def _raise_concrete(problems) -> None:
     for message, value, ok, traced in problems:
         if not traced and not np.all(ok):
-            arr = np.asarray(value)
-            raise ValueError(f"{message} (got {arr.item() if arr.ndim == 0 else arr})")
+            raise ValueError(f"{message} (got {_bad_entries(np.asarray(value), ok)})")
+
+
+def _bad_entries(arr: np.ndarray, ok) -> str:
+    """The value that failed a check, for its message: a scalar itself; an array's first bad
+    entry with its index, and how many are bad (NumPy's summary of a long array, `[0. 0.0002
+    ... 1.]`, left the bad value out)."""
+    if arr.ndim == 0:
+        return str(arr.item())
+    if np.shape(ok) != arr.shape:  # (a relation whose other fields broadcast further)
+        return str(arr)
+    bad = np.argwhere(~np.asarray(ok, dtype=bool))
+    first = tuple(int(i) for i in bad[0])
+    where, of = (first[0], arr.size) if arr.ndim == 1 else (first, arr.shape)
+    more = f"; {len(bad)} bad" if len(bad) > 1 else ""
+    return f"{arr[first]} at index {where} of {of}{more}"
 
 
 def _modules(tree):

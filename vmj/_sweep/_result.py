@@ -67,6 +67,10 @@ class SweepResult:
     - `devices`: number of devices the evaluation was sharded over.
     - `chunks`: number of chunks the points were evaluated in; `computed` of them in this call,
       `resumed` read back from a store.
+    - `attrs`: what produced it (strings: `model`, e.g. `VariableMass(friction=Coulomb)`,
+      `function`, `solver_arguments`, `fixed_parameters` with their units, `vmj_version`), and
+      `units`, the unit of each swept parameter that the model declares (`{"mu": "kg/s"}`);
+      the exports carry them (xarray's and NetCDF's attributes, the coordinates' `units`).
     """
 
     values: Any
@@ -77,6 +81,17 @@ class SweepResult:
     chunks: int = field(default=1, compare=False)
     computed: int = field(default=0, compare=False)
     resumed: int = field(default=0, compare=False)
+    #: `attrs`, or the function that makes them when first asked for
+    _attrs: Any = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def attrs(self) -> dict:
+        if callable(self._attrs):
+            object.__setattr__(self, "_attrs", self._attrs())
+        return self._attrs
+
+    def __getstate__(self):  # (pickled with its attrs made: the function may be a lambda)
+        return {**self.__dict__, "_attrs": self.attrs}
 
     def columns(self) -> dict[str, np.ndarray]:
         """Flat columns, one row per point (C order): the parameters, then every field of
@@ -121,6 +136,7 @@ class SweepResult:
                 for k, v in leaves.items()
             },
             "coords": [k for k in self.coords],
+            "attrs": self.attrs,
         }
         header = list(cols)
         data = [np.asarray(c) for c in cols.values()]
@@ -167,7 +183,7 @@ class SweepResult:
                 else flat.astype(float).astype(kind)
             )
             values[name] = conv.reshape(shape + tuple(inner))
-        return SweepResult(values, tuple(meta["dims"]), coords, shape)
+        return SweepResult(values, tuple(meta["dims"]), coords, shape, _attrs=meta.get("attrs", {}))
 
     def to_xarray(self):
         """An `xarray.Dataset` with one variable per field of `values` (needs the optional
@@ -191,7 +207,12 @@ class SweepResult:
                 k: (tuple(self.dims), np.broadcast_to(c, self.shape))
                 for k, c in self.coords.items()
             }
-        return xr.Dataset(data_vars, coords={**coords, **extra_coords})
+        data = xr.Dataset(data_vars, coords={**coords, **extra_coords})
+        for name, unit in self.attrs.get("units", {}).items():
+            if name in data.coords:
+                data[name].attrs["units"] = unit
+        data.attrs.update({k: v for k, v in self.attrs.items() if k != "units"})
+        return data
 
     def to_netcdf(self, path: str) -> None:
         """Write `to_xarray()` to a NetCDF file (needs the optional extra `vmj[xarray]`)."""
@@ -240,4 +261,5 @@ class SweepResult:
             1,
             meta["n_chunks"],
             resumed=meta["n_chunks"],
+            _attrs=meta.get("attrs", {}),
         )

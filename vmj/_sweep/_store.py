@@ -186,6 +186,11 @@ class ChunkStore:
         if not os.path.exists(path):
             return None
         group, meta = _opened(zarr, path, "r+")
+        if meta is None and group is not None and "vmj_status" in group:
+            raise ValueError(
+                f"store {path!r} is incomplete: its creation was interrupted, or another "
+                f"process is creating it now; delete it to start over, or choose another path"
+            )
         if not isinstance(meta, dict) or meta.get("format") != FORMAT:
             raise ValueError(f"store {path!r} exists and is not a vmj store: choose another path")
         if meta.get("kind") != kind or meta.get("token") != digest(definition):
@@ -227,7 +232,13 @@ class ChunkStore:
             "described": described,
             **plan,
         }
-        group = zarr.open_group(path, mode="w-", zarr_format=3)
+        try:
+            group = zarr.open_group(path, mode="w-", zarr_format=3)
+        except FileExistsError:  # (it did not exist when `existing` looked)
+            raise ValueError(
+                f"store {path!r} was created by another process meanwhile: rerun with "
+                f"resume=True to continue it, or choose another path"
+            ) from None
         n_chunks = plan["n_chunks"]
         group.create_array(
             "vmj_status",
@@ -249,9 +260,12 @@ class ChunkStore:
         return cls(group, path, meta)
 
     # -- sweeps --------------------------------------------------------------------------------
-    def create_sweep_arrays(self, fields, coords: dict, coord_dims: dict, inner_coords: dict):
+    def create_sweep_arrays(
+        self, fields, coords: dict, coord_dims: dict, inner_coords: dict, units: dict
+    ):
         """The arrays of a sweep's fields (`[(name, dtype, inner shape, inner dims)]`) and its
-        coordinates; created once (a resumed store has them)."""
+        coordinates (with their `units`, attribute `units`); created once (a resumed store has
+        them)."""
         n, chunk = self.meta["n"], self.meta["chunk"]
         for name, dtype, inner, kdims in fields:
             if name not in self.group:
@@ -268,7 +282,11 @@ class ChunkStore:
                 value = np.asarray(value)
                 dims = coord_dims.get(name, (name,))
                 self.group.create_array(
-                    name, data=value, chunks=value.shape or (1,), dimension_names=tuple(dims)
+                    name,
+                    data=value,
+                    chunks=value.shape or (1,),
+                    dimension_names=tuple(dims),
+                    attributes={"units": units[name]} if name in units else None,
                 )
 
     def write(self, c: int, arrays, names=None) -> None:

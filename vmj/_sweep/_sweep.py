@@ -18,6 +18,7 @@ import dataclasses
 import functools
 import math
 import os
+import re
 import sys
 import threading
 from collections.abc import Callable, Sequence
@@ -61,6 +62,8 @@ MEMORY_FRACTION = 0.25
 #: three parameters) instead of being put on the device once (`jax.device_put`'s own cost,
 #: 120-450 us for the same, was the largest part of the sweep's fixed cost of about 1 ms)
 PASSED_BYTES = 1 << 18
+#: results from this size on are checked against the host's available memory [bytes]
+ROOM_CHECKED_FROM = 1 << 26
 #: traces of the chunk function in this process (each worker of a cluster should trace once)
 _TRACES = 0
 #: what this process knows of the compiled chunks of recent sweeps (see `_SweepJob.known`)
@@ -647,6 +650,12 @@ def sweep(
     n = math.prod(shape)
     leaves, treedef = jax.tree.flatten(model)
     swept = tuple(eqx.is_array_like(x) and np.ndim(x) > 0 for x in leaves)
+    if not any(swept):
+        raise ValueError(
+            f"the {type(model).__name__} given to sweep has no array parameter, so there is "
+            f"nothing to sweep: give a vmj.grid (e.g. vmj.grid(model, eps=[0, 0.5, 1])) or "
+            f"array parameters (paired points), or call fn(model, ...) for one point"
+        )
     model = jax.tree.unflatten(
         treedef, [np.asarray(x) if eqx.is_array_like(x) else x for x in leaves]
     )
@@ -657,6 +666,10 @@ def sweep(
     if store is not None or client is not None:
         definition, described = _definition(fn, model, solver_args, shape, dims, coords, chunk_size)
         token = digest(definition)
+
+    # (worked out when asked for: 0.2-1 ms, the Python attribute lookups of equinox modules
+    # and the repr of a solver object, against a warm 35-point sweep's few ms)
+    provenance = functools.cache(functools.partial(_provenance, fn, model, solver_args))
 
     with cluster(client) as cl:
         if cl is not None:
@@ -718,13 +731,14 @@ def sweep(
         spec = job.spec()
         spec_leaves, out_def = jax.tree.flatten(spec)
         axes = job.known(chunk)["axes"]
+        _check_room(n, spec_leaves)
         out = [point_array(n, s.shape[1:], s.dtype, a) for s, a in zip(spec_leaves, axes)]
         names = None  # (the fields' names in a store)
         if store is not None:
             names, kdims, kcoords = export_names(
                 spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"}
             )
-            if st is None:  # (a new store: its plan and arrays)
+            if st is None:  # (a new store: its plan)
                 plan = {
                     "n": n,
                     "chunk": chunk,
@@ -737,23 +751,23 @@ def sweep(
                         for nm, s in zip(names, spec_leaves)
                     ],
                     "coords": list(coords),
+                    "attrs": provenance(),
                 }
                 st = ChunkStore.create(
                     store, kind="sweep", definition=definition, described=described, plan=plan
                 )
-                coord_dims = {
-                    k: ((k,) if is_grid else tuple(f"{k}_{i}" for i in range(np.ndim(v))))
-                    for k, v in coords.items()
-                }
-                st.create_sweep_arrays(
-                    [
-                        (nm, s.dtype, s.shape[1:], kd)
-                        for nm, s, kd in zip(names, spec_leaves, kdims)
-                    ],
-                    coords,
-                    coord_dims,
-                    kcoords,
-                )
+            coord_dims = {
+                k: ((k,) if is_grid else tuple(f"{k}_{i}" for i in range(np.ndim(v))))
+                for k, v in coords.items()
+            }
+            # (also those of a resumed store whose creation was interrupted before them)
+            st.create_sweep_arrays(
+                [(nm, s.dtype, s.shape[1:], kd) for nm, s, kd in zip(names, spec_leaves, kdims)],
+                coords,
+                coord_dims,
+                kcoords,
+                provenance()["units"],
+            )
 
         def rows(c):
             return slice(c * chunk, min((c + 1) * chunk, n))
@@ -811,6 +825,7 @@ def sweep(
         n_chunks,
         computed=len(todo) - len(failures),
         resumed=resumed,
+        _attrs=provenance,
     )
     if failures:
         for c in failures:
@@ -830,6 +845,30 @@ def sweep(
     return result
 
 
+def host_memory(enough: float) -> int | None:
+    """The host memory available for a sweep's result [bytes] (`available_memory`'s)."""
+    return available_memory(jax.devices("cpu")[0], enough)
+
+
+def _check_room(n: int, spec_leaves) -> None:
+    """Refuse, before anything is computed, a result of `n` points (fields `spec_leaves`, the
+    chunk axis first) that does not fit in the host's available memory: it is held there whole
+    (with a store too), and NumPy's `np.empty` of it succeeds where the operating system
+    overcommits memory, so the process was killed part-way through the sweep instead."""
+    per_point = sum(math.prod(s.shape[1:]) * np.dtype(s.dtype).itemsize for s in spec_leaves)
+    need = n * per_point
+    if need < ROOM_CHECKED_FROM:
+        return
+    free = host_memory(need)
+    if free is not None and need > free:
+        raise ValueError(
+            f"the sweep's result needs {need / 1e9:.3g} GB ({n} points x {per_point} bytes), "
+            f"more than the {free / 1e9:.3g} GB of memory available: sweep fewer points, or "
+            f"only the fields you need (fn=lambda m, a0, n: vmj.turning_points(m, a0, "
+            f"n).stop_time is 8 bytes per point)"
+        )
+
+
 def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
     """The definition of a sweep (digests) and the same in words, for the store's refusals."""
     definition = {
@@ -846,7 +885,13 @@ def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
     }
     described = {
         "fn": f"{describe_fn(fn)} (code {definition['fn'][:8]})",
-        "model": f"{type(model).__name__} (parameters {definition['model'][:8]})",
+        # the model's kind and static parts here, each parameter below: a refusal names the
+        # parameter that differs
+        "model": f"{type(model).__name__} ({digest(str(jax.tree.structure(model)))[:8]})",
+        **{
+            f"parameter {name}": _describe_value(_get(model, path))
+            for path, name in named_paths(model)
+        },
         "solver arguments": f"{_describe_args(solver_args)} ({definition['solver_args'][:8]})",
         "shape": " x ".join(f"{d} {s}" for d, s in zip(dims, shape)) or "()",
         "chunk_size": "default" if chunk_size is None else str(chunk_size),
@@ -854,6 +899,71 @@ def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
         "float64": str(definition["x64"]),
     }
     return definition, described
+
+
+def _provenance(fn, model, solver_args) -> dict:
+    """What produced a sweep, for its exports' attributes: the model's kind and laws, the
+    function, the solver arguments, the fixed parameters, vmj's version, and the unit of each
+    swept parameter (`"units"`, where the model declares one in its limits)."""
+    units, fixed = {}, []
+    for path, name in named_paths(model):
+        owner = _get(model, path[:-1])
+        unit = _unit(getattr(type(owner), "_limits", {}).get(path[-1]))
+        value = np.asarray(_get(model, path))
+        if value.ndim == 0:
+            fixed.append(f"{name}={_number(value.item())}" + (f" {unit}" if unit else ""))
+        elif unit:
+            units[name] = unit
+    return {
+        "model": _describe_model(model),
+        "function": describe_fn(fn),
+        "solver_arguments": _describe_args(solver_args),
+        "fixed_parameters": ", ".join(fixed) or "none",
+        "vmj_version": __version__,
+        "units": units,
+    }
+
+
+def _unit(limit) -> str | None:
+    """The unit in a field's allowed range (`"> 0 [kg]"`: kg; `[-]`: 1, dimensionless); None
+    where it names none, or only the model's position unit."""
+    if limit is None:
+        return None
+    hit = re.search(r"\[([^\]]*)\]\s*$", limit[1])
+    if hit is None or "," in hit.group(1) or "position unit" in hit.group(1):
+        return None
+    return "1" if hit.group(1) == "-" else hit.group(1)
+
+
+def _describe_model(model) -> str:
+    """A model's kind and the kinds of its laws: `VariableMass(friction=Coulomb)`."""
+
+    def kind(v):
+        if isinstance(v, (tuple, list)):
+            inner = [kind(x) for x in v]
+            return None if None in inner else "(" + ", ".join(inner) + ")"
+        return type(v).__name__ if isinstance(v, eqx.Module) else None
+
+    laws = []
+    for f in dataclasses.fields(model):
+        k = kind(getattr(model, f.name, None))
+        if k is not None:
+            laws.append(f"{f.name}={k}")
+    return f"{type(model).__name__}({', '.join(laws)})"
+
+
+def _number(x) -> str:
+    """`x` in the fewest digits that give it back exactly (`5`, `14.7`, `0.1`)."""
+    text = f"{x:.15g}"
+    return text if float(text) == x else repr(x)
+
+
+def _describe_value(value) -> str:
+    """A parameter in words: a scalar exactly, an array by its size, range and digest."""
+    a = np.asarray(value)
+    if a.ndim == 0:
+        return _number(a.item())
+    return f"{a.size} values in [{np.nanmin(a):.6g}, {np.nanmax(a):.6g}] ({digest(a)[:8]})"
 
 
 def _describe_args(args: dict) -> str:

@@ -439,7 +439,7 @@ def run(args) -> int:
         with traced_checks():
             result = how.evaluate(args, g, scalars)
     except ValueError as e:  # the store's and the cluster's messages name the Python argument
-        message = str(e).replace("resume=True", "--resume")
+        message = str(e).replace("resume=True", "--resume").replace("chunk_size", "--chunk-size")
         if args.scheduler is not None and message.startswith("client "):
             message = "--scheduler " + message.removeprefix("client ")
         raise ValueError(message) from None
@@ -471,6 +471,8 @@ def run(args) -> int:
     written = [f"wrote {p}" for p in dict.fromkeys(p for p in paths if p)]
     if args.store:
         written.append(f"stored in {args.store}")
+        if result.resumed:
+            written[-1] += f" ({result.resumed} of {result.chunks} chunks were in it already)"
     if not written:
         written = ["nothing written (--out CSV, --netcdf NC, --plot PNG or --store keep it)"]
     print("; ".join([f"{head}, {elapsed:.2f} s", *summary, *written]))

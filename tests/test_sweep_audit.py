@@ -1,0 +1,214 @@
+"""Sweeps at scale, from an audit: stores interrupted or shared, results that do not fit in
+memory, sweeps without an axis, bad values in long axes, what a store's refusal names, and the
+metadata of the exports. Small grids (35 points, 6 swings): every sweep here shares one
+compiled chunk per chunk size."""
+
+import numpy as np
+import pytest
+
+import vmj
+from vmj._sweep import _sweep
+from vmj._sweep._store import ChunkStore
+
+N = 6  #: swings
+A0 = 0.06  #: release amplitude [m]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return vmj.VariableMass(
+        m0=5.0, c=4900.0, delta=3.0, eps=0.0, mu=2.0, friction=vmj.Coulomb(14.7)
+    )
+
+
+@pytest.fixture(scope="module")
+def g(model):
+    return vmj.grid(model, eps=np.linspace(0, 1, 5), mu=np.linspace(0, 10, 7))
+
+
+@pytest.fixture(scope="module")
+def reference(g):
+    """The sweep in memory, in chunks of 8 points (as the stored sweeps below)."""
+    return vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8)
+
+
+def _same(a, b):
+    """Every field equal to the last bit (`a`: a DecaySequence; `b`: one, or a dict of fields
+    as read back from a store)."""
+    fields = ("times", "positions", "crossed", "count", "stopped", "result")
+    got = b if isinstance(b, dict) else {f: getattr(b, f) for f in fields}
+    return all(np.array_equal(getattr(a, f), got[f]) for f in fields)
+
+
+# -- stores ----------------------------------------------------------------------------------
+def test_a_store_interrupted_before_its_arrays_were_made_resumes(
+    g, reference, tmp_path, monkeypatch
+):
+    """Killed between the store's metadata and its fields' arrays, a store could not be
+    resumed (`KeyError: 'times'` from the first chunk's write)."""
+    path = str(tmp_path / "s.zarr")
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(ChunkStore, "create_sweep_arrays", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    assert (r.computed, r.resumed) == (r.chunks, 0)
+    assert _same(reference.values, r.values)
+    assert _same(reference.values, vmj.SweepResult.read_zarr(path).values)
+
+
+def test_a_store_created_meanwhile_by_another_process_is_a_clear_refusal(g, tmp_path, monkeypatch):
+    """Two processes starting the same new store at once: the second one's creation found the
+    first one's files and failed with Zarr's `FileExistsError` and a traceback. (The race is
+    made here by hiding the store from the check that comes before the creation.)"""
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    monkeypatch.setattr(ChunkStore, "existing", classmethod(lambda cls, *a, **k: None))
+    with pytest.raises(ValueError, match="created by another process.*resume=True"):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+
+
+def test_an_incomplete_store_says_so(g, tmp_path):
+    """A store whose creation did not reach its metadata (killed, or another process creating
+    it now) was called 'not a vmj store'."""
+    path = str(tmp_path / "s.zarr")
+    ChunkStore.create(path, kind="sweep", definition={}, described={}, plan={"n_chunks": 1})
+    import zarr
+
+    group = zarr.open_group(path, mode="r+")
+    del group.attrs["vmj"]
+    with pytest.raises(ValueError, match="incomplete.*delete it"):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N, store=path, resume=True)
+
+
+def test_a_different_model_is_refused_naming_the_parameter(model, g, tmp_path):
+    """The refusal said only `model (stored VariableMass (parameters af1fe81f), now
+    VariableMass (parameters e75bbd42))`, not which parameter differs."""
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    heavier = vmj.grid(
+        vmj.VariableMass(6.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7)),
+        eps=g.coords["eps"],
+        mu=g.coords["mu"],
+    )
+    with pytest.raises(ValueError, match=r"m0 \(stored 5, now 6\)") as e:
+        vmj.sweep(vmj.turning_points, heavier, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    assert "eps" not in str(e.value) and "mu " not in str(e.value)
+    finer = vmj.grid(model, eps=g.coords["eps"], mu=np.linspace(0, 11, 7))
+    with pytest.raises(
+        ValueError, match=r"mu \(stored 7 values in \[0, 10\].*now 7 values in \[0, 11\]"
+    ):
+        vmj.sweep(vmj.turning_points, finer, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+
+
+# -- memory, degenerate sweeps, bad values ---------------------------------------------------
+def test_a_result_larger_than_memory_is_refused_before_computing(g, monkeypatch):
+    """A result that did not fit was allocated anyway (NumPy's overcommitted `np.empty`), and
+    the process was killed part-way through the sweep, or raised NumPy's MemoryError."""
+    monkeypatch.setattr(_sweep, "ROOM_CHECKED_FROM", 0)
+    # 35 points x 111 bytes (6 swings: times and positions 2 x 48, crossed 6, count 4,
+    # stopped 1, result 4) = 3885 bytes; 3000 bytes free
+    monkeypatch.setattr(_sweep, "host_memory", lambda enough: 3000)
+    computed = []
+    with pytest.raises(
+        ValueError,
+        match=r"result needs 3.89e-06 GB \(35 points x 111 bytes\), more than the 3e-06 GB",
+    ) as e:
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N, progress=lambda d, t: computed.append(d))
+    assert "stop_time" in str(e.value)
+    assert computed == []
+    monkeypatch.setattr(_sweep, "host_memory", lambda enough: 3885)
+    assert vmj.sweep(vmj.turning_points, g, a0=A0, n=N).shape == (5, 7)
+
+
+def test_a_sweep_without_an_array_parameter_is_a_clear_error(model):
+    """A model of scalars only raised JAX's `vmap wrapped function must be passed at least one
+    argument containing an array`."""
+    with pytest.raises(ValueError, match="no array parameter.*vmj.grid"):
+        vmj.sweep(vmj.turning_points, model, a0=A0, n=N)
+
+
+def test_a_bad_value_in_a_long_axis_is_named_with_its_index(model):
+    """NumPy's summary of a long array (`[0. 0.0002 ... 1.]`) left the bad value out of the
+    message."""
+    eps = np.linspace(0, 1, 5000)
+    eps[1234] = np.nan
+    with pytest.raises(ValueError, match=r"eps must be .* \(got nan at index 1234 of 5000"):
+        vmj.grid(model, eps=eps)
+    mu = np.full((40, 50), 2.0)
+    mu[17, 3], mu[20, 0] = -1.0, -2.0
+    paired = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
+    with pytest.raises(ValueError, match=r"got -1.0 at index \(17, 3\) of \(40, 50\); 2 bad"):
+        vmj.sweep(vmj.turning_points, _with(paired, mu=mu), a0=A0, n=N)
+
+
+def _with(model, **fields):
+    import equinox as eqx
+
+    names = list(fields)
+    return eqx.tree_at(lambda m: [getattr(m, k) for k in names], model, list(fields.values()))
+
+
+# -- what the exports say of their origin -----------------------------------------------------
+def test_exports_say_what_produced_them_and_the_units_of_their_coordinates(model, tmp_path):
+    """The Dataset (and so the NetCDF file) had no attributes at all: neither the model, the
+    solver nor the units of the swept parameters."""
+    xr = pytest.importorskip("xarray")
+    fg = vmj.grid(
+        vmj.VariableMass(5.0, 4900.0, 0.1, 0.0, 2.0, model.friction), F=[10.0, 14.7], mu=[0.0, 2.0]
+    )  # (a nested parameter: friction.F)
+    path = str(tmp_path / "s.zarr")
+    r = vmj.sweep(vmj.turning_points, fg, a0=A0, n=N, solver=vmj.EnergyBalance(), store=path)
+    want = {
+        "model": "VariableMass(friction=Coulomb)",
+        "function": "vmj._integrate.turning_points",
+        "solver_arguments": "a0=0.06, n=6, solver=EnergyBalance()",
+        "fixed_parameters": "m0=5 kg, c=4900 N/m, delta=0.1 kg/s, eps=0",  # (not 0.10000000000000001)
+        "vmj_version": vmj.__version__,
+    }
+    ds = r.to_xarray()
+    assert {k: ds.attrs[k] for k in want} == want
+    assert (ds["F"].attrs["units"], ds["mu"].attrs["units"]) == ("N", "kg/s")
+    r.to_netcdf(str(tmp_path / "s.nc"))
+    with xr.open_dataset(str(tmp_path / "s.nc")) as back:
+        assert {k: back.attrs[k] for k in want} == want
+        assert back["mu"].attrs["units"] == "kg/s"
+    with xr.open_zarr(path, consolidated=False) as lazy:
+        assert (lazy["F"].attrs["units"], lazy["mu"].attrs["units"]) == ("N", "kg/s")
+    assert vmj.SweepResult.read_zarr(path).attrs == r.attrs
+    r.to_csv(str(tmp_path / "s.csv"))
+    assert vmj.SweepResult.read_csv(str(tmp_path / "s.csv")).attrs == r.attrs
+
+
+def test_cli_store_messages_use_the_command_line_spelling(tmp_path, capsys):
+    """A store made with another --chunk-size was refused as 'chunk_size (stored 8, now
+    default)', and a resumed run's summary did not say that its chunks were read back."""
+    from vmj.cli import main
+
+    store = str(tmp_path / "s.zarr")
+    base = ["sweep", "variable-mass", "--eps", "0:1:5", "--mu", "0:10:7", "--n", str(N)]
+    base += ["--set", "m0=5,c=4900,FT=14.7,a0=0.06,delta=3", "--store", store]
+    assert main(base + ["--chunk-size", "8"]) == 0
+    assert capsys.readouterr().out.split("; ")[-1] == f"stored in {store}\n"
+    assert main(base + ["--resume"]) == 2
+    assert "--chunk-size (stored 8, now default)" in capsys.readouterr().err
+    assert main(base + ["--resume", "--chunk-size", "8"]) == 0
+    assert capsys.readouterr().out.split("; ")[-1] == (
+        f"stored in {store} (6 of 6 chunks were in it already)\n"
+    )
+
+
+def test_attrs_are_made_when_asked_for_and_pickled_made(g):
+    """The attributes cost 0.2-1 ms to make (equinox's attribute lookups, a solver's repr):
+    made for every sweep, they were a tenth of a warm 35-point sweep."""
+    import pickle
+
+    r = vmj.sweep(lambda m, a0, n: vmj.turning_points(m, a0, n).positions, g, a0=A0, n=N)
+    assert callable(r._attrs)
+    back = pickle.loads(pickle.dumps(r))
+    assert back.attrs == r.attrs and back.attrs["function"].endswith("<lambda>")
+    assert back.attrs["units"] == {"mu": "kg/s"}  # (eps declares no unit)
