@@ -681,12 +681,12 @@ API = [
     (
         "n beyond memory",  # the process was killed for want of memory (n = 10**9, 24 GiB)
         lambda: vmj.turning_points(vmj.VariableMass(**_vm()), 0.06, 10**15),
-        "n = 1000000000000000 needs about 3.2e.07 GB for its results, more than the",
+        "the results of n = 1000000000000000: about 3.2e.07 GB, more than the",
     ),
     (
         "n_save beyond memory",
         lambda: vmj.simulate(vmj.VariableMass(**_vm()), -0.06, 0.0, 0.1, n_save=10**15),
-        "n_save = 1000000000000000 needs about",
+        "the results of n_save = 1000000000000000: about",
     ),
     ("Omega", lambda: vmj.StickSlip(6.3, 0.0), "Omega must be finite and > 0"),
     ("stick-slip eps", lambda: vmj.StickSlip(1.0, 1.0), "eps must be finite and > 1"),

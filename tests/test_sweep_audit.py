@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 import vmj
-from vmj._sweep import _sweep
 from vmj._sweep._store import ChunkStore
 
 N = 6  #: swings
@@ -109,19 +108,19 @@ def test_a_different_model_is_refused_naming_the_parameter(model, g, tmp_path):
 def test_a_result_larger_than_memory_is_refused_before_computing(g, monkeypatch):
     """A result that did not fit was allocated anyway (NumPy's overcommitted `np.empty`), and
     the process was killed part-way through the sweep, or raised NumPy's MemoryError."""
-    monkeypatch.setattr(_sweep, "ROOM_CHECKED_FROM", 0)
+    monkeypatch.setattr(vmj._checks, "ROOM_CHECKED_FROM", 0)
     # 35 points x 111 bytes (6 swings: times and positions 2 x 48, crossed 6, count 4,
     # stopped 1, result 4) = 3885 bytes; 3000 bytes free
-    monkeypatch.setattr(_sweep, "host_memory", lambda enough: 3000)
+    monkeypatch.setattr(vmj._host, "available_memory", lambda device, enough: 3000)
     computed = []
     with pytest.raises(
         ValueError,
-        match=r"result needs 3.89e-06 GB \(35 points x 111 bytes\), more than the 3e-06 GB",
+        match=r"result, 35 points x 111 bytes: about 3.89e-06 GB, more than the 3e-06 GB",
     ) as e:
         vmj.sweep(vmj.turning_points, g, a0=A0, n=N, progress=lambda d, t: computed.append(d))
     assert "stop_time" in str(e.value)
     assert computed == []
-    monkeypatch.setattr(_sweep, "host_memory", lambda enough: 3885)
+    monkeypatch.setattr(vmj._host, "available_memory", lambda device, enough: 3885)
     assert vmj.sweep(vmj.turning_points, g, a0=A0, n=N).shape == (5, 7)
 
 

@@ -130,23 +130,26 @@ def check_all(items) -> list:
     return out
 
 
-def check_room(name: str, value: int, item_bytes: int) -> None:
-    """`ValueError` naming `name` where its `value` items of `item_bytes` bytes each (a solve's
-    padded results: measured, with XLA's buffers) need more memory than the default device
-    has free (the process was killed for want of memory instead: `vmj.turning_points` with
-    `n = 10**9` on a 24 GiB machine). Asked only from 1 GiB on (a warm solve makes no system
-    call)."""
-    need = value * item_bytes
-    if need < 2**30:
+#: memory needs from this size on are checked against the memory free for them [bytes] (a
+#: warm solve makes no system call)
+ROOM_CHECKED_FROM = 1 << 26
+
+
+def check_room(what: str, need: int, advice: str, device=None) -> None:
+    """`ValueError` where `what` needs `need` bytes, more than `device` (JAX's default device
+    if None) has free: the process was killed for want of memory instead (`vmj.turning_points`
+    with `n = 10**9` on a 24 GiB machine; a sweep's result, whose `np.empty` succeeds where the
+    operating system overcommits memory). `advice` says what to ask for instead."""
+    if need < ROOM_CHECKED_FROM:
         return
     from ._host import available_memory
 
-    device = jax.devices()[0]
-    free = available_memory(device)
+    device = jax.devices()[0] if device is None else device
+    free = available_memory(device, need)
     if free is not None and need > free:
         raise ValueError(
-            f"{name} = {value} needs about {need / 1e9:.3g} GB for its results, more than the "
-            f"{free / 1e9:.3g} GB free on {device.platform}: ask for fewer"
+            f"{what}: about {need / 1e9:.3g} GB, more than the {free / 1e9:.3g} GB free on "
+            f"{device.platform}; {advice}"
         )
 
 

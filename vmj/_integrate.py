@@ -191,7 +191,7 @@ def turning_points(
     warn_if_float32()
     solver = _solver(solver, method, smoothing, max_substeps, Exact)
     n = check_int("n", n, 1)
-    check_room("n", n, TURNING_POINT_BYTES)
+    check_room(f"the results of n = {n}", n * TURNING_POINT_BYTES, "ask for fewer")
     concrete = require_scalar_fields(model)
     model = _checked(solver, model, "turning_points")
     a0 = scalar("a0", check("a0", a0, *type(model).release_range(model)))
@@ -298,7 +298,11 @@ def decay_trajectory(
     if ts.ndim != 1:
         raise ValueError(f"ts must be a 1-D array of times [s] (got shape {ts.shape})")
     substeps = getattr(solver, "max_substeps", None) or type(model).exact_substeps
-    check_room("n", n, TURNING_POINT_BYTES + SUBSTEP_BYTES * substeps)
+    check_room(
+        f"the results of n = {n}",
+        n * (TURNING_POINT_BYTES + SUBSTEP_BYTES * substeps),
+        "ask for fewer",
+    )
     traj = _decay_trajectory(model, a0, ts, n, solver, substeps)
     return throw_if_failed(traj, traj.result, throw)
 
@@ -341,7 +345,7 @@ def simulate(
     warn_if_float32()
     solver = _solver(solver, None, smoothing, None, Smoothed)
     n_save = check_int("n_save", n_save, 2)
-    check_room("n_save", n_save, TURNING_POINT_BYTES)
+    check_room(f"the results of n_save = {n_save}", n_save * TURNING_POINT_BYTES, "ask for fewer")
     require_scalar_fields(model)
     model = _checked(solver, model, "simulate")
     unit = model.position_unit

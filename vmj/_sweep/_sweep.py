@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
-from .._checks import check_int, mark_checked, validated, warn_if_float32
+from .._checks import check_int, check_room, mark_checked, validated, warn_if_float32
 from .._exported import exported_cache_directory, exported_jit, joined_leaves, split_arrays
 from .._host import available_memory
 from .._solution import RESULTS
@@ -62,8 +62,6 @@ MEMORY_FRACTION = 0.25
 #: three parameters) instead of being put on the device once (`jax.device_put`'s own cost,
 #: 120-450 us for the same, was the largest part of the sweep's fixed cost of about 1 ms)
 PASSED_BYTES = 1 << 18
-#: results from this size on are checked against the host's available memory [bytes]
-ROOM_CHECKED_FROM = 1 << 26
 #: traces of the chunk function in this process (each worker of a cluster should trace once)
 _TRACES = 0
 #: what this process knows of the compiled chunks of recent sweeps (see `_SweepJob.known`)
@@ -731,7 +729,14 @@ def sweep(
         spec = job.spec()
         spec_leaves, out_def = jax.tree.flatten(spec)
         axes = job.known(chunk)["axes"]
-        _check_room(n, spec_leaves)
+        per_point = sum(math.prod(s.shape[1:]) * np.dtype(s.dtype).itemsize for s in spec_leaves)
+        check_room(  # (held on the host whole, with a store too)
+            f"the sweep's result, {n} points x {per_point} bytes",
+            n * per_point,
+            "sweep fewer points, or only the fields you need (fn=lambda m, a0, n: "
+            "vmj.turning_points(m, a0, n).stop_time is 8 bytes per point)",
+            jax.devices("cpu")[0],
+        )
         out = [point_array(n, s.shape[1:], s.dtype, a) for s, a in zip(spec_leaves, axes)]
         names = None  # (the fields' names in a store)
         if store is not None:
@@ -843,30 +848,6 @@ def sweep(
             )
         raise SweepError(text, failures, result)
     return result
-
-
-def host_memory(enough: float) -> int | None:
-    """The host memory available for a sweep's result [bytes] (`available_memory`'s)."""
-    return available_memory(jax.devices("cpu")[0], enough)
-
-
-def _check_room(n: int, spec_leaves) -> None:
-    """Refuse, before anything is computed, a result of `n` points (fields `spec_leaves`, the
-    chunk axis first) that does not fit in the host's available memory: it is held there whole
-    (with a store too), and NumPy's `np.empty` of it succeeds where the operating system
-    overcommits memory, so the process was killed part-way through the sweep instead."""
-    per_point = sum(math.prod(s.shape[1:]) * np.dtype(s.dtype).itemsize for s in spec_leaves)
-    need = n * per_point
-    if need < ROOM_CHECKED_FROM:
-        return
-    free = host_memory(need)
-    if free is not None and need > free:
-        raise ValueError(
-            f"the sweep's result needs {need / 1e9:.3g} GB ({n} points x {per_point} bytes), "
-            f"more than the {free / 1e9:.3g} GB of memory available: sweep fewer points, or "
-            f"only the fields you need (fn=lambda m, a0, n: vmj.turning_points(m, a0, "
-            f"n).stop_time is 8 bytes per point)"
-        )
 
 
 def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
