@@ -146,6 +146,18 @@ _ANY = r"vmj\.Exact\(\), vmj\.Smoothed\(\), vmj\.EnergyBalance\(\), vmj\.ClosedF
             r"^limit_cycle takes no method=: pass solver=vmj\.Smoothed\(\)$",
         ),
     ],
+    ids=[
+        "name",
+        "method=",
+        "method=unknown",
+        "smoothing=",
+        "max_substeps=",
+        "not-a-solver",
+        "decay_trajectory-name",
+        "simulate-smoothing=",
+        "limit_cycle-name",
+        "limit_cycle-method=",
+    ],
 )
 def test_a_solver_by_name_or_by_keyword_is_refused_naming_the_object(call, says):
     # the older spellings (a solver's name, `method=`, the solver's settings as keywords of the
