@@ -1,8 +1,8 @@
 """The energy-balance recurrences at scale: 10^6 random points x 12 half-swings (eps in [0, 1],
 mu in [0, 10] kg/s, delta in [-3, 3] kg/s; the paper's m0, c, F_T, a0).
 
-- `vmj.sweep` of the amplitudes `vmj.energy_balance(m, a0, n).amplitudes` into a new (10^6, 12)
-  NumPy array (96 MB);
+- `vmj.sweep` of the amplitudes `vmj.turning_points(m, a0, n, vmj.EnergyBalance()).amplitudes`
+  into a new (10^6, 12) NumPy array (96 MB);
 - the same recurrences written with NumPy, tuned: every array preallocated and every operation
   in place (one core, as NumPy runs), the result a (10^6, 12) view;
 - the elementwise limit of this machine: one `exp`, `sqrt` and division per half-swing and
@@ -42,7 +42,7 @@ M0, C, FT, A0, N = 5.0, 4900.0, 14.7, 0.06, 12
 
 
 def numpy_in_place(eps, mu, delta):
-    """Amplitudes of the recurrences (vmj.energy_balance's docstring), Coulomb friction, with
+    """Amplitudes of the recurrences (vmj.EnergyBalance's docstring), Coulomb friction, with
     preallocated work arrays and in-place operations."""
     P, dtype = eps.size, eps.dtype
     k = np.pi / np.sqrt(C)  # half-period / sqrt(m)
@@ -89,7 +89,7 @@ def limit(x):
 
 
 def amplitudes(model, a0, n):
-    return vmj.energy_balance(model, a0, n).amplitudes
+    return vmj.turning_points(model, a0, n, vmj.EnergyBalance()).amplitudes
 
 
 def main():

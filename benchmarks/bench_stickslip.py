@@ -31,7 +31,7 @@ def main():
     n = args.grid
     E, O = jnp.meshgrid(jnp.linspace(1.1, 15.0, n), jnp.geomspace(0.05, 5.0, n))
     e, o = E.ravel(), O.ravel()
-    solve = jax.jit(jax.vmap(lambda a, b: vmj.stick_slip_cycle(vmj.StickSlip(a, b)).period))
+    solve = jax.jit(jax.vmap(lambda a, b: vmj.limit_cycle(vmj.StickSlip(a, b)).period))
     t = time.perf_counter()
     solve(e, o).block_until_ready()
     first = time.perf_counter() - t
@@ -49,10 +49,10 @@ def main():
 
     model = vmj.StickSlip(6.3, 0.7)
     t = time.perf_counter()
-    vmj.stick_slip_cycle(model, method="smooth", smoothing=1e-4)
+    vmj.limit_cycle(model, vmj.Smoothed(smoothing=1e-4))
     smooth_first = time.perf_counter() - t
     t = time.perf_counter()
-    vmj.stick_slip_cycle(model, method="smooth", smoothing=1e-5)
+    vmj.limit_cycle(model, vmj.Smoothed(smoothing=1e-5))
     smooth_warm = time.perf_counter() - t
 
     print(

@@ -43,7 +43,7 @@ def book_example(plt):
             f"{float(osc.damping_ratio):7.3f}{float(osc.damped_frequency):9.2f}"
             f"{float(osc.log_decrement):8.3f}{1e3 * float(A):9.2f}  {printed}"
         )
-        tr = vmj.linear_simulate(osc, -2e-3, 0.7, 0.3, n_save=1201)
+        tr = vmj.simulate(osc, -2e-3, 0.7, 0.3, vmj.Smoothed(rtol=1e-12), n_save=1201)
         ax.plot(tr.ts, 1e3 * np.asarray(tr.xs), label=f"m3 = {m3:g} kg (diffrax)")
         env = 1e3 * float(A) * np.exp(-float(osc.decay_rate) * np.asarray(tr.ts))
         ax.plot(
@@ -95,7 +95,7 @@ def lagrange_example(plt):
         f"{alpha:.4f}) - {D:.4f} sin(15t + {math.pi - beta:.4f}) rad; "
         f"settling time {float(osc.settling_time(0.0, 0.1)):.2f} s"
     )
-    tr = vmj.linear_simulate(osc, 0.0, 0.1, 14.0, n_save=4001)
+    tr = vmj.simulate(osc, 0.0, 0.1, 14.0, vmj.Smoothed(rtol=1e-12), n_save=4001)
     ts = np.asarray(tr.ts)
     transient23 = 0.049 * np.exp(-0.5 * ts) * np.sin(3.78 * ts + 0.028)
     forced23 = 0.019 * np.sin(15 * ts + 0.071)

@@ -48,7 +48,7 @@ def _exact(u, T, a0):
         rope = vmj.Rope(
             rope.m, rope.A, rope.e, rope.b, rope.d, T * KG_CM2, vmj.ConstantSpeed(10.0, u)
         )
-        seq = vmj.turning_points(rope, a0, N, max_substeps=10)
+        seq = vmj.turning_points(rope, a0, N, vmj.Exact(max_substeps=10))
         return seq.times, seq.positions, seq.count, seq.result
 
     return jax.vmap(one)(u, T, a0)

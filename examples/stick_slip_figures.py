@@ -39,7 +39,7 @@ def figures():
     fig, axes = plt.subplots(len(CASES), 2, figsize=(11, 3.0 * len(CASES)))
     for (pair, k, eps, Omega), (ax_v, ax_p) in zip(CASES, axes):
         model = vmj.StickSlip(eps, Omega)
-        cyc = vmj.stick_slip_cycle(model)
+        cyc = vmj.limit_cycle(model)
         assert int(cyc.reversals) == k
         tr = cyc.trajectory(n_save=4001, periods=2.0)
         ts, xi, dxi = (np.asarray(a) for a in (tr.ts, tr.xs, tr.vs))
@@ -76,7 +76,7 @@ def cycle_map(n=241):
     eps = jnp.linspace(1.1, 15.0, n)
     Omega = jnp.geomspace(0.05, 5.0, n)
     E, O = jnp.meshgrid(eps, Omega)
-    solve = jax.jit(jax.vmap(lambda e, o: vmj.stick_slip_cycle(vmj.StickSlip(e, o))))
+    solve = jax.jit(jax.vmap(lambda e, o: vmj.limit_cycle(vmj.StickSlip(e, o))))
     cyc = solve(E.ravel(), O.ravel())
     kstar = np.asarray(cyc.reversals).reshape(E.shape)
     period = np.asarray(cyc.period).reshape(E.shape)

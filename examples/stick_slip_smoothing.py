@@ -1,6 +1,6 @@
 """How the smoothed (diffrax) stick-slip cycle approaches the exact one as the smoothing shrinks.
 
-The smoothed model (`vmj.stick_slip_simulate`) replaces sign(u) by P(z) tanh(u/w) with a rest
+The smoothed model (`vmj.simulate` with `vmj.Smoothed`) replaces sign(u) by P(z) tanh(u/w) with a rest
 memory z that raises the friction limit to the static eps while the disk (nearly) rests. It
 cannot truly stick: at rest it creeps with u ~ w, and the static friction needs a memory time
 w**0.25 to build up and to fade. This script measures the cycle (reversals, slip/stick times,
@@ -36,11 +36,11 @@ def main():
     rows = []
     for eps, Omega in CASES:
         model = vmj.StickSlip(eps, Omega)
-        exact = vmj.stick_slip_cycle(model)
+        exact = vmj.limit_cycle(model)
         errs = []
         for w in WS:
             try:
-                sm = vmj.stick_slip_cycle(model, method="smooth", smoothing=w)
+                sm = vmj.limit_cycle(model, vmj.Smoothed(smoothing=w))
             except RuntimeError as e:  # no settled cycle at this smoothing
                 rows.append((eps, Omega, w, None, str(e)))
                 errs.append(np.nan)
@@ -64,12 +64,14 @@ def main():
     # trajectories of one case
     eps, Omega = CASES[-1]
     model = vmj.StickSlip(eps, Omega)
-    exact = vmj.stick_slip_cycle(model)
+    exact = vmj.limit_cycle(model)
     T = float(exact.period)
     ex = exact.trajectory(n_save=3001, periods=1.0)
     axes[0].plot(ex.ts, ex.vs, "k", lw=2, label="exact")
     for w in SHOWN:
-        tr = vmj.stick_slip_simulate(model, 3.3 * T, smoothing=w, n_save=6001)
+        tr = vmj.simulate(
+            model, *model.breakaway(), 3.3 * T, vmj.Smoothed(smoothing=w), n_save=6001
+        )
         # align on the last breakaway before 3.3 T (the disk accelerates from rest at xi = -eps)
         ts, u = np.asarray(tr.ts), np.asarray(tr.vs) + Omega
         moving = np.abs(u) > 20 * w

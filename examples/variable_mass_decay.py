@@ -20,7 +20,7 @@ model = vmj.VariableMass(
 )
 a0, n = 0.06, 12
 exact = vmj.turning_points(model, a0, n)
-energy = vmj.energy_balance(model, a0, n)
+energy = vmj.turning_points(model, a0, n, vmj.EnergyBalance())
 traj = vmj.simulate(model, -a0, 0.0, float(exact.times[-1]) + 0.05)
 print("exact amplitudes [cm]:", jnp.round(exact.amplitudes * 100, 4))
 print("energy balance   [cm]:", jnp.round(energy.amplitudes * 100, 4))

@@ -174,7 +174,7 @@ def starting_guess(space, record: Record, given: dict, dec: dict) -> dict:
 def _energy_balance_start(dec: dict, m0, c, delta, g, given: dict):
     """The variable-mass model's damping exponent `lam` [kg/s] and its unknown friction terms
     (`FT` [N], `f` [-], those not in `given`) from the decrement pairs by least squares on the
-    energy-balance recurrences (`vmj.energy_balance`), whose masses `m_k` follow from `m0`,
+    energy-balance recurrences (`vmj.EnergyBalance`), whose masses `m_k` follow from `m0`,
     `c` and `delta` alone:
 
         A_{k+1} = A_k E_k - (2 F_k / c) phi(x_k),  x_k = pi lam / (4 sqrt(c m_k)),

@@ -655,7 +655,9 @@ API = [
     ),
     (
         "a0 array, energy balance",  # was an error from inside lax.scan
-        lambda: vmj.energy_balance(vmj.VariableMass(**_vm()), np.array([0.06]), 3),
+        lambda: vmj.turning_points(
+            vmj.VariableMass(**_vm()), np.array([0.06]), 3, vmj.EnergyBalance()
+        ),
         "a0 must be a scalar (got shape",
     ),
     (
@@ -719,11 +721,12 @@ API = [
     (
         "sweep chunk",
         lambda: vmj.sweep(
-            vmj.energy_balance,
+            vmj.turning_points,
             vmj.grid(vmj.VariableMass(**_vm()), eps=[0.0]),
             a0=0.06,
             n=2,
             chunk_size=0,
+            solver=vmj.EnergyBalance(),
         ),
         "chunk_size must be an integer >= 1",
     ),
@@ -762,9 +765,9 @@ def _fit(**kw):
 def test_a_concrete_integer_array_is_an_integer():
     """`n = jnp.array(3)` (a concrete 0-d integer array, e.g. from `jnp.argmax`) was refused as
     not an integer."""
-    m = vmj.VariableMass(**_vm())
-    assert vmj.energy_balance(m, 0.06, np.int64(3)).positions.shape == (3,)
-    assert vmj.energy_balance(m, 0.06, jax.numpy.array(3)).positions.shape == (3,)
+    m, energy = vmj.VariableMass(**_vm()), vmj.EnergyBalance()
+    assert vmj.turning_points(m, 0.06, np.int64(3), energy).positions.shape == (3,)
+    assert vmj.turning_points(m, 0.06, jax.numpy.array(3), energy).positions.shape == (3,)
 
 
 @pytest.mark.parametrize("name,call,message", API, ids=[a[0] for a in API])

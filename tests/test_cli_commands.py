@@ -47,10 +47,11 @@ def test_sensitivity_variable_mass_against_finite_differences(capsys, tmp_path):
         ],
     )
     assert out["wrt"] == ["FT", "mu", "a0"] and out["units"] == {"FT": "N", "mu": "kg/s", "a0": "m"}
-    seq = vmj.energy_balance(MODEL, 0.06, 4)
+    seq = vmj.turning_points(MODEL, 0.06, 4, vmj.EnergyBalance())
     np.testing.assert_allclose(out["amplitudes"], np.asarray(seq.amplitudes), rtol=1e-14)
-    amp = lambda m, a0=0.06: vmj.energy_balance(m, a0, 4).amplitudes  # noqa: E731
-    times = lambda m, a0=0.06: vmj.energy_balance(m, a0, 4).times  # noqa: E731
+    energy = vmj.EnergyBalance()
+    amp = lambda m, a0=0.06: vmj.turning_points(m, a0, 4, energy).amplitudes  # noqa: E731
+    times = lambda m, a0=0.06: vmj.turning_points(m, a0, 4, energy).times  # noqa: E731
     fd = {
         "FT": lambda g: central(
             lambda F: g(vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(F))), 14.7, 1e-4
@@ -140,16 +141,16 @@ def test_the_smoothed_solver_is_differentiated_in_reverse_mode(capsys, monkeypat
 
     asked = {}
 
-    def derivatives(model, a0, n, method, extra, keys, mode):
-        asked.update(mode=mode, n=n, method=method)
+    def derivatives(model, a0, n, solver, keys, mode):
+        asked.update(mode=mode, n=n, solver=type(solver))
         return {w: {"times": np.full(n, 1.0), "amplitudes": np.full(n, -2.0)} for w in keys}
 
     monkeypatch.setattr(_sensitivity, "_decay_derivatives", derivatives)
     argv = ["sensitivity", "variable-mass", *VARIABLE_MASS, "--n", "4", "--wrt", "FT"]
     out = run_json(capsys, [*argv, "--method", "smooth"])
-    assert asked == {"mode": "reverse", "n": 4, "method": "smooth"}
+    assert asked == {"mode": "reverse", "n": 4, "solver": vmj.Smoothed}
     assert out["method"] == "smooth" and out["d_amplitudes"]["FT"] == [-2.0] * len(out["times"])
-    seq = vmj.turning_points(MODEL, 0.06, 4, method="smooth")
+    seq = vmj.turning_points(MODEL, 0.06, 4, vmj.Smoothed())
     np.testing.assert_allclose(out["amplitudes"], seq.reached()["amplitudes"], rtol=1e-12)
 
 
@@ -349,8 +350,8 @@ def test_exponent_and_negative_values(capsys):
             "3",
         ],
     )
-    ref = vmj.energy_balance(
-        vmj.VariableMass(5, 4900, -3, 1, 5, vmj.MassProportional(0.3)), 0.06, 3
+    ref = vmj.turning_points(
+        vmj.VariableMass(5, 4900, -3, 1, 5, vmj.MassProportional(0.3)), 0.06, 3, vmj.EnergyBalance()
     )
     np.testing.assert_allclose(out["amplitudes"], np.asarray(ref.amplitudes), rtol=1e-15)
 
@@ -437,7 +438,13 @@ def test_output_paths_are_checked(tmp_path):
         check_writable(tmp_path / "no" / "x.csv", "--out")
     with pytest.raises(ValueError, match="is a directory"):
         check_writable(tmp_path, "--out")
-    result = vmj.sweep(vmj.energy_balance, vmj.grid(MODEL, eps=[0.0, 0.5]), a0=0.06, n=2)
+    result = vmj.sweep(
+        vmj.turning_points,
+        vmj.grid(MODEL, eps=[0.0, 0.5]),
+        a0=0.06,
+        n=2,
+        solver=vmj.EnergyBalance(),
+    )
     with pytest.raises(ValueError, match="does not exist"):
         result.to_csv(str(tmp_path / "missing" / "s.csv"))
     result.to_csv(str(tmp_path / "s.csv"))

@@ -206,8 +206,8 @@ def test_store_refuses_another_definition_and_recomputes_damaged_chunks(
         ValueError, match=r"parameter eps \(stored 100000 values in .* now 100000 values in "
     ):
         vmj.sweep(vmj.turning_points, changed, store=str(store), resume=True, **KW)
-    with pytest.raises(ValueError, match="fn .*energy_balance"):
-        vmj.sweep(vmj.energy_balance, points, store=str(store), resume=True, **KW)
+    with pytest.raises(ValueError, match="fn .*energy_amplitudes"):
+        vmj.sweep(energy_amplitudes, points, store=str(store), resume=True, **KW)
     assert list(status(store)) == [1] * 20  # nothing was touched
 
     # damage four chunks: garbage in a data file, a data file lost after its marker was
@@ -269,7 +269,7 @@ def test_failed_chunk_is_recorded_and_the_sweep_goes_on(where, client, tmp_path)
 
 
 def energy_amplitudes(m, a0, n):
-    return vmj.energy_balance(m, a0, n).amplitudes
+    return vmj.turning_points(m, a0, n, vmj.EnergyBalance()).amplitudes
 
 
 def test_sensitivity_over_a_grid_on_the_cluster(client, tmp_path):
@@ -351,8 +351,11 @@ def synthetic_records(count):
     records = []
     for i in range(count):
         F, mu = rng.uniform(8, 20), rng.uniform(0.5, 4)
-        seq = vmj.energy_balance(
-            vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(F)), 0.06, 8
+        seq = vmj.turning_points(
+            vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, mu, vmj.Coulomb(F)),
+            0.06,
+            8,
+            vmj.EnergyBalance(),
         )
         n = int(seq.count)
         positions = np.concatenate([[-0.06], np.asarray(seq.positions)[:n]])

@@ -40,11 +40,15 @@ def _ar1(rng, n, rho):
     return x
 
 
+#: the solver that makes the records of each forward model
+SOLVER = {"exact": vmj.Exact(), "energy": vmj.EnergyBalance()}
+
+
 def _variable_mass_records(forward):
     model = vmj.VariableMass(
         PAPER["m0"], PAPER["c"], 0.0, 0.0, VM_TRUTH["mu"], vmj.AffineFriction(VM_TRUTH["FT"], 0.0)
     )
-    seq = vmj.turning_points(model, VM_A0, 24, method=forward)
+    seq = vmj.turning_points(model, VM_A0, 24, SOLVER[forward])
     m = int(seq.count)
     clean = np.concatenate([[-VM_A0], np.asarray(seq.positions)[:m]])
     return [
@@ -86,7 +90,7 @@ def _oscillator_records(pos, times, rho=0.0, seeds=SEEDS):
 
 def _rope_records(u, forward):
     rope = vmj.Rope.paper(u=u, T=4.0, cubic=True)
-    seq = vmj.turning_points(rope, ROPE_A0, 40, method=forward)
+    seq = vmj.turning_points(rope, ROPE_A0, 40, SOLVER[forward])
     pos = np.concatenate([[-ROPE_A0], np.asarray(seq.positions)])
     times = np.concatenate([[0.0], np.asarray(seq.times)])
     records = []

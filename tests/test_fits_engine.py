@@ -255,7 +255,7 @@ def test_a_parameter_the_data_do_not_bound_is_not_determined():
     The ends the data do not bound are open (the parameter's range's: null in JSON), said in
     the warnings, and the fit is not converged; with times (the period), all three are."""
     model = vmj.VariableMass(PAPER["m0"], PAPER["c"], 3.0, 0.0, 2.0, vmj.AffineFriction(14.7, 0.0))
-    seq = vmj.turning_points(model, 0.15, 24, method="exact")
+    seq = vmj.turning_points(model, 0.15, 24, vmj.Exact())
     n = int(seq.count)
     rng = np.random.default_rng(0)
     pos = np.concatenate([[-0.15], np.asarray(seq.positions)[:n]]) + rng.normal(0, 3e-4, n + 1)

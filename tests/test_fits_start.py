@@ -19,7 +19,7 @@ M0, C, A0, G = 5.0, 4900.0, 0.06, 9.81
 def _start(delta, mu, law, value):
     friction = vmj.Coulomb(value) if law == "FT" else vmj.MassProportional(value)
     model = vmj.VariableMass(M0, C, delta, 0.0, mu, friction)
-    seq = vmj.energy_balance(model, A0, 12)
+    seq = vmj.turning_points(model, A0, 12, vmj.EnergyBalance())
     n = int(seq.count)
     record = fits.record_from_sequence(
         positions=np.concatenate([[-A0], np.asarray(seq.positions)[:n]])

@@ -51,7 +51,7 @@ def exact():
     @jax.jit
     def run(b, d, T, u, a0):
         def one(b, d, T, u, a0):
-            return vmj.turning_points(rope(b, d, T, u), a0, N, max_substeps=10)
+            return vmj.turning_points(rope(b, d, T, u), a0, N, vmj.Exact(max_substeps=10))
 
         return jax.vmap(one)(b, d, T, u, a0)
 
@@ -102,7 +102,7 @@ def test_energy_map_matches_exact(exact, which):
     """u = 0: exact energy map per swing vs the exact solver, 1e-8 relative (times too)."""
     b, d, T, u, a0 = CASES[("map", which)]
     t, x, stopped = exact[("map", which)]
-    seq = vmj.rope_energy_map(rope(b, d, T, u), jnp.asarray(a0), N)
+    seq = vmj.turning_points(rope(b, d, T, u), jnp.asarray(a0), N, vmj.EnergyBalance())
     got = seq.reached()
     assert len(got["positions"]) == len(x) and bool(seq.stopped) == stopped
     assert np.max(np.abs(got["positions"] - x) / np.abs(x)) < 1e-8
@@ -120,7 +120,9 @@ def test_energy_map_matches_exact(exact, which):
 def test_energy_map_invariants(T, d, a0):
     """Fixed length, b = 0: amplitudes fall by less than the linear decrement 2 T l/e per swing
     (the cubic spring only shortens it), alternate sides until they stick, and time moves on."""
-    seq = vmj.rope_energy_map(rope(0.0, d * D, T, 0.0), jnp.asarray(a0), N).reached()
+    seq = vmj.turning_points(
+        rope(0.0, d * D, T, 0.0), jnp.asarray(a0), N, vmj.EnergyBalance()
+    ).reached()
     a = np.concatenate([[a0], seq["amplitudes"]])
     step = 2 * T * KG_CM2 * L0 / E
     assert np.all(np.diff(a) < 0) and np.all(-np.diff(a) <= step * (1 + 1e-9))
@@ -205,8 +207,8 @@ def test_technical_units_constructor_is_differentiable():
 
 def test_smooth_matches_exact():
     r = vmj.Rope.paper(u=3.0, T=4.0)
-    ex = vmj.turning_points(r, jnp.asarray(0.04), 12, max_substeps=10)
-    sm = vmj.turning_points(r, jnp.asarray(0.04), 12, method="smooth")
+    ex = vmj.turning_points(r, jnp.asarray(0.04), 12, vmj.Exact(max_substeps=10))
+    sm = vmj.turning_points(r, jnp.asarray(0.04), 12, vmj.Smoothed())
     np.testing.assert_allclose(np.asarray(sm.positions), np.asarray(ex.positions), rtol=1e-8)
     np.testing.assert_allclose(np.asarray(sm.times), np.asarray(ex.times), rtol=1e-8)
 
@@ -218,7 +220,7 @@ def test_braking_drum_dynamic_force():
     u, tau, l0 = -0.2094, 2e-3, 1.0
     A, e, m = np.pi * 0.01**2, 2e11, 1000.0
     r = vmj.Rope(m, A, e, 0.0, 0.0, 0.0, vmj.Braking(l0, u, 0.01, 0.01 + tau))
-    traj = vmj.simulate(r, 1e-8, 0.0, 0.1, n_save=4001, smoothing=1e-6)
+    traj = vmj.simulate(r, 1e-8, 0.0, 0.1, vmj.Smoothed(smoothing=1e-6), n_save=4001)
     assert traj.message == "reached every requested turning point"
     l_end = float(r.length.length(1.0))  # length after the stop
     omega = np.sqrt(A * e / (m * l_end))
@@ -230,7 +232,9 @@ def test_braking_drum_dynamic_force():
     static = A * T
     k = A * e / l_end
     r = vmj.Rope(m, A, e, 0.0, 0.0, T, vmj.Braking(l0, u, 0.01, 0.01 + tau))
-    seq = vmj.turning_points(r, jnp.asarray(0.5 * static / (A * e / l0)), 6, max_substeps=10)
+    seq = vmj.turning_points(
+        r, jnp.asarray(0.5 * static / (A * e / l0)), 6, vmj.Exact(max_substeps=10)
+    )
     x = np.asarray(seq.positions)
     assert seq.message == "reached every requested turning point"
     assert float(seq.times[0]) > 0.01 + tau
@@ -271,7 +275,7 @@ def test_horizon_beyond_zero_length_raises():
     with pytest.raises(ValueError, match="l\\(t\\) reaches 0"):
         vmj.simulate(r, -0.01, 0.0, 3.5)
     with pytest.raises(ValueError, match="u must be 0"):
-        vmj.rope_energy_map(r, 0.01, 5)
+        vmj.turning_points(r, 0.01, 5, vmj.EnergyBalance())
     with pytest.raises(ValueError, match="a0 must be"):
         vmj.kbm_amplitude(r, float("nan"), 1.0)
 
@@ -342,10 +346,10 @@ def test_a_swing_over_the_potential_barrier_is_refused():
         with pytest.raises(Exception, match="above the potential barrier"):
             law(moving, 0.6, jnp.linspace(0.0, 1.0, 3))
     fixed = vmj.Rope(1000.0, 1e-4, 1e11, -1e13, 0.0, 1e6, vmj.ConstantSpeed(100.0, 0.0))
-    seq = vmj.turning_points(fixed, 0.6, 5, method="energy")
+    seq = vmj.turning_points(fixed, 0.6, 5, vmj.EnergyBalance())
     assert int(seq.result) == vmj.RESULTS.unbounded and int(seq.count) == 0
     # below the barrier the same rope has turning points
-    assert int(vmj.turning_points(fixed, 0.05, 5, method="energy").count) > 0
+    assert int(vmj.turning_points(fixed, 0.05, 5, vmj.EnergyBalance()).count) > 0
 
 
 def test_a_rope_run_out_says_so():

@@ -22,7 +22,7 @@ def exact_amplitudes(m, a0, n):
 
 
 def energy_amplitudes(m, a0, n):
-    return vmj.energy_balance(m, a0, n).amplitudes
+    return vmj.turning_points(m, a0, n, vmj.EnergyBalance()).amplitudes
 
 
 # steps of the central differences: about 1e-6 of each parameter's scale
@@ -59,7 +59,7 @@ def test_reverse_mode_equals_forward_mode_and_central_differences():
 def test_stop_time_sensitivity():
     # the exact stop time moves smoothly with the friction force while the count is unchanged
     def stop_time(m, a0, n):
-        return vmj.energy_balance(m, a0, n).stop_time
+        return vmj.turning_points(m, a0, n, vmj.EnergyBalance()).stop_time
 
     m = model_at(delta=3.0, eps=0.0, mu=9.0)
     assert np.isfinite(stop_time(m, A0, 20))
@@ -95,7 +95,13 @@ def test_bad_input():
     with pytest.raises(ValueError, match="mode must be"):
         vmj.sensitivity(energy_amplitudes, m, ("mu",), a0=A0, n=3, mode="central")
     with pytest.raises(ValueError, match="float arrays only"):
-        vmj.sensitivity(lambda m, a0, n: vmj.energy_balance(m, a0, n).count, m, ("mu",), a0=A0, n=3)
+        vmj.sensitivity(
+            lambda m, a0, n: vmj.turning_points(m, a0, n, vmj.EnergyBalance()).count,
+            m,
+            ("mu",),
+            a0=A0,
+            n=3,
+        )
     with pytest.raises(ValueError, match="at least one"):
         vmj.sensitivity(energy_amplitudes, m, (), a0=A0, n=3)
 
@@ -103,7 +109,7 @@ def test_bad_input():
 def test_other_models_stick_slip_period_and_stick_time():
     # nothing in sweep/sensitivity is specific to VariableMass: the stick-slip model works as is
     def period_and_stick(m):
-        cycle = vmj.stick_slip_cycle(m)
+        cycle = vmj.limit_cycle(m)
         return {"period": cycle.period, "stick_time": cycle.stick_time}
 
     m = vmj.StickSlip(eps=3.0, Omega=0.5)

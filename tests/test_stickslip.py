@@ -18,12 +18,12 @@ REL = 1e-8
 
 def _both(eps, Omega):
     m = vmj.StickSlip(eps, Omega)
-    return vmj.stick_slip_cycle(m), vmj.stick_slip_closed_form(m)
+    return vmj.limit_cycle(m), vmj.limit_cycle(m, vmj.ClosedForm())
 
 
 # one compiled function per solver, reused by every example
-exact_jit = jax.jit(lambda e, o: vmj.stick_slip_cycle(vmj.StickSlip(e, o)))
-closed_jit = jax.jit(lambda e, o: vmj.stick_slip_closed_form(vmj.StickSlip(e, o)))
+exact_jit = jax.jit(lambda e, o: vmj.limit_cycle(vmj.StickSlip(e, o)))
+closed_jit = jax.jit(lambda e, o: vmj.limit_cycle(vmj.StickSlip(e, o), vmj.ClosedForm()))
 
 
 def _agree(eps, Omega):
@@ -109,7 +109,7 @@ def test_period_gradient_vs_finite_differences(eps, Omega):
 def test_vmap_matches_single_solves():
     eps = jnp.array([1.5, 3.0, 4.2, 7.7, 14.9])
     om = jnp.array([0.05, 0.5, 1.0, 2.0, 5.0])
-    batch = jax.vmap(lambda e, o: vmj.stick_slip_cycle(vmj.StickSlip(e, o)))(eps, om)
+    batch = jax.vmap(lambda e, o: vmj.limit_cycle(vmj.StickSlip(e, o)))(eps, om)
     for i in range(len(eps)):
         one = exact_jit(float(eps[i]), float(om[i]))
         assert float(batch.period[i]) == pytest.approx(float(one.period), rel=1e-14)
@@ -134,7 +134,7 @@ def test_from_physical_units():
     m = vmj.StickSlip.from_physical(I, c, omega, M0, M1)
     assert float(m.eps) == pytest.approx(6.5)
     assert float(m.Omega) == pytest.approx(omega * np.sqrt(c * I) / M0)
-    cyc = vmj.stick_slip_cycle(m)
+    cyc = vmj.limit_cycle(m)
     phys = cyc.physical()
     T = np.sqrt(I / c)
     assert float(phys["period"]) == pytest.approx(float(cyc.period) * T, rel=1e-14)
@@ -188,10 +188,10 @@ def test_bad_input_inside_jit_raises():
 
 
 def test_too_many_reversals_is_reported():
-    cyc = vmj.stick_slip_cycle(vmj.StickSlip(9.5, 1.0), max_reversals=2)
+    cyc = vmj.limit_cycle(vmj.StickSlip(9.5, 1.0), max_reversals=2)
     assert bool(cyc.failed) and "max_reversals" in cyc.message
     with pytest.raises(Exception, match="max_reversals"):
-        vmj.stick_slip_cycle(vmj.StickSlip(9.5, 1.0), max_reversals=2, throw=True)
+        vmj.limit_cycle(vmj.StickSlip(9.5, 1.0), max_reversals=2, throw=True)
 
 
 def _cli_json(capsys, argv):
@@ -234,10 +234,10 @@ def test_exact_matches_closed_form_at_extreme_drive_speeds(eps, Omega):
 
 
 def test_stick_time_gradient_at_a_fast_drive():
-    stick = lambda cyc: lambda e, o: cyc(vmj.StickSlip(e, o)).stick_time  # noqa: E731
+    stick = lambda solver: lambda e, o: vmj.limit_cycle(vmj.StickSlip(e, o), solver).stick_time  # noqa: E731
     for eps, Omega in [(4.6, 1e7), (6.3, 1e10)]:
-        g = jax.grad(stick(vmj.stick_slip_cycle), argnums=1)(eps, Omega)
-        ref = jax.grad(stick(vmj.stick_slip_closed_form), argnums=1)(eps, Omega)
+        g = jax.grad(stick(vmj.Exact()), argnums=1)(eps, Omega)
+        ref = jax.grad(stick(vmj.ClosedForm()), argnums=1)(eps, Omega)
         assert float(g) == pytest.approx(float(ref), rel=1e-9)
 
 
@@ -276,9 +276,37 @@ def test_smoothed_model_approaches_exact_cycle():
     # docs/stick-slip.md); the smoothed disk creeps instead of sticking
     model = vmj.StickSlip(6.3, 0.7)
     exact = exact_jit(6.3, 0.7)
-    sm = vmj.stick_slip_cycle(model, method="smooth", smoothing=1e-4)
+    sm = vmj.limit_cycle(model, vmj.Smoothed(smoothing=1e-4))
     assert int(sm.reversals) == int(exact.reversals) == 2
     assert float(sm.period) == pytest.approx(float(exact.period), rel=0.02)
     assert float(sm.period) != pytest.approx(float(exact.period), rel=1e-3)
-    with pytest.raises(ValueError, match="stick_slip_simulate"):
+    with pytest.raises(ValueError, match=r"vmj\.simulate\(model, \*model\.breakaway\(\)"):
         sm.trajectory()
+
+
+def test_rest_memory_follows_the_smoothed_trajectory():
+    # the smoothed model's third state, z' = (r(u) - z) / w^(1/4) with r(u) = exp(-u^2/w)
+    # (u = xi' + Omega, the disk velocity), at the times of `vmj.simulate` from breakaway (bit
+    # for bit the memory the older stick-slip simulation returned beside it). Where r has
+    # stayed above 0.99 (a rest) or below 1e-6 (a slide) for 1 time unit, 10 memory times
+    # w^(1/4) = 0.1, z has relaxed to it but for e^-10 = 4.5e-5: z >= 0.99 (1 - e^-10) > 0.98
+    # and z <= 1e-6 + e^-10 < 1e-4 (measured 0.9992 and 2.7e-5)
+    model, w, t1, n = vmj.StickSlip(6.3, 0.7), 1e-4, 25.0, 501
+    solver = vmj.Smoothed(smoothing=w)
+    traj = vmj.simulate(model, *model.breakaway(), t1, solver, n_save=n)
+    z = np.asarray(model.rest_memory(t1, solver, n_save=n))
+    assert z.shape == (n,) and z[0] == 0.0
+    assert np.all((z > -1e-8) & (z < 1 + 1e-8))
+    r = np.exp(-((np.asarray(traj.vs) + 0.7) ** 2) / w)
+    k = int(round(1.0 / (t1 / (n - 1))))  # samples in 1 time unit
+
+    def held(cond):
+        return np.array([i >= k and cond[i - k : i + 1].all() for i in range(n)])
+
+    rest, slide = held(r > 0.99), held(r < 1e-6)
+    assert rest.sum() > 50 and slide.sum() > 50
+    assert z[rest].min() > 0.98 and z[slide].max() < 1e-4
+    with pytest.raises(ValueError, match="solver must be a vmj.Smoothed"):
+        model.rest_memory(t1, vmj.Exact())
+    with pytest.raises(ValueError, match="t1 must be"):
+        model.rest_memory(-1.0)

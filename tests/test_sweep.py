@@ -98,15 +98,29 @@ def test_sweep_matches_scipy(exact_grid, idx):
 def test_paired_points_broadcast_like_numpy():
     eps = np.array([0.0, 0.3, 1.0])
     mu = np.array([2.0, 5.0, 9.0])
-    paired = vmj.sweep(vmj.energy_balance, paper_model(eps=eps, mu=mu), a0=A0, n=8)
+    paired = vmj.sweep(
+        vmj.turning_points, paper_model(eps=eps, mu=mu), a0=A0, n=8, solver=vmj.EnergyBalance()
+    )
     assert paired.dims == ("point",) and paired.shape == (3,)
     assert set(paired.coords) == {"eps", "mu"}
     for p in range(3):
-        one = vmj.energy_balance(paper_model(eps=eps[p], mu=mu[p]), A0, 8)
+        one = vmj.turning_points(paper_model(eps=eps[p], mu=mu[p]), A0, 8, vmj.EnergyBalance())
         np.testing.assert_allclose(paired.values.positions[p], one.positions, atol=1e-12 * A0)
     # (2, 1) x (3,) broadcasts to a 2 x 3 product, the same as the grid over those axes
-    outer = vmj.sweep(vmj.energy_balance, paper_model(eps=eps[:2, None], mu=mu), a0=A0, n=8)
-    g = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=eps[:2], mu=mu), a0=A0, n=8)
+    outer = vmj.sweep(
+        vmj.turning_points,
+        paper_model(eps=eps[:2, None], mu=mu),
+        a0=A0,
+        n=8,
+        solver=vmj.EnergyBalance(),
+    )
+    g = vmj.sweep(
+        vmj.turning_points,
+        vmj.grid(paper_model(), eps=eps[:2], mu=mu),
+        a0=A0,
+        n=8,
+        solver=vmj.EnergyBalance(),
+    )
     assert outer.shape == g.shape == (2, 3)
     assert outer.dims == ("point_0", "point_1")
     np.testing.assert_array_equal(outer.values.positions, g.values.positions)
@@ -117,8 +131,8 @@ def test_nested_parameter_names():
     assert g.dims == ("F",)
     dotted = vmj.grid(paper_model(), **{"friction.F": [5.0, 14.7]})
     np.testing.assert_array_equal(dotted.model.friction.F, g.model.friction.F)
-    r = vmj.sweep(vmj.energy_balance, g, a0=A0, n=4)
-    one = vmj.energy_balance(paper_model(F=5.0), A0, 4)
+    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=4, solver=vmj.EnergyBalance())
+    one = vmj.turning_points(paper_model(F=5.0), A0, 4, vmj.EnergyBalance())
     np.testing.assert_allclose(r.values.positions[0], one.positions, atol=1e-12 * A0)
 
 
@@ -156,23 +170,33 @@ def test_chunk_plan():
 
 
 def test_one_point_and_size_one_axes():
-    one = vmj.sweep(vmj.energy_balance, vmj.grid(paper_model(), eps=[0.5]), a0=A0, n=4)
-    want = vmj.energy_balance(paper_model(eps=0.5), A0, 4)
+    one = vmj.sweep(
+        vmj.turning_points,
+        vmj.grid(paper_model(), eps=[0.5]),
+        a0=A0,
+        n=4,
+        solver=vmj.EnergyBalance(),
+    )
+    want = vmj.turning_points(paper_model(eps=0.5), A0, 4, vmj.EnergyBalance())
     assert one.shape == (1,) and one.chunks == 1
     np.testing.assert_allclose(one.values.positions[0], want.positions, atol=1e-12 * A0)
     g = vmj.grid(paper_model(), eps=[0.5], mu=[1.0, 2.0], delta=[3.0])
-    r = vmj.sweep(vmj.energy_balance, g, a0=A0, n=4)
+    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=4, solver=vmj.EnergyBalance())
     assert r.shape == (1, 2, 1)
     np.testing.assert_allclose(
         r.values.positions[0, 1, 0],
-        vmj.energy_balance(paper_model(eps=0.5, mu=2.0), A0, 4).positions,
+        vmj.turning_points(paper_model(eps=0.5, mu=2.0), A0, 4, vmj.EnergyBalance()).positions,
         atol=1e-12 * A0,
     )
 
 
 def test_small_sweeps_use_every_core():
     r = vmj.sweep(
-        vmj.energy_balance, vmj.grid(paper_model(), eps=np.linspace(0, 1, 10)), a0=A0, n=4
+        vmj.turning_points,
+        vmj.grid(paper_model(), eps=np.linspace(0, 1, 10)),
+        a0=A0,
+        n=4,
+        solver=vmj.EnergyBalance(),
     )
     assert r.chunks == min(LANES, 10)  # (one chunk fills a GPU)
 
@@ -190,7 +214,9 @@ def test_sweeps_from_several_threads_at_once_keep_their_results_and_threads():
     ]
 
     def run(g):
-        return vmj.sweep(vmj.energy_balance, g, a0=A0, n=6, chunk_size=2).values.amplitudes
+        return vmj.sweep(
+            vmj.turning_points, g, a0=A0, n=6, chunk_size=2, solver=vmj.EnergyBalance()
+        ).values.amplitudes
 
     alone = [run(g) for g in grids]
     got = [None] * len(grids)
@@ -216,7 +242,15 @@ def test_sweeps_from_several_threads_at_once_keep_their_results_and_threads():
 
     # raised in a chunk's thread, it reaches the caller, and the thread is kept
     with pytest.raises(RuntimeError, match="progress callback"):
-        vmj.sweep(vmj.energy_balance, grids[1], a0=A0, n=6, chunk_size=2, progress=broken)
+        vmj.sweep(
+            vmj.turning_points,
+            grids[1],
+            a0=A0,
+            n=6,
+            chunk_size=2,
+            progress=broken,
+            solver=vmj.EnergyBalance(),
+        )
     np.testing.assert_array_equal(run(grids[1]), alone[1])
     assert len(_engine._IDLE) == kept
 
@@ -231,9 +265,13 @@ def test_results_in_pinned_host_memory_are_the_same(monkeypatch):
     g = vmj.grid(paper_model(), eps=np.linspace(0, 1, 7), mu=[0.0, 5.0])
     want = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4)
     # (the energy balance's stacked turning points come with the points last)
-    want_map = vmj.sweep(vmj.energy_balance, g, a0=A0, n=N_SWINGS, chunk_size=4)
+    want_map = vmj.sweep(
+        vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4, solver=vmj.EnergyBalance()
+    )
     monkeypatch.setattr(sweep_module, "host_output", lambda d, s: pinned_host(d[0], s))
-    got_map = vmj.sweep(vmj.energy_balance, g, a0=A0, n=N_SWINGS, chunk_size=4)
+    got_map = vmj.sweep(
+        vmj.turning_points, g, a0=A0, n=N_SWINGS, chunk_size=4, solver=vmj.EnergyBalance()
+    )
     for a, b in zip(jax.tree.leaves(got_map.values), jax.tree.leaves(want_map.values)):
         np.testing.assert_array_equal(a, b)
     placed = []
@@ -286,8 +324,18 @@ def test_chunking_gives_identical_results_and_reports_progress(capsys):
     model = paper_model(
         delta=rng.uniform(-3, 3, n), eps=rng.uniform(0, 1, n), mu=rng.uniform(0, 10, n)
     )
-    whole = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=n)
-    parts = vmj.sweep(vmj.energy_balance, model, a0=A0, n=N_SWINGS, chunk_size=480, progress=True)
+    whole = vmj.sweep(
+        vmj.turning_points, model, a0=A0, n=N_SWINGS, chunk_size=n, solver=vmj.EnergyBalance()
+    )
+    parts = vmj.sweep(
+        vmj.turning_points,
+        model,
+        a0=A0,
+        n=N_SWINGS,
+        chunk_size=480,
+        progress=True,
+        solver=vmj.EnergyBalance(),
+    )
     k = n_chunks(n, 480)
     assert whole.chunks == n_chunks(n, n) and parts.chunks == k >= 11
     for a, b in zip(whole.values.__dict__.values(), parts.values.__dict__.values()):
@@ -309,7 +357,7 @@ def test_results_keep_the_points_on_the_axis_their_computation_puts_them_on():
     np.testing.assert_array_equal(out["stacked"].T, jax.vmap(both)(x)["stacked"])
 
     def fn(model, a0, n):
-        seq = vmj.energy_balance(model, a0, n)
+        seq = vmj.turning_points(model, a0, n, vmj.EnergyBalance())
         return {"amplitudes": seq.amplitudes, "count": seq.count}
 
     delta, mu = np.linspace(-3, 3, 7), np.linspace(0, 9, 7)
@@ -348,7 +396,7 @@ def test_million_point_energy_sweep_has_bounded_memory(retain):
         model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
         g = vmj.grid(model, eps=np.linspace(0, 1, 100), mu=np.linspace(0, 10, 100),
                      delta=np.linspace(-3, 3, 100))
-        fn = lambda m, a0, n: vmj.energy_balance(m, a0, n).amplitudes
+        fn = lambda m, a0, n: vmj.turning_points(m, a0, n, vmj.EnergyBalance()).amplitudes
         vmj.sweep(fn, vmj.grid(model, eps=[0.5]), a0=0.06, n=12)  # imports and a first compile
         before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         r = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=65536)
@@ -381,7 +429,7 @@ def test_sharded_over_four_devices_equals_one_device():
         assert len(jax.devices()) == 4
         model = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(14.7))
         g = vmj.grid(model, eps=np.linspace(0, 1, 5), mu=np.linspace(0, 9, 7), delta=[-3.0, 3.0])
-        fn = vmj.energy_balance
+        fn = lambda m, a0, n: vmj.turning_points(m, a0, n, vmj.EnergyBalance())
         four = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=24)
         one = vmj.sweep(fn, g, a0=0.06, n=12, chunk_size=24, devices=jax.devices()[:1])
         # five points: one chunk padded to eight, two per device
@@ -421,7 +469,7 @@ def test_csv_round_trip(exact_grid, tmp_path):
 
 def test_csv_round_trip_paired(tmp_path):
     model = paper_model(eps=np.array([0.1, 0.7]), mu=np.array([1.0, 3.0]))
-    r = vmj.sweep(vmj.energy_balance, model, a0=A0, n=5)
+    r = vmj.sweep(vmj.turning_points, model, a0=A0, n=5, solver=vmj.EnergyBalance())
     r.to_csv(str(tmp_path / "p.csv"))
     back = vmj.SweepResult.read_csv(str(tmp_path / "p.csv"))
     np.testing.assert_array_equal(back.coords["eps"], [0.1, 0.7])
@@ -457,9 +505,22 @@ def test_bad_input_raises_value_error():
     with pytest.raises(ValueError, match="scalar parameters"):
         vmj.grid(paper_model(eps=jnp.array([0.0, 1.0])), mu=[1.0])
     with pytest.raises(ValueError, match="do not broadcast"):
-        vmj.sweep(vmj.energy_balance, paper_model(eps=np.zeros(2), mu=np.zeros(3)), a0=A0, n=2)
+        vmj.sweep(
+            vmj.turning_points,
+            paper_model(eps=np.zeros(2), mu=np.zeros(3)),
+            a0=A0,
+            n=2,
+            solver=vmj.EnergyBalance(),
+        )
     with pytest.raises(ValueError, match="chunk_size"):
-        vmj.sweep(vmj.energy_balance, vmj.grid(m, eps=[0.0]), a0=A0, n=2, chunk_size=0)
+        vmj.sweep(
+            vmj.turning_points,
+            vmj.grid(m, eps=[0.0]),
+            a0=A0,
+            n=2,
+            chunk_size=0,
+            solver=vmj.EnergyBalance(),
+        )
 
 
 def test_cli_sweep(tmp_path, capsys):
@@ -489,7 +550,7 @@ def test_cli_sweep(tmp_path, capsys):
     back = vmj.SweepResult.read_csv(str(out))
     assert back.dims == ("eps", "mu", "delta")
     np.testing.assert_array_equal(back.coords["delta"], [-3.0, 3.0])
-    one = vmj.energy_balance(paper_model(-3.0, 0.5, 10.0), A0, N_SWINGS)
+    one = vmj.turning_points(paper_model(-3.0, 0.5, 10.0), A0, N_SWINGS, vmj.EnergyBalance())
     np.testing.assert_allclose(back.values["positions"][1, 2, 0], one.positions, atol=1e-12 * A0)
     assert fig.stat().st_size > 10_000
     bad = argv[:3] + ["0:2:3"] + argv[4:]
@@ -520,11 +581,11 @@ def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
     memory = [1e12]
     monkeypatch.setattr(sweep_module, "available_memory", lambda device, enough: memory[0])
     g = vmj.grid(paper_model(), eps=[0.0, 0.5, 1.0, 0.25], mu=[2.0, 9.0])
-    vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, solver=vmj.Smoothed())
     per_point = seen[-1]
     assert 1e2 < per_point < 1e6  # bytes per point: no memory that grows with the steps
     memory[0] = 2.5 * CORES * per_point / sweep_module.MEMORY_FRACTION
-    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth")
+    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, solver=vmj.Smoothed())
     fits = int(sweep_module.MEMORY_FRACTION * memory[0] / CORES / seen[-1])
     assert 1 <= fits < 4
     assert r.chunks == n_chunks(8, fits) >= 8 // fits >= 2  # chunks of `fits` points at most
@@ -541,7 +602,7 @@ def test_smoothed_chunks_are_sized_from_the_memory_they_need(monkeypatch):
         match=r"chunk_size=8 needs .* GB of working memory per chunk "
         r".* use chunk_size <= \d+, or leave it",
     ):
-        vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, method="smooth", chunk_size=8)
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N_SWINGS, solver=vmj.Smoothed(), chunk_size=8)
 
 
 def test_float32_sweeps_agree_with_float64_to_float32_accuracy():
@@ -558,18 +619,18 @@ def test_float32_sweeps_agree_with_float64_to_float32_accuracy():
         m = vmj.VariableMass(5.0, 4900.0, {delta.tolist()}, {eps.tolist()}, {mu.tolist()},
                              vmj.Coulomb(14.7))
         x = vmj.sweep(vmj.turning_points, m, a0=0.06, n=12).values
-        e = vmj.sweep(vmj.energy_balance, m, a0=0.06, n=12).values
+        e = vmj.sweep(vmj.turning_points, m, a0=0.06, n=12, solver=vmj.EnergyBalance()).values
         print(json.dumps({{"dtype": str(x.positions.dtype), "x": x.positions.tolist(),
                            "count": x.count.tolist(), "result": x.result.tolist(),
                            "e": e.positions.tolist(), "e_count": e.count.tolist()}}))
     """)
     assert got["dtype"] == "float32"
     model = paper_model(delta=delta, eps=eps, mu=mu)
-    for fn, x, count in (
-        (vmj.turning_points, got["x"], got["count"]),
-        (vmj.energy_balance, got["e"], got["e_count"]),
+    for solver, x, count in (
+        (vmj.Exact(), got["x"], got["count"]),
+        (vmj.EnergyBalance(), got["e"], got["e_count"]),
     ):
-        ref = vmj.sweep(fn, model, a0=A0, n=12).values
+        ref = vmj.sweep(vmj.turning_points, model, a0=A0, n=12, solver=solver).values
         np.testing.assert_array_equal(count, ref.count)
         moved = np.arange(12) < ref.count[:, None]
         big = moved & (np.abs(ref.positions) > 0.01 * A0)
@@ -615,13 +676,14 @@ def test_a_sweep_checks_its_points_once_on_the_host():
     good = paper_model(eps=np.array([0.5, 0.7]))
     bad = eqx.tree_at(lambda m: m.eps, good, np.array([0.5, 1.5]))
     with pytest.raises(ValueError, match="eps must be"):
-        vmj.sweep(vmj.energy_balance, bad, a0=A0, n=4)
+        vmj.sweep(vmj.turning_points, bad, a0=A0, n=4, solver=vmj.EnergyBalance())
     # each point's model is then traced as checked: no host callback in the compiled chunk
     # (and a swept function's own arguments are still guarded)
     swept = tuple(np.ndim(x) > 0 for x in jax.tree.leaves(good))
-    job = _SweepJob(vmj.energy_balance, {"a0": A0, "n": 4}, good, swept, (2,), 2, "")
+    energy = {"a0": A0, "n": 4, "solver": vmj.EnergyBalance()}
+    job = _SweepJob(vmj.turning_points, energy, good, swept, (2,), 2, "")
     assert "callback" not in job.function().lower(*job.args(0)).as_text()
-    own_a0 = lambda m, n: vmj.energy_balance(m, m.eps, n)  # noqa: E731
+    own_a0 = lambda m, n: vmj.turning_points(m, m.eps, n, vmj.EnergyBalance())  # noqa: E731
     job = _SweepJob(own_a0, {"n": 4}, good, swept, (2,), 2, "")
     assert "callback" in job.function().lower(*job.args(0)).as_text()
 

@@ -136,8 +136,8 @@ def test_exact_half_swing_is_one_substep(delta, eps, mu):
 
 def test_constant_mass_coulomb_decrement_is_exactly_2F_over_c():
     m = model(delta=0.0, mu=0.0)
-    for method in ("exact", "energy"):
-        seq = vmj.turning_points(m, A0, 12, method=method)
+    for solver in (vmj.Exact(), vmj.EnergyBalance()):
+        seq = vmj.turning_points(m, A0, 12, solver)
         a = np.concatenate([[A0], np.asarray(seq.amplitudes)[: int(seq.count)]])
         crossed = np.asarray(seq.crossed)[: int(seq.count)]
         np.testing.assert_allclose(-np.diff(a)[crossed], 2 * FT / C, rtol=1e-9, atol=0)
@@ -158,8 +158,8 @@ def test_arithmetic_decay_on_the_papers_boundary(eps, delta):
     if mu < 0:
         pytest.skip("mu would be negative")
     m = model(delta=delta, eps=eps, mu=mu)
-    for method, rtol in (("energy", 1e-12), ("exact", 1e-6)):
-        seq = vmj.turning_points(m, A0, 8, method=method)
+    for solver, rtol in ((vmj.EnergyBalance(), 1e-12), (vmj.Exact(), 1e-6)):
+        seq = vmj.turning_points(m, A0, 8, solver)
         a = np.concatenate([[A0], np.asarray(seq.amplitudes)[:8]])
         np.testing.assert_allclose(-np.diff(a), 2 * FT / C, rtol=rtol)
 
@@ -172,7 +172,7 @@ def test_smoothed_turning_points_converge_to_exact():
         exact = np.asarray(vmj.turning_points(m, A0, 6).amplitudes)[:5]
 
         def error(w):
-            smooth = vmj.turning_points(m, A0, 6, method="smooth", smoothing=w)
+            smooth = vmj.turning_points(m, A0, 6, vmj.Smoothed(smoothing=w))
             return np.max(np.abs(np.asarray(smooth.amplitudes)[:5] / exact - 1))
 
         default = error(None)
@@ -186,7 +186,7 @@ def test_smoothed_turning_points_converge_to_exact():
 def test_smoothed_model_arrest_is_reported_as_stop(n):
     m = model()  # sticks at the 10th turning point (table 1, mu = 2, eps = 0)
     exact = vmj.turning_points(m, A0, n)
-    smooth = vmj.turning_points(m, A0, n, method="smooth")
+    smooth = vmj.turning_points(m, A0, n, vmj.Smoothed())
     assert int(exact.count) == int(smooth.count) == 10
     assert bool(exact.stopped) and bool(smooth.stopped)
     assert not bool(smooth.crossed[9]) and not bool(exact.crossed[9])
@@ -236,7 +236,7 @@ def test_smoothed_lanes_do_not_depend_on_their_batch():
     deltas, mus = jnp.array([-3.0, 0.0, 3.0, 1.0]), jnp.array([10.0, 2.0, 0.0, 6.0])
 
     def one(delta, mu):
-        return vmj.turning_points(model(delta=delta, mu=mu), A0, 12, method="smooth")
+        return vmj.turning_points(model(delta=delta, mu=mu), A0, 12, vmj.Smoothed())
 
     batch = jax.jit(jax.vmap(one))(deltas, mus)
     counts = set()
@@ -374,22 +374,22 @@ def test_a_frictionless_mass_that_creeps_has_not_stopped():
     good: |spring force| <= static friction" where the spring force was 3.6 N and the friction
     0. The exact solver and the energy balance report the step limit (no velocity zero)."""
     m = vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 1000.0, vmj.Coulomb(0.0))
-    for method in ("exact", "smooth"):
-        seq = vmj.turning_points(m, A0, 6, method=method)
-        assert not bool(seq.stopped) and int(seq.result) == vmj.RESULTS.step_limit, method
+    for solver in (vmj.Exact(), vmj.Smoothed()):
+        seq = vmj.turning_points(m, A0, 6, solver)
+        assert not bool(seq.stopped) and int(seq.result) == vmj.RESULTS.step_limit, solver
 
 
 def test_mass_exhaustion_is_reported_not_nan():
     m = vmj.VariableMass(1.0, C, -3.0, 0.0, 0.0, vmj.Coulomb(1.0))  # mass gone at t = 1/3 s
-    for method in ("exact", "smooth", "energy"):
-        seq = vmj.turning_points(m, A0, 40, method=method)
-        assert int(seq.result) == vmj.RESULTS.mass_exhausted, method
+    for solver in (vmj.Exact(), vmj.Smoothed(), vmj.EnergyBalance()):
+        seq = vmj.turning_points(m, A0, 40, solver)
+        assert int(seq.result) == vmj.RESULTS.mass_exhausted, solver
         assert "reaches zero" in seq.message
         assert 0 < int(seq.count) < 40
         assert np.all(np.isfinite(np.asarray(seq.positions)))
         assert float(np.max(seq.times)) < 1.0 / 3.0
         with pytest.raises(Exception, match="reaches zero"):
-            vmj.turning_points(m, A0, 40, method=method, throw=True)
+            vmj.turning_points(m, A0, 40, solver, throw=True)
 
 
 def test_a_turning_point_just_before_the_mass_runs_out():
@@ -409,7 +409,9 @@ def test_a_turning_point_just_before_the_mass_runs_out():
 def test_the_message_of_a_batch_says_how_to_read_it():
     """`.message` of a vmapped result was `TypeError: only 0-dimensional arrays can be
     converted to Python scalars`."""
-    seqs = jax.vmap(lambda mu: vmj.energy_balance(model(mu=mu), A0, 3))(np.array([2.0, 9.0]))
+    seqs = jax.vmap(lambda mu: vmj.turning_points(model(mu=mu), A0, 3, vmj.EnergyBalance()))(
+        np.array([2.0, 9.0])
+    )
     with pytest.raises(ValueError, match=r"a message is of one solve; this result holds 2"):
         _ = seqs.message
 
@@ -480,7 +482,7 @@ def test_decay_sequence_invariants(m0, c, delta, eps, mu, F, f, use_f):
 
 
 def energy_balance_reference(m0, c, delta, eps, mu, F, f, use_f, a0, n):
-    """The recurrences of `vmj.energy_balance`'s docstring, swing by swing in plain Python
+    """The recurrences of `vmj.EnergyBalance`'s docstring, swing by swing in plain Python
     (math.expm1), with the stick, release, over-damping and exhaustion rules written out."""
     g = 9.81
     force = (lambda m: f * g * m) if use_f else (lambda m: F)
@@ -547,7 +549,9 @@ def test_energy_balance_matches_a_plain_swing_by_swing_reference(
     against the recurrences written out: the same count, crossings and status, positions to
     1e-12 of a0 and times to 1e-12 relative."""
     friction = vmj.MassProportional(f) if use_f else vmj.Coulomb(F)
-    seq = vmj.energy_balance(vmj.VariableMass(m0, C, delta, eps, mu, friction), a0, 20)
+    seq = vmj.turning_points(
+        vmj.VariableMass(m0, C, delta, eps, mu, friction), a0, 20, vmj.EnergyBalance()
+    )
     t, x, crossed, result = energy_balance_reference(m0, C, delta, eps, mu, F, f, use_f, a0, 20)
     k = len(t)
     assert int(seq.count) == k and int(seq.result) == result
@@ -600,12 +604,11 @@ def test_bad_friction_raises_value_error(make, name):
         (lambda m: vmj.turning_points(m, -0.01, 5), "a0"),
         (lambda m: vmj.turning_points(m, float("nan"), 5), "a0"),
         (lambda m: vmj.turning_points(m, A0, 0), "n"),
-        (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=0.0), "smoothing"),
-        (lambda m: vmj.turning_points(m, A0, 5, method="smooth", smoothing=-1.0), "smoothing"),
-        (lambda m: vmj.energy_balance(m, -1.0, 5), "a0"),
-        (lambda m: vmj.turning_points(m, A0, 5, method="rk4"), "method"),
+        (lambda m: vmj.turning_points(m, A0, 5, vmj.Smoothed(smoothing=0.0)), "smoothing"),
+        (lambda m: vmj.turning_points(m, A0, 5, vmj.Smoothed(smoothing=-1.0)), "smoothing"),
+        (lambda m: vmj.turning_points(m, -1.0, 5, vmj.EnergyBalance()), "a0"),
         (lambda m: vmj.simulate(m, -A0, 0.0, 0.0), "t1"),
-        (lambda m: vmj.simulate(m, -A0, 0.0, 1.0, smoothing=0.0), "smoothing"),
+        (lambda m: vmj.simulate(m, -A0, 0.0, 1.0, vmj.Smoothed(smoothing=0.0)), "smoothing"),
         (lambda m: vmj.simulate(m, float("inf"), 0.0, 1.0), "x0"),
         (lambda m: vmj.simulate(m, 0.0, 0.0, 1.0), "smoothing"),  # no velocity scale for a default
     ],

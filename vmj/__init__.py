@@ -32,18 +32,7 @@ from ._version import __version__ as __version__
 if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs as written
     from ._checks import AbstractParams, assume_valid
     from ._host import retain_host_memory
-    from ._integrate import (
-        decay_trajectory,
-        energy_balance,
-        limit_cycle,
-        linear_simulate,
-        rope_energy_map,
-        simulate,
-        stick_slip_closed_form,
-        stick_slip_cycle,
-        stick_slip_simulate,
-        turning_points,
-    )
+    from ._integrate import decay_trajectory, limit_cycle, simulate, turning_points
     from ._laws._dissipation import CoulombDamping, DissipationLaw, QuadraticDamping, ViscousDamping
     from ._laws._forcing import BaseMotion, Forcing, HarmonicForce, NoForcing
     from ._laws._friction import AffineFriction, Coulomb, FrictionLaw, MassProportional
@@ -137,17 +126,10 @@ __all__ = [
     "Trajectory",
     "StickSlipCycle",
     # closed forms and averaged laws
-    "energy_balance",
-    "rope_energy_map",
     "kbm_amplitude",
     "kbm_frequency",
     "action_amplitude",
     "action_frequency",
-    # the older per-model spellings
-    "stick_slip_cycle",
-    "stick_slip_closed_form",
-    "stick_slip_simulate",
-    "linear_simulate",
     # sweeps and sensitivities
     "Grid",
     "SweepResult",

@@ -2,16 +2,17 @@
 [`vmj.simulate`][] (a trajectory), [`vmj.limit_cycle`][] (a self-excited cycle). Each takes a
 model and a solver object, validates the input once (concrete values raise `ValueError` here;
 traced ones are guarded inside the caller's `jit`/`vmap`), and calls one compiled function per
-task. The older per-model functions are thin wrappers kept for compatibility."""
+task. A solver is always an object (`vmj.Smoothed(smoothing=...)`, `vmj.Exact(max_substeps=...)`);
+a string or a `method=`/`smoothing=`/`max_substeps=` keyword is refused with the object to pass."""
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 import jax.numpy as jnp
 
 from ._checks import (
-    _float,
     _is_traced,
     anything,
     check,
@@ -26,39 +27,25 @@ from ._checks import (
 )
 from ._exported import exported_jit
 from ._models._base import check_horizon, require_scalar_fields
-from ._models._rope import Rope
-from ._models._stick_slip import MAX_REVERSALS, StickSlip, smoothed_states
+from ._models._stick_slip import MAX_REVERSALS
 from ._solution import DecaySequence, Trajectory, throw_if_failed
+from ._solvers._base import AbstractSolver
 from ._solvers._closed import ClosedForm, EnergyBalance
 from ._solvers._dense import decay_motion
 from ._solvers._exact import Exact
 from ._solvers._smoothed import Smoothed
 
 if TYPE_CHECKING:  # names used in annotations only
-    from jaxtyping import Array, ArrayLike
+    from jaxtyping import ArrayLike
 
     from ._models._base import (
         AbstractDecayModel,
-        AbstractEnergyMap,
         AbstractLimitCycle,
         AbstractModel,
     )
-    from ._models._linear import LinearOscillator
     from ._models._stick_slip import StickSlipCycle
-    from ._solvers._base import AbstractSolver
 
-__all__ = [
-    "turning_points",
-    "decay_trajectory",
-    "simulate",
-    "limit_cycle",
-    "energy_balance",
-    "rope_energy_map",
-    "stick_slip_cycle",
-    "stick_slip_closed_form",
-    "stick_slip_simulate",
-    "linear_simulate",
-]
+__all__ = ["turning_points", "decay_trajectory", "simulate", "limit_cycle"]
 
 #: memory per turning point of a solve's results (times, positions, amplitudes, crossing
 #: flags: 27 bytes measured for the exact and smoothed solvers, n = 10^6 -> 4 * 10^6) and per
@@ -66,37 +53,51 @@ __all__ = [
 #: turning point with 8 substeps) [bytes]
 TURNING_POINT_BYTES, SUBSTEP_BYTES = 32, 320
 
-_METHODS = {"exact": Exact, "smooth": Smoothed, "energy": EnergyBalance, "closed": ClosedForm}
+#: the solver object of each solver's name (the command line's `--method`), for the messages
+#: below
+_OBJECTS = {k.name: f"vmj.{k.__name__}()" for k in (Exact, Smoothed, EnergyBalance, ClosedForm)}
+#: solver settings refused as keywords of an entry point, with the object that takes them
+_SETTINGS = {
+    "smoothing": "vmj.Smoothed(smoothing=...)",
+    "max_substeps": "vmj.Exact(max_substeps=...)",
+}
 
 
-def _solver(solver, method, smoothing, max_substeps, default):
-    """The solver object, from `solver` or the older `method=`/`smoothing=`/`max_substeps=`."""
-    if isinstance(solver, str):  # turning_points(model, a0, n, "smooth"): the older positional
-        solver, method = None, solver
-    if solver is not None:
-        if method is not None:
-            raise ValueError("give either solver or method, not both")
-        if smoothing is not None or max_substeps is not None:
-            raise ValueError(
-                "smoothing and max_substeps are settings of the solver object: "
-                "vmj.Smoothed(smoothing=...), vmj.Exact(max_substeps=...)"
+def _pass(name) -> str:
+    """What to pass instead of the solver name `name` (`"smooth"`: `solver=vmj.Smoothed()`)."""
+    if isinstance(name, str) and name in _OBJECTS:
+        return f"pass solver={_OBJECTS[name]}"
+    return "pass a solver object: " + ", ".join(_OBJECTS.values())
+
+
+def _one_spelling(entry):
+    """`entry` refusing a solver given by name or a solver setting given as a keyword of its
+    own (`method="smooth"`, `smoothing=`, `max_substeps=`), naming the object to pass."""
+    name = entry.__name__
+
+    @functools.wraps(entry)
+    def checked(*args, **kwargs):
+        if "method" in kwargs:
+            raise TypeError(f"{name} takes no method=: {_pass(kwargs['method'])}")
+        for key in kwargs.keys() & _SETTINGS.keys():
+            raise TypeError(
+                f"{name} takes no {key}=: it is a setting of the solver, "
+                f"pass solver={_SETTINGS[key]}"
             )
+        return entry(*args, **kwargs)
+
+    return checked
+
+
+def _solver(solver, default):
+    """The solver object (`default`'s default instance for `None`); anything else, a name such
+    as `"smooth"` included, is refused naming the object to pass."""
+    if solver is None:
+        return _default(default)
+    if isinstance(solver, AbstractSolver):
         return solver
-    if method is None:
-        kind = default
-    elif method in _METHODS:
-        kind = _METHODS[method]
-    else:
-        raise ValueError(f"method must be one of {sorted(_METHODS)} (got {method!r})")
-    if kind is Smoothed:
-        return Smoothed(smoothing=smoothing)
-    if smoothing is not None:
-        raise ValueError(
-            f"smoothing applies to the smoothed solver (method 'smooth'), not {kind.name!r}"
-        )
-    if kind is Exact and max_substeps is not None:
-        return Exact(max_substeps=check_int("max_substeps", max_substeps, 1))
-    return _default(kind)
+    got = f"the string {solver!r}" if isinstance(solver, str) else type(solver).__name__
+    raise TypeError(f"solver must be a solver object (got {got}): {_pass(solver)}")
 
 
 def _default(kind):
@@ -157,15 +158,13 @@ def _one_lane(solver):
 _ONE_LANE = "_vmj_one_lane"  #: set on an exact solver: its one-lane variant
 
 
+@_one_spelling
 def turning_points(
     model: AbstractDecayModel,
     a0: ArrayLike,
     n: int,
-    solver: AbstractSolver | str | None = None,
+    solver: AbstractSolver | None = None,
     *,
-    method: str | None = None,
-    smoothing: ArrayLike | None = None,
-    max_substeps: int | None = None,
     throw: bool = False,
 ) -> DecaySequence:
     """Turning points (velocity zeros) of the free decay released from rest at `x(0) = -a0`.
@@ -180,8 +179,8 @@ def turning_points(
       there (a stuck mass stays put while its static friction holds; friction that falls with
       the mass releases it again). [`vmj.Smoothed`][] returns the turning points of the
       smoothed ODE. [`vmj.EnergyBalance`][] evaluates the model's closed-form half-swing map.
-    - `method`, `smoothing`, `max_substeps`: the older spelling, `method="exact" | "smooth" |
-      "energy"` with the solver's settings (kept for compatibility).
+      Each solver's settings are its own (`vmj.Exact(max_substeps=...)`,
+      `vmj.Smoothed(smoothing=...)`).
     - `throw`: raise [`vmj.SolverError`][] on failure (mass exhausted, step limit) instead of
       returning it in `result`. With `throw=False` check `result`/`message`.
 
@@ -189,7 +188,7 @@ def turning_points(
     respect to every model parameter and `a0` (with [`vmj.Smoothed`][]: reverse mode only).
     """
     warn_if_float32()
-    solver = _solver(solver, method, smoothing, max_substeps, Exact)
+    solver = _solver(solver, Exact)
     n = check_int("n", n, 1)
     check_room(f"the results of n = {n}", n * TURNING_POINT_BYTES, "ask for fewer")
     concrete = require_scalar_fields(model)
@@ -203,52 +202,13 @@ def turning_points(
     return throw_if_failed(seq, seq.result, throw)
 
 
-def energy_balance(
-    model: AbstractEnergyMap, a0: ArrayLike, n: int, *, throw: bool = False
-) -> DecaySequence:
-    """The paper's energy-balance recurrences (11)-(12) and the corrected (13); the same as
-    `vmj.turning_points(model, a0, n, vmj.EnergyBalance())`.
-
-    With `lambda = delta - 2 delta eps - 2 mu` and `m_k = m_{k-1} + pi delta sqrt(m_{k-1}/c)`:
-
-        a_k = a_{k-1} E_k + 8 F_k sqrt(m_{k-1}) / (pi lambda sqrt(c)) (1 - E_k),
-        E_k = exp(pi lambda / (4 sqrt(c m_{k-1}))),
-
-    evaluated so that `lambda -> 0` tends smoothly to `a_k = a_{k-1} - 2 F/c`. `F_k = F_T`, or
-    `f g (m_{k-1} + (pi delta/2) sqrt(m_{k-1}/c))` for mass-proportional friction. A negative
-    `a_k` is a swing that did not pass `x = 0` (the tables' `*`); the mass stops when
-    `c |a_k| <= F`. Times are the sums of the half-periods `pi sqrt(m_{k-1}/c)`. The map needs
-    an oscillation: where `lambda^2 >= 16 m c` the swing is over-damped (or runs away) and has
-    no turning point, reported as `RESULTS.step_limit`, as the exact solver reports it.
-
-    **Arguments:** `model` ([`vmj.VariableMass`][], or any model with an energy map), `a0` [m]
-    `> 0`, `n` (number of swings), `throw` as in [`vmj.turning_points`][].
-    **Returns:** a [`vmj.DecaySequence`][].
-    """
-    return turning_points(model, a0, n, EnergyBalance(), throw=throw)
-
-
-def rope_energy_map(rope: Rope, a0: ArrayLike, n: int, *, throw: bool = False) -> DecaySequence:
-    """Exact turning points of a rope of fixed length (`u = 0`) from the energy balance over
-    each half-swing, `V(x_k) - V(x_{k+1}) = A T |x_k - x_{k+1}|` (for `b = 0`:
-    `V(a_k) - V(-a_{k+1}) = A T (a_k + a_{k+1})`), solved per swing; the times are the exact
-    half-swing durations (energy integral, Gauss-Legendre). The same as
-    `vmj.turning_points(rope, a0, n, vmj.EnergyBalance())`.
-
-    **Arguments:** `rope` ([`vmj.Rope`][] with `vmj.ConstantSpeed(l0, 0.0)`), `a0` [m] `> 0`,
-    `n` (number of turning points). **Returns:** a [`vmj.DecaySequence`][].
-    """
-    if not isinstance(rope, Rope):
-        raise ValueError(f"rope must be a vmj.Rope (got {type(rope).__name__})")
-    return turning_points(rope, a0, n, EnergyBalance(), throw=throw)
-
-
 @exported_jit(static_argnums=(3, 5))
 def _decay_trajectory(model, a0, ts, n, solver, substeps):
     seq = solver.turning_points(model, a0, n)
     return decay_motion(model, a0, seq, ts, substeps)
 
 
+@_one_spelling
 def decay_trajectory(
     model: AbstractDecayModel,
     a0: ArrayLike,
@@ -284,7 +244,7 @@ def decay_trajectory(
     **Returns:** a [`vmj.Trajectory`][] (`ts`, `xs` [m], `vs` [m/s], `result`).
     """
     warn_if_float32()
-    solver = _solver(solver, None, None, None, Exact)
+    solver = _solver(solver, Exact)
     if not isinstance(solver, (Exact, EnergyBalance)):
         raise ValueError(
             f"decay_trajectory takes vmj.Exact() or vmj.EnergyBalance() (got "
@@ -313,6 +273,7 @@ def _simulate(model, x0, v0, t1, n_save, solver):
     return solver.simulate(model, x0, v0, t1, n_save)
 
 
+@_one_spelling
 def simulate(
     model: AbstractModel,
     x0: ArrayLike,
@@ -320,7 +281,6 @@ def simulate(
     t1: ArrayLike,
     solver: AbstractSolver | None = None,
     *,
-    smoothing: ArrayLike | None = None,
     n_save: int = 2001,
     throw: bool = False,
 ) -> Trajectory:
@@ -333,17 +293,18 @@ def simulate(
     - `x0`, `v0`: initial position [m] and velocity [m/s] at `t = 0`.
     - `t1`: final time [s], `> 0`, below the model's lifetime (zero mass, zero rope length).
     - `solver`: [`vmj.Smoothed`][] (default; `sign(v)` replaced by `tanh(v/w)`, diffrax Dopri8,
-      rtol 1e-10) or [`vmj.ClosedForm`][] (the analytic response of the linear oscillator).
-    - `smoothing`: the older spelling of `vmj.Smoothed(smoothing=w)`: the smoothing velocity
-      `w` [m/s], `> 0`; default `1e-4` of the velocity scale `|x0| sqrt(c/m0) + |v0|`, with
-      which the turning points agree with the exact solver to about 1e-8 relative.
+      rtol 1e-10; `vmj.Smoothed(smoothing=w)` sets the smoothing velocity `w` [m/s], default
+      `1e-4` of the velocity scale `|x0| sqrt(c/m0) + |v0|`) or [`vmj.ClosedForm`][] (the
+      analytic response of the linear oscillator). From [`vmj.StickSlip`][]`.breakaway()` the
+      smoothed stick-slip model runs through its cycles (diffrax Kvaerno5, rtol 1e-8; default
+      `w = 1e-4`); [`vmj.StickSlip.rest_memory`][] gives its rest memory `z` at the same times.
     - `n_save`: number of equally spaced saved times (static).
     - `throw`: raise [`vmj.SolverError`][] if the ODE solve failed.
 
     **Returns:** a [`vmj.Trajectory`][] (`ts`, `xs`, `vs`, `result`).
     """
     warn_if_float32()
-    solver = _solver(solver, None, smoothing, None, Smoothed)
+    solver = _solver(solver, Smoothed)
     n_save = check_int("n_save", n_save, 2)
     check_room(f"the results of n_save = {n_save}", n_save * TURNING_POINT_BYTES, "ask for fewer")
     require_scalar_fields(model)
@@ -361,30 +322,13 @@ def simulate(
     return throw_if_failed(traj, traj.result, throw)
 
 
-def linear_simulate(
-    osc: LinearOscillator,
-    x0: ArrayLike,
-    v0: ArrayLike,
-    t1: ArrayLike,
-    *,
-    n_save: int = 2001,
-    rtol: float = 1e-12,
-    throw: bool = False,
-) -> Trajectory:
-    """Integrate `m x'' + c x' + k x = F(t)` with diffrax (Dopri8) from `x(0) = x0` [m],
-    `x'(0) = v0` [m/s] to `t1` [s] `> 0`: `vmj.simulate(osc, x0, v0, t1,
-    vmj.Smoothed(rtol=rtol))`. `rtol` is the relative tolerance (the absolute one is `rtol`
-    times the motion's length scale). **Returns:** a [`vmj.Trajectory`][]."""
-    rtol = float(check("rtol", rtol, positive, "> 0"))
-    return simulate(osc, x0, v0, t1, Smoothed(rtol=rtol), n_save=n_save, throw=throw)
-
-
 # -- limit cycles ------------------------------------------------------------------------------
 @exported_jit(static_argnums=1)
 def _limit_cycle(model, max_reversals, solver):
     return solver.limit_cycle(model, max_reversals)
 
 
+@_one_spelling
 def limit_cycle(
     model: AbstractLimitCycle,
     solver: AbstractSolver | None = None,
@@ -412,7 +356,7 @@ def limit_cycle(
     **Returns:** a [`vmj.StickSlipCycle`][] (dimensionless times; `.physical()` for seconds).
     """
     warn_if_float32()
-    solver = _default(Exact) if solver is None else solver
+    solver = _solver(solver, Exact)
     max_reversals = check_int("max_reversals", max_reversals, 0)
     model = _checked(solver, model, "limit_cycle")
     if isinstance(solver, Smoothed):
@@ -421,53 +365,3 @@ def limit_cycle(
     else:
         cycle = _limit_cycle(model, max_reversals, solver)
     return throw_if_failed(cycle, cycle.result, throw)
-
-
-def stick_slip_cycle(
-    model: StickSlip,
-    *,
-    method: str = "exact",
-    max_reversals: int = MAX_REVERSALS,
-    smoothing: ArrayLike | None = None,
-    throw: bool = False,
-) -> StickSlipCycle:
-    """`vmj.limit_cycle` with `method="exact" | "smooth"` (the older spelling)."""
-    if method not in ("exact", "smooth"):
-        raise ValueError(f"method must be 'exact' or 'smooth' (got {method!r})")
-    solver = _solver(None, method, smoothing, None, Exact)
-    return limit_cycle(model, solver, max_reversals=max_reversals, throw=throw)
-
-
-def stick_slip_closed_form(
-    model: StickSlip, *, max_reversals: int = MAX_REVERSALS, throw: bool = False
-) -> StickSlipCycle:
-    """The paper's closed forms (11)-(20) for the limit cycle of `model`:
-    `vmj.limit_cycle(model, vmj.ClosedForm())` (see `_closed_forms/_belokobylsky.py`)."""
-    return limit_cycle(model, ClosedForm(), max_reversals=max_reversals, throw=throw)
-
-
-def stick_slip_simulate(
-    model: StickSlip,
-    t1: ArrayLike,
-    *,
-    smoothing: ArrayLike | None = None,
-    n_save: int = 4001,
-    throw: bool = False,
-    memory: bool = False,
-) -> Trajectory | tuple[Trajectory, Array]:
-    """The smoothed stick-slip model (diffrax Kvaerno5, rtol 1e-8) from breakaway:
-    `vmj.simulate(model, -eps, -Omega, t1, vmj.Smoothed(smoothing=w))` (default `w = 1e-4`;
-    see `vmj.StickSlip.vector_field` for the smoothed equations).
-
-    **Returns:** a [`vmj.Trajectory`][] (`ts` = tau, `xs` = xi, `vs` = xi'), and the rest memory
-    `z` at the same times if `memory`.
-    """
-    if not isinstance(model, StickSlip):
-        raise ValueError(f"model must be a vmj.StickSlip (got {type(model).__name__})")
-    x0, v0 = model.breakaway()
-    traj = simulate(model, x0, v0, t1, Smoothed(smoothing=smoothing), n_save=n_save, throw=throw)
-    if not memory:
-        return traj
-    solver = Smoothed(smoothing=smoothing).with_defaults(model, x0, v0)
-    _, ys, _ = smoothed_states(model, solver, _float(t1), check_int("n_save", n_save, 2))
-    return traj, ys[:, 2]

@@ -8,9 +8,10 @@ from importlib import resources
 
 import numpy as np
 
-from ._integrate import energy_balance, turning_points
+from ._integrate import turning_points
 from ._laws._friction import Coulomb, MassProportional
 from ._models._variable_mass import VariableMass
+from ._solvers._closed import EnergyBalance
 
 __all__ = ["PAPER", "paper_cells", "paper_model", "paper_table"]
 
@@ -71,7 +72,7 @@ def paper_table(table: int, n: int = 12) -> list[dict]:
     for delta, mu, eps in columns:
         model = paper_model(friction, delta, eps, mu)
         solved[delta, mu, eps] = (
-            energy_balance(model, PAPER["a0"], n),
+            turning_points(model, PAPER["a0"], n, EnergyBalance()),
             turning_points(model, PAPER["a0"], n),
         )
     out = []

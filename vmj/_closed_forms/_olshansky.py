@@ -57,7 +57,7 @@ def _pack(u, p):
 
 
 def energy_balance_sequence(model, a0, n: int) -> DecaySequence:
-    """Amplitudes from the energy-balance recurrences (see `vmj.energy_balance`)."""
+    """Amplitudes from the energy-balance recurrences (see `vmj.EnergyBalance`)."""
     m0, c, delta = model.m0, model.c, model.delta
     friction = model.friction
     lam = delta - 2 * delta * model.eps - 2 * model.mu

@@ -7,7 +7,7 @@
   invariant of the slowly changing rope, so only friction changes it,
   `dI/dt = -(A T / pi) (x_+ - x_-)` (friction work `2 A T (x_+ - x_-)` per period times
   `dI/dE = 1/Omega = period/(2 pi)`), and the amplitude and frequency follow from `I` and `l`.
-- `energy_map` (`turning_points(..., method="energy")`): for a fixed length the exact
+- `energy_map` (`turning_points(..., vmj.EnergyBalance())`): for a fixed length the exact
   half-swing map `V(x_k) + s A T x_k = V(x_{k+1}) + s A T x_{k+1}`, with the half-swing times
   from the same energy integral.
 

@@ -261,7 +261,7 @@ class Rope(AbstractEnergyMap):
     # -- the exact energy map of a rope of fixed length -----------------------------------------
     def energy_map(self, a0, n: int):
         """Exact turning points of a rope of fixed length (`u = 0`) from the energy balance over
-        each half-swing (see [`vmj.rope_energy_map`][])."""
+        each half-swing (see [`vmj.EnergyBalance`][])."""
         return energy_map_sequence(self, a0, n)
 
     def guard_energy_map(self):

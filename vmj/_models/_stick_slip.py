@@ -30,7 +30,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import _float, _is_traced, check, check_int, positive
+from .._checks import _float, _is_traced, check, check_int, positive, validated
 from .._closed_forms._belokobylsky import closed_form_cycle
 from .._exported import filter_jit
 from .._numerics._roots import bracketed_newton, implicit_step
@@ -184,6 +184,36 @@ class StickSlip(AbstractLimitCycle):
         models only)."""
         return _smooth_cycle(self, max_reversals, solver)
 
+    def rest_memory(self, t1, solver=None, n_save: int = 2001) -> Array:
+        """The rest memory `z` of the smoothed model (see `vector_field`) from breakaway, at the
+        times of `vmj.simulate(model, *model.breakaway(), t1, solver, n_save=n_save)`.
+
+        **Arguments:**
+
+        - `t1`: final dimensionless time `tau`, `> 0`.
+        - `solver`: a [`vmj.Smoothed`][] (default `vmj.Smoothed()`: smoothing velocity
+          `w = 1e-4`, Kvaerno5, rtol 1e-8), the one given to [`vmj.simulate`][].
+        - `n_save`: number of equally spaced saved times from 0 to `t1` (`>= 2`).
+
+        **Returns:** `z` [-] in `[0, 1]` at the `n_save` times (NaN where the solve failed:
+        the trajectory's `result` says why). `z` near 1 is a rest (the friction limit raised to
+        the static `eps`), near 0 a slip.
+        """
+        from .._solvers._smoothed import Smoothed
+
+        solver = Smoothed() if solver is None else solver
+        if not isinstance(solver, Smoothed):
+            raise ValueError(
+                "solver must be a vmj.Smoothed: the rest memory z is a state of the smoothed "
+                f"model only (got {type(solver).__name__})"
+            )
+        n_save = check_int("n_save", n_save, 2)
+        model = validated(self)
+        t1 = check("t1", t1, positive, "> 0 (dimensionless time)")
+        x0, v0 = model.breakaway()
+        _, ys, _ = smoothed_states(model, solver.with_defaults(model, x0, v0), _float(t1), n_save)
+        return ys[:, 2]
+
 
 class StickSlipCycle(eqx.Module):
     """One period of the stick-slip limit cycle, starting at breakaway (`xi = -eps`, disk at rest).
@@ -260,7 +290,7 @@ class StickSlipCycle(eqx.Module):
         if self.method == "smooth":
             raise ValueError(
                 "a cycle measured on the smoothed model has no analytic trajectory; "
-                "sample it with vmj.stick_slip_simulate"
+                "sample it with vmj.simulate(model, *model.breakaway(), t1, vmj.Smoothed())"
             )
         return _sample(self, n_save, jnp.asarray(periods, dtype=self.period.dtype), physical)
 

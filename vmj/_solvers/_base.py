@@ -15,7 +15,7 @@ class AbstractSolver(eqx.Module):
     [`vmj.limit_cycle`][]. A solver is an `equinox.Module`: its array fields (a smoothing
     velocity) are traced, its settings static, so one compilation serves every value."""
 
-    #: the name of the solver in `method="..."` strings and on the command line
+    #: the solver's name on the command line (`--method exact | smooth | energy | closed`)
     name: ClassVar[str]
 
     @abc.abstractmethod

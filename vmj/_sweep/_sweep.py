@@ -595,7 +595,7 @@ def sweep(
     **Arguments:**
 
     - `fn`: a function of one model with scalar parameters, e.g. [`vmj.turning_points`][],
-      [`vmj.energy_balance`][], or your own `lambda m: ...`; it returns arrays or a pytree of
+      [`vmj.limit_cycle`][], or your own `lambda m: ...`; it returns arrays or a pytree of
       arrays (e.g. a [`vmj.DecaySequence`][]).
     - `model`: a model whose array fields broadcast together as in NumPy (three fields of shape
       `(N,)` are `N` paired points; shapes `(N, 1)` and `(M,)` are an `N x M` product), or a
@@ -627,7 +627,7 @@ def sweep(
       sweep (function, model parameters, solver arguments, shape, `chunk_size`); a different
       one is refused. Without `resume=True` an existing store is refused.
     - `**solver_args`: passed to `fn` unchanged at every point (e.g. `a0=0.06, n=12,
-      method="exact"`); they are not swept.
+      solver=vmj.EnergyBalance()`); they are not swept.
 
     **Returns:** a [`vmj.SweepResult`][] whose `values` have the sweep's shape in front; results
     are the same as calling `fn` point by point.

@@ -8,10 +8,10 @@ from ._params import MODELS, add_options, given
 __all__ = [
     "add_arguments",
     "cli_message",
-    "exact_options",
     "max_substeps_arg",
     "run",
     "rope_model",
+    "solver_of",
     "turning_point_limit",
     "MAX_TURNING_POINTS",
 ]
@@ -60,17 +60,33 @@ def max_substeps_arg(q, model: str) -> None:
     )
 
 
-def exact_options(args, method: str | None = None) -> dict:
-    """The exact solver's `max_substeps` for a solve by `method` (default: `--method`):
-    `--max-substeps` (refused with another `--method`), else the rope's `ROPE_SUBSTEPS`."""
-    given = args.max_substeps
-    if given is not None and args.method != "exact":
+def solver_of(args, method: str | None = None):
+    """The solver object of `--method` (or of `method`, another solve of the same command): the
+    command line's one translation of its solver names (`AbstractSolver.name`: exact, smooth,
+    energy, closed) into vmj's solver objects, with their settings: `--max-substeps` of
+    `vmj.Exact` (refused with another `--method`; the rope's default `ROPE_SUBSTEPS`), and the
+    stick-slip command's `--smoothing` of `vmj.Smoothed`."""
+    import vmj
+
+    steps = getattr(args, "max_substeps", None)
+    if steps is not None and args.method != "exact":
         raise ValueError(f"--max-substeps applies to --method exact (got --method {args.method})")
-    if (method or args.method) != "exact":
-        return {}
-    if given is not None:
-        return {"max_substeps": given}
-    return {"max_substeps": ROPE_SUBSTEPS} if args.model == "rope" else {}
+    w = getattr(args, "smoothing", None)
+    if w is not None:
+        if args.method != "smooth":
+            raise ValueError("--smoothing applies to --method smooth")
+        if not w > 0:
+            raise ValueError(f"--smoothing must be finite and > 0 (got {w:g})")
+    kind = {k.name: k for k in (vmj.Exact, vmj.Smoothed, vmj.EnergyBalance, vmj.ClosedForm)}[
+        method or args.method
+    ]
+    if kind is vmj.Exact:
+        if steps is None and getattr(args, "model", None) == "rope":
+            steps = ROPE_SUBSTEPS
+        return vmj.Exact(max_substeps=steps)
+    if kind is vmj.Smoothed:
+        return vmj.Smoothed(smoothing=w)
+    return kind()
 
 
 def cli_message(message: str) -> str:
@@ -102,13 +118,7 @@ def _variable_mass(args) -> int:
     turning_point_limit(args, args.n, f"--n {args.n} turning points")
     spec = MODELS["variable-mass"]
     values = spec.resolve(given(spec, args))
-    seq = vmj.turning_points(
-        spec.build(values),
-        values["a0"],
-        args.n,
-        method=args.method,
-        **exact_options(args),
-    )
+    seq = vmj.turning_points(spec.build(values), values["a0"], args.n, solver_of(args))
     got = seq.reached()
     out = {
         "model": "variable-mass",
@@ -215,7 +225,7 @@ def _rope(args) -> int:
                 "friction stops the averaged motion" if stopped else "first-order averaged envelope"
             )
     else:
-        seq = vmj.turning_points(rope, a0, n, method=args.method, **exact_options(args))
+        seq = vmj.turning_points(rope, a0, n, solver_of(args))
         got = seq.reached()
         keep = got["times"] <= args.t1
         times, amps = got["times"][keep], got["amplitudes"][keep]

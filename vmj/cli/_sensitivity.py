@@ -131,10 +131,11 @@ def _cycle(args, values, model, wrt, keys, units) -> int:
     """Derivatives of the stick-slip period, slip and stick times."""
     import vmj
 
+    from ._decay import solver_of
     from ._stick_slip import eps_limit, reversal_bound
 
     eps_limit(args, values["eps"])
-    solver = vmj.ClosedForm() if args.method == "closed" else vmj.Exact()
+    solver = solver_of(args)
     bound = reversal_bound(values["eps"])
 
     def cycle(m):
@@ -163,14 +164,14 @@ def _cycle(args, values, model, wrt, keys, units) -> int:
     return 0
 
 
-@exported_jit(static_argnums=(2, 3, 4, 5, 6))
-def _decay_derivatives(model, a0, n, method, extra, keys, mode):
-    """`vmj.sensitivity` of the amplitudes and times of `n` turning points by `method` (the
-    exact solver's `extra` options as sorted items) with respect to `keys` in `mode`."""
+@exported_jit(static_argnums=(2, 4, 5))
+def _decay_derivatives(model, a0, n, solver, keys, mode):
+    """`vmj.sensitivity` of the amplitudes and times of `n` turning points by `solver` with
+    respect to `keys` in `mode`."""
     import vmj
 
     def decay(m, a0, n):
-        seq = vmj.turning_points(m, a0, n, method=method, **dict(extra))
+        seq = vmj.turning_points(m, a0, n, solver)
         return {"times": seq.times, "amplitudes": seq.amplitudes}
 
     return vmj.sensitivity(decay, model, keys, mode=mode, a0=a0, n=n)
@@ -182,12 +183,12 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
 
     import vmj
 
-    from ._decay import cli_message, exact_options
+    from ._decay import cli_message, solver_of
 
     method = args.method
-    extra = exact_options(args)
+    solver = solver_of(args)
 
-    seq = vmj.turning_points(model, a0, n, method=method, **extra)
+    seq = vmj.turning_points(model, a0, n, solver)
     got = seq.reached()
     keep = len(got["times"])
     if args.model == "rope":  # the turning points up to --t1
@@ -199,9 +200,7 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     # the derivatives are traced without guards, so that the program is exported and a
     # repeated command loads it (vmj/_exported.py)
     with vmj.assume_valid():
-        d = _decay_derivatives(
-            model, a0, n, method, tuple(sorted(extra.items())), tuple(keys), mode
-        )
+        d = _decay_derivatives(model, a0, n, solver, tuple(keys), mode)
     out = {
         "model": args.model,
         "method": method,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from ._decay import solver_of
 from ._options import emit, number, refuse_above
 from ._params import MODELS, add_options, given
 
@@ -51,17 +52,8 @@ def run(args) -> int:
     spec = MODELS["stick-slip"]
     values = spec.resolve(given(spec, args))
     eps_limit(args, values["eps"])
-    if args.smoothing is not None:
-        if args.method != "smooth":
-            raise ValueError("--smoothing applies to --method smooth")
-        if not args.smoothing > 0:
-            raise ValueError(f"--smoothing must be finite and > 0 (got {args.smoothing:g})")
+    solver = solver_of(args)
     model = spec.build(values)
-    solver = {
-        "exact": vmj.Exact(),
-        "closed": vmj.ClosedForm(),
-        "smooth": vmj.Smoothed(smoothing=args.smoothing),
-    }[args.method]
     cycle = vmj.limit_cycle(model, solver, max_reversals=reversal_bound(values["eps"]))
     out = cycle.reached()
     if bool(cycle.failed):

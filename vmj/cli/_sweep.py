@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from ._app import on_cpu_if_small
-from ._decay import cli_message, exact_options, max_substeps_arg
+from ._decay import cli_message, max_substeps_arg, solver_of
 from ._options import (
     Joined,
     count,
@@ -76,15 +76,13 @@ def _decay_cost(per_swing_scale: float = 1.0):
 def _turning_points(args, g, scalars, method=None):
     import vmj
 
-    method = method or args.method
     return vmj.sweep(
         vmj.turning_points,
         g,
         a0=scalars["a0"],
         n=args.n,
-        method=method,
+        solver=solver_of(args, method),
         **_engine(args),
-        **exact_options(args, method),
     )
 
 
@@ -121,9 +119,12 @@ def _stick_slip_eval(args, g, scalars):
     from ._stick_slip import reversal_bound
 
     top = float(np.max(np.asarray(g.model.eps)))
-    solver = vmj.ClosedForm() if args.method == "closed" else vmj.Exact()
     return vmj.sweep(
-        vmj.limit_cycle, g, solver=solver, max_reversals=reversal_bound(top), **_engine(args)
+        vmj.limit_cycle,
+        g,
+        solver=solver_of(args),
+        max_reversals=reversal_bound(top),
+        **_engine(args),
     )
 
 
