@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import _float, _is_traced, check, positive
+from .._checks import _float, _is_traced, check, check_int, positive
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
 from .._numerics._ode import dopri8, ode_solve, recording
 from .._numerics._roots import bracketed_newton, implicit_step
@@ -67,6 +67,8 @@ class Smoothed(AbstractSolver):
             check("smoothing", self.smoothing, positive, "> 0 [m/s]")
         if self.rtol is not None:
             check("rtol", self.rtol, positive, "> 0")
+        if self.max_steps is not None:
+            check_int("max_steps", self.max_steps, 1)
 
     def check(self, model, task):
         ok = {
