@@ -16,8 +16,10 @@ import math
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import lax
 from jaxtyping import Array
 
 from .._checks import _float, _is_traced, nonnegative, positive
@@ -256,28 +258,17 @@ def _kernels(b, w2, p, t):
     q = b * b - w2
     Q = q * t * t
     series = jnp.abs(Q) <= SERIES_Q
-    over = Q > SERIES_Q
-    # the half angles
-    wd = jnp.sqrt(jnp.where(q < 0, -q, w2))
-    sa, ca = jnp.sin(0.5 * p * t), jnp.cos(0.5 * p * t)
-    sb, cb = jnp.sin(0.5 * wd * t), jnp.cos(0.5 * wd * t)
+    sa, ca = jnp.sin(0.5 * p * t), jnp.cos(0.5 * p * t)  # the half angle of p t
     e_ipt = (1 - 2 * sa * sa) + 2j * sa * ca
-    cos_wd, sin_wd = 1 - 2 * sb * sb, 2 * sb * cb
     em = jnp.expm1(-b * t)
     decay = 1 + em  # e^{-bt}
-    # -- E and E' ---------------------------------------------------------------------------
+    # -- E and E' where |Q| is small: cosh(sqrt Q), sinh(sqrt Q)/sqrt Q ------------------------
     Qs = jnp.where(series, Q, 0.0)
-    C = S = 0.0
-    for n in reversed(range(SERIES_TERMS)):  # cosh(sqrt Q), sinh(sqrt Q)/sqrt Q
-        C = 1.0 / math.factorial(2 * n) + Qs * C
-        S = 1.0 / math.factorial(2 * n + 1) + Qs * S
-    C = jnp.where(series, C, cos_wd)
-    S = jnp.where(series, t * S, sin_wd / wd)
-    d = jnp.sqrt(jnp.where(over, q, 1.0))  # over-damped: E = (e^{r1 t} - e^{r2 t}) / (2d)
-    r1, r2 = -w2 / (b + d), -b - d
-    slow, fast = jnp.exp(r1 * t), jnp.expm1(-2 * d * t)  # e^{r1 t}, e^{-2dt} - 1
-    E = jnp.where(over, slow * -fast / (2 * d), decay * S)
-    dE = jnp.where(over, slow * (r1 - r2 * (fast + 1)) / (2 * d), decay * (C - b * S))
+    C_s = S_s = 0.0
+    for n in reversed(range(SERIES_TERMS)):
+        C_s = 1.0 / math.factorial(2 * n) + Qs * C_s
+        S_s = 1.0 / math.factorial(2 * n + 1) + Qs * S_s
+    S_s = t * S_s
     # -- E3, early: Taylor series -------------------------------------------------------------
     a = 1j * p + b  # ip about the roots' mean -b
     early = jnp.maximum(jnp.abs(a), jnp.sqrt(jnp.abs(q))) * t <= TAYLOR_RHO
@@ -290,17 +281,48 @@ def _kernels(b, w2, p, t):
         coefficients.append(h / math.factorial(n + 2))
     ts = jnp.where(early, t, 0.0)
     taylor = decay * ts * ts * _horner(coefficients, ts)
-    # -- light damping: the near root first ---------------------------------------------------
     light = 4 * q < -w2
-    kappa = -b + 1j * (wd - p)  # r1 - ip
-    small = jnp.abs(kappa * t) < PHI_SMALL
-    ts = jnp.where(small, t, 0.0)
-    phi = _horner([kappa**n / math.factorial(n + 1) for n in range(PHI_TERMS)], ts)
-    sd, cd = sb * ca - cb * sa, cb * ca + sb * sa  # sin, cos of (wd - p) t/2
-    expm1 = em * (1 - 2 * sd * sd) - 2 * sd * sd + 2j * decay * sd * cd  # e^u - 1
-    ratio = jnp.where(small, ts * phi, expm1 * (1 / jnp.where(kappa == 0, 1.0, kappa)))
-    pair = (e_ipt * ratio - E) * (1 / (b + 1j * (p + wd)))
-    # -- heavier damping: the steady part minus the free one ------------------------------------
-    D = w2 - p * p + 2j * b * p
-    steady = (e_ipt - dE - (1j * p + 2 * b) * E) * (1 / jnp.where(light, 1.0, D))
-    return E, dE, jnp.where(early, taylor, jnp.where(light, pair, steady))
+
+    def steady(E, dE):  # heavier damping: the steady part minus the free one
+        D = w2 - p * p + 2j * b * p
+        return (e_ipt - dE - (1j * p + 2 * b) * E) * (1 / jnp.where(light, 1.0, D))
+
+    def oscillating(near_root_first):  # q <= 0
+        wd = jnp.sqrt(jnp.where(q < 0, -q, w2))
+        sb, cb = jnp.sin(0.5 * wd * t), jnp.cos(0.5 * wd * t)  # the half angle of wd t
+        C = jnp.where(series, C_s, 1 - 2 * sb * sb)
+        S = jnp.where(series, S_s, 2 * sb * cb / wd)
+        E, dE = decay * S, decay * (C - b * S)
+        if not near_root_first:
+            return E, dE, steady(E, dE)
+        # light damping: E[ip, r1] = e^{ipt} (e^u - 1)/kappa, kappa = r1 - ip, u = kappa t
+        kappa = -b + 1j * (wd - p)
+        small = jnp.abs(kappa * t) < PHI_SMALL
+        tu = jnp.where(small, t, 0.0)
+        phi = _horner([kappa**n / math.factorial(n + 1) for n in range(PHI_TERMS)], tu)
+        sd, cd = sb * ca - cb * sa, cb * ca + sb * sa  # sin, cos of (wd - p) t/2
+        expm1 = em * (1 - 2 * sd * sd) - 2 * sd * sd + 2j * decay * sd * cd  # e^u - 1
+        ratio = jnp.where(small, tu * phi, expm1 * (1 / jnp.where(kappa == 0, 1.0, kappa)))
+        return E, dE, (e_ipt * ratio - E) * (1 / (b + 1j * (p + wd)))
+
+    def over_damped():  # E = (e^{r1 t} - e^{r2 t}) / (2d), r1,2 = -b +- d
+        d = jnp.sqrt(jnp.where(q > 0, q, 1.0))
+        r1, r2 = -w2 / (b + d), -b - d
+        slow, fast = jnp.exp(r1 * t), jnp.expm1(-2 * d * t)  # e^{r1 t}, e^{-2dt} - 1
+        E = jnp.where(series, decay * S_s, slow * -fast / (2 * d))
+        dE = jnp.where(series, decay * (C_s - b * S_s), slow * (r1 - r2 * (fast + 1)) / (2 * d))
+        return E, dE, steady(E, dE)
+
+    branch = jnp.where(light, 0, jnp.where(q <= 0, 1, 2))
+    branches = [lambda: oscillating(True), lambda: oscillating(False), over_damped]
+    E, dE, E3 = _switch(branch, branches)
+    return E, dE, jnp.where(early, taylor, E3)
+
+
+def _switch(index, branches):
+    """`branches[index]()`: only that one computed where `index` is a scalar (a model's; a
+    batch of them under `jax.vmap` computes each and selects), else each and a select."""
+    if jnp.ndim(index) == 0:
+        return lax.switch(index, branches)
+    outs = [f() for f in branches]
+    return jax.tree.map(lambda *xs: jnp.select([index == i for i in range(len(xs))], xs), *outs)
