@@ -791,3 +791,106 @@ def test_bom_and_crlf_files_are_read_like_plain_ones(files):
         rec = fits.read_record(str(path))
         np.testing.assert_array_equal(rec.positions, ref.positions)
         np.testing.assert_array_equal(rec.k, ref.k)
+
+
+# -- booleans and strings are not numbers ---------------------------------------------------------
+#: valid arguments of every model, law and solver class in `vmj.__all__` (a class added there
+#: without an entry here fails `test_every_public_constructor_is_covered`)
+VALID = {
+    "VariableMass": dict(m0=5.0, c=4900.0, delta=3.0, eps=0.0, mu=2.0, friction=vmj.Coulomb(14.7)),
+    "Rope": dict(
+        m=19.6, A=1.74e-4, e=7.845e10, b=0.0, d=7.845e15, T=3.9e5, length=vmj.ConstantSpeed(10.0)
+    ),
+    "Oscillator": dict(omega=6.0),
+    "LinearOscillator": dict(m=1.0, c=0.1, k=10.0),
+    "StickSlip": dict(eps=2.5, Omega=0.5, time_scale=1.0, angle_scale=1.0),
+    "Coulomb": dict(F=1.0),
+    "MassProportional": dict(f=0.3, g=9.81),
+    "AffineFriction": dict(FT=1.0, f=0.3, g=9.81),
+    "LinearRestoring": dict(),
+    "PolynomialRestoring": dict(b2=0.1, b3=0.1),
+    "SineRestoring": dict(b2=0.0, b3=0.0, w=1.0),
+    "ViscousDamping": dict(zeta=0.1),
+    "CoulombDamping": dict(xF=0.01, xS=0.02),
+    "QuadraticDamping": dict(cq=0.1),
+    "ConstantSpeed": dict(l0=10.0, u=1.0),
+    "Braking": dict(l0=10.0, u=1.0, t_brake=1.0, t_stop=2.0),
+    "NoForcing": dict(),
+    "HarmonicForce": dict(F0=1.0, p=2.0),
+    "BaseMotion": dict(Y0=0.01, p=2.0),
+    "Exact": dict(max_substeps=8),
+    "Smoothed": dict(smoothing=1e-4, rtol=1e-10, max_steps=1000),
+    "EnergyBalance": dict(),
+    "ClosedForm": dict(),
+}
+NUMBERS = [(c, p) for c, kw in VALID.items() for p, v in kw.items() if isinstance(v, float | int)]
+NOT_NUMBERS = [True, np.bool_(True), np.array([True, False]), "1", b"1"]
+
+
+def test_every_public_constructor_is_covered():
+    import inspect
+
+    classes = {
+        name: obj
+        for name in vmj.__all__
+        if inspect.isclass(obj := getattr(vmj, name))
+        and issubclass(obj, (vmj.AbstractParams, vmj.AbstractSolver))
+    }
+    # the constructible ones: the leaves (the others are the abstract bases)
+    concrete = {
+        name
+        for name, obj in classes.items()
+        if not any(o is not obj and issubclass(o, obj) for o in classes.values())
+    }
+    assert concrete == set(VALID)
+    for name, kw in VALID.items():
+        getattr(vmj, name)(**kw)  # the valid arguments are valid
+
+
+@pytest.mark.filterwarnings("ignore:A JAX array is being set as static")
+@pytest.mark.parametrize("cls,param", NUMBERS, ids=[f"{c}.{p}" for c, p in NUMBERS])
+def test_booleans_and_strings_are_refused_naming_the_parameter(cls, param):
+    """`vmj.VariableMass(m0=True, ...)` built a model with `m0 = 1.0`, and numeric strings
+    (`"5"`, `b"5"`) converted silently (`vmj.Smoothed` took `rtol="1e-10"`, `max_steps=True`,
+    and `vmj.turning_points` `a0=True`). Each is now a `ValueError` naming the parameter and
+    saying a number (or an integer) is expected."""
+    for bad in NOT_NUMBERS:
+        with pytest.raises((ValueError, TypeError), match=rf"^{param} must be ") as info:
+            getattr(vmj, cls)(**{**VALID[cls], param: bad})
+        assert "number" in str(info.value) or "integer" in str(info.value), str(info.value)
+
+
+def test_the_entry_points_refuse_a_boolean_release():
+    model = vmj.Oscillator.linear(6.0, 0.1, 0.001)
+    with pytest.raises(ValueError, match="^a0 must be a number"):
+        vmj.turning_points(model, True, 3)
+
+
+@pytest.mark.parametrize("cls", list(VALID))
+def test_numbers_of_every_kind_keep_working(cls):
+    """Python ints, NumPy scalars and 0-d arrays, JAX arrays, and tracers under `jax.jit`,
+    `jax.vmap` and `jax.grad` are numbers (the fields that set array shapes or tolerances are
+    static: Python numbers only)."""
+    import dataclasses
+
+    import jax.numpy as jnp
+
+    make = getattr(vmj, cls)
+    static = {f.name for f in dataclasses.fields(make) if f.metadata.get("static", False)}
+    for param, value in VALID[cls].items():
+        if not isinstance(value, float | int):
+            continue
+        if param in static:
+            make(**{**VALID[cls], param: int(value) if isinstance(value, int) else value})
+            continue
+        for number in (np.float64(value), np.array(value), jnp.asarray(value), np.float32(value)):
+            make(**{**VALID[cls], param: number})
+        if float(value).is_integer():
+            make(**{**VALID[cls], param: int(value)})
+
+        def build(v, param=param):
+            return jnp.sum(jnp.asarray(getattr(make(**{**VALID[cls], param: v}), param)))
+
+        assert float(jax.jit(build)(value)) == pytest.approx(value)
+        assert np.allclose(jax.vmap(build)(jnp.array([value, value])), value)
+        assert np.isfinite(float(jax.grad(build)(value)))

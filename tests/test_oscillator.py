@@ -223,6 +223,30 @@ def test_smoothed_model_sticks_with_the_static_level():
     np.testing.assert_allclose(sm.positions, ex.positions, rtol=2e-4)
 
 
+@pytest.mark.parametrize("zeta", [1.0001, 1.5, 10.0])
+def test_overdamped_release_has_no_turning_point_in_either_solver(zeta):
+    """A mass released from rest at `-a0` with damping above critical never reverses: the
+    exact solver reports no velocity zero (`step_limit`). The smoothed one reported a turning
+    point where the mass slowed through its creep speed (`20 w`) on its approach to rest (zeta
+    1.0001 and 1.5, at 2e-3 and 5e-3 of a0; with friction 1e-5, 'stopped' there), reversals of
+    roundoff size near x = 0 after it (four, at 3e-15 of a0, over a longer horizon), and
+    'stopped' where it crept into a tiny friction's band by the horizon. Now both say no
+    turning point, step_limit, frictionless and with tiny dry friction (1e-9 and 1e-5 of a0),
+    over the horizons of 4 and 12 turning points. A decay with real stops still ends alike."""
+    for xF in (0.0, 1e-10, 1e-6):
+        osc = vmj.Oscillator.linear(OMEGA, zeta, xF)
+        for n in (4, 12):
+            exact = vmj.turning_points(osc, 0.1, n, vmj.Exact())
+            smooth = vmj.turning_points(osc, 0.1, n, vmj.Smoothed())
+            assert int(exact.count) == int(smooth.count) == 0, (xF, n)
+            assert int(exact.result) == int(smooth.result) == vmj.RESULTS.step_limit, (xF, n)
+    osc = vmj.Oscillator.linear(OMEGA, 0.3, 0.01)  # under-damped: stops after two swings
+    exact = vmj.turning_points(osc, 0.1, 12, vmj.Exact())
+    smooth = vmj.turning_points(osc, 0.1, 12, vmj.Smoothed())
+    assert int(exact.count) == int(smooth.count) == 2
+    assert int(exact.result) == int(smooth.result) == vmj.RESULTS.stopped
+
+
 # -- a pendulum released near the upright position ----------------------------------------------
 UPRIGHT = dict(zeta=0.01, xF=0.001)
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import inspect
 import math
 import warnings
 from collections.abc import Callable
@@ -22,6 +23,7 @@ import numpy as np
 
 __all__ = [
     "AbstractParams",
+    "NotANumber",
     "validated",
     "mark_checked",
     "assume_valid",
@@ -45,12 +47,49 @@ def default_float() -> np.dtype:
     return np.dtype(np.float64 if jax.config.jax_enable_x64 else np.float32)
 
 
+class NotANumber(ValueError):
+    """A boolean or a string where vmj expects a number: raised by `_float`, which does not
+    know the parameter's name; [`vmj.AbstractParams`][] names it."""
+
+    def __init__(self, value, name: str | None = None, allowed: str | None = None):
+        self.value = value
+        head = "vmj's parameters are numbers" if name is None else f"{name} must be a number"
+        rule = "" if allowed is None else f" ({allowed})"
+        super().__init__(f"{head}{rule}, not {_kind_of(value)} (got {value!r})")
+
+
+def _kind_of(value) -> str:
+    if isinstance(value, (str, bytes)) or getattr(getattr(value, "dtype", None), "kind", "") in (
+        "U",
+        "S",
+    ):
+        return "a string"
+    if isinstance(value, (list, tuple)) or np.ndim(value) > 0:
+        return "an array holding booleans or strings"
+    return "a boolean"
+
+
+def _not_a_number(x) -> bool:
+    """Whether `x` is a boolean or a string, or an array or sequence holding one: `float(True)`
+    and `np.asarray("5", dtype=float)` convert silently (`vmj.VariableMass(m0=True, ...)` had
+    `m0 = 1.0`). Numbers, NumPy and JAX arrays of numbers and tracers are not."""
+    if isinstance(x, (bool, str, bytes)):
+        return True
+    kind = getattr(getattr(x, "dtype", None), "kind", None)
+    if kind is not None:  # NumPy scalars and arrays, JAX arrays and tracers
+        return kind in "bUSV" or (kind == "O" and any(_not_a_number(v) for v in np.ravel(x)))
+    if isinstance(x, (list, tuple)):
+        return any(_not_a_number(v) for v in x)
+    return False
+
+
 def _float(x) -> jax.Array:
     """A float array of JAX's default float type (float64 with x64 enabled). A Python number or
     NumPy array is cast by NumPy and put on the device as it is: `jnp.asarray` would run (and,
     in a new process, load or compile) a conversion program for it. A complex value is a
     ValueError: the cast kept its real part with only a ComplexWarning (a complex-step
-    derivative, `F = 14.7 + 1e-20j`, came out 0)."""
+    derivative, `F = 14.7 + 1e-20j`, came out 0); so is a boolean or a string
+    (`NotANumber`, which the modules' constructors name)."""
     dtype = default_float()
     if isinstance(x, complex) or getattr(getattr(x, "dtype", None), "kind", "") == "c":
         raise ValueError(
@@ -58,7 +97,11 @@ def _float(x) -> jax.Array:
             "jax.grad, jax.jvp or jax.jacfwd"
         )
     if isinstance(x, jax.Array) or _is_traced(x):
+        if x.dtype == bool:
+            raise NotANumber(x)
         return jnp.asarray(x, dtype=dtype)
+    if _not_a_number(x):
+        raise NotANumber(x)
     return jax.device_put(np.asarray(x, dtype=dtype))
 
 
@@ -84,6 +127,8 @@ def scalar(name: str, value):
     recompilation for Python floats), traced values unchanged but cast. An array of any other
     shape is a `ValueError` naming the argument (the solvers' arrays have one lane: an array
     of `a0` broke the results' shapes; a sweep or `jax.vmap` maps over several)."""
+    if not isinstance(value, float) and _not_a_number(value):
+        raise NotANumber(value, name)
     if not isinstance(value, float) and np.ndim(value) != 0:
         raise ValueError(
             f"{name} must be a scalar (got shape {np.shape(value)}); "
@@ -104,10 +149,14 @@ def check_all(items) -> list:
     for i, (name, value, ok, allowed) in enumerate(items):
         message = f"{name} must be finite and {allowed}"
         if _is_traced(value):
+            if value.dtype == bool:
+                raise NotANumber(value, name, allowed)
             if _ASSUMED.get():
                 continue
             traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))), message))
             continue
+        if _not_a_number(value):
+            raise NotANumber(value, name, allowed)
         if np.iscomplexobj(value):
             raise ValueError(f"{message}, a real number (got {value!r})")
         try:
@@ -196,7 +245,34 @@ def warn_if_float32() -> None:
 
 
 # -- parameterised modules ----------------------------------------------------------------------
-class AbstractParams(eqx.Module):
+class _ParamsMeta(type(eqx.Module)):
+    """Names the parameter of a `NotANumber` that a converter raised: the converters see a
+    value only. Costs nothing unless it raises."""
+
+    def __call__(cls, *args, **kwargs):
+        try:
+            return super().__call__(*args, **kwargs)
+        except NotANumber as error:
+            if error.value is None:
+                raise
+            name = _argument_named(cls, error.value, args, kwargs)
+            if name is None:
+                raise
+            allowed = cls._limits.get(name, (None, None))[1]
+            raise NotANumber(error.value, name, allowed) from None
+
+
+def _argument_named(cls, value, args, kwargs) -> str | None:
+    """The name of the constructor's argument that is `value` (the first in order)."""
+    try:
+        bound = inspect.signature(cls.__init__).bind(None, *args, **kwargs)
+    except TypeError:
+        return None
+    names = list(bound.arguments)[1:]
+    return next((n for n in names if bound.arguments[n] is value), None)
+
+
+class AbstractParams(eqx.Module, metaclass=_ParamsMeta):
     """Base of every model and law: `_limits` maps a field name to `(predicate, allowed range)`;
     `_relations` maps a field name to `(predicate of the module, allowed range)` for a range
     that depends on other fields (e.g. a static friction level at least the kinetic one).
@@ -269,6 +345,8 @@ def _problems(m, traced: bool = True) -> list:
                 )
             )
         else:
+            if _not_a_number(value):  # (set without the converter: eqx.tree_at)
+                raise NotANumber(value, n, allowed)
             arr = np.asarray(value, dtype=float)
             out.append(
                 (f"{n} must be finite and {allowed}", arr, np.isfinite(arr) & ok(arr), False)

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import _float, _is_traced, check, positive
+from .._checks import _float, _is_traced, check, check_int, positive
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
 from .._numerics._ode import dopri8, ode_solve, recording
 from .._numerics._roots import bracketed_newton, implicit_step
@@ -67,6 +67,8 @@ class Smoothed(AbstractSolver):
             check("smoothing", self.smoothing, positive, "> 0 [m/s]")
         if self.rtol is not None:
             check("rtol", self.rtol, positive, "> 0")
+        if self.max_steps is not None:
+            check_int("max_steps", self.max_steps, 1)
 
     def check(self, model, task):
         ok = {
@@ -175,12 +177,15 @@ class Smoothed(AbstractSolver):
         next swing, each lane of a `vmap`ped batch by itself. Memory does not grow with the
         number of steps.
 
+        The arrest counts only where the exact mass would stop (`_stops`): an over-damped mass
+        slows through `CREEP w` on its way to rest without a velocity zero; while it creeps on
+        from there, its velocity's sign changes (of roundoff size) are no reversals either.
+
         At each turning point the model's stick rule (`model.rest`) decides whether the mass
         stops for good (`stopped`): a smoothed mass only creeps from there (`|v| < CREEP w`),
         which is stiff and is not integrated. So does a mass that the spring only just moved
         on, which creeps off without ever exceeding `CREEP w`, once the stick rule holds
-        where it creeps; and a decay that runs into the horizon still creeping is `stopped`
-        too."""
+        where it creeps."""
         import diffrax as dfx
 
         rtol, steps, ode = self._settings(model)
@@ -198,12 +203,18 @@ class Smoothed(AbstractSolver):
             return s * v / scale, jnp.where(s * x < 0, (s * v - slow) / scale, 1.0)
 
         def record(t0, t1, y1, interpolation, memo):
-            s, count, times, positions, (rev0, arr0), stuck, crept = memo
+            s, count, times, positions, (rev0, arr0), stuck, crept, slowed = memo
             x1, v1 = model.observe(unpack(y1))
             rev1, arr1 = events(s, x1, v1)
-            reverses = (rev0 > 0) & (rev1 <= 0)  # (falls through zero, as diffrax's events)
-            arrests = (arr0 > 0) & (arr1 <= 0) & jnp.logical_not(reverses)
-            turned = reverses | arrests
+            # (falls through zero, as diffrax's events; not while the mass creeps on after a
+            # slowing down that was no arrest: an over-damped mass creeping to rest reversed
+            # at x ~ 1e-15 of a0 = 0.1, below the solve's absolute tolerance, four times)
+            reverses = (rev0 > 0) & (rev1 <= 0) & jnp.logical_not(slowed)
+            # (the speed falling through `CREEP w`: not the arrest's event function jumping from
+            # its placeholder where a creeping mass crosses `x = 0`, whose located "turning
+            # point", with no root in the step, was at x = 5e37)
+            arrests = (arr0 > 0) & (arr1 <= 0) & (rev0 > slow / scale)
+            arrests = arrests & jnp.logical_not(reverses)
             lift = jnp.where(reverses, 0.0, slow / scale)
             t, x = _turning_point(
                 interpolation,
@@ -213,8 +224,14 @@ class Smoothed(AbstractSolver):
                 jnp.where(reverses, rev0, arr0),
                 jnp.where(reverses, rev1, arr1),
                 lambda y: model.observe(unpack(y))[0],
-                turned,
+                reverses | arrests,
             )
+            # a slowing down is an arrest only where the exact mass comes to a stop: not the
+            # approach of an over-damped mass (with or without dry friction) to its rest
+            stops = _stops(model, s, t, x, slow)
+            passed = arrests & jnp.logical_not(stops)
+            arrests = arrests & stops
+            turned = reverses | arrests
             s_next, _, stop = model.rest(t, x)
             here = turned & (slots == count)  # (a select, not a scatter)
             times = jnp.where(here, t, times)
@@ -228,7 +245,9 @@ class Smoothed(AbstractSolver):
             creeping = jnp.abs(v1) <= slow
             crept = turned | (crept & creeping)
             arrested = crept & creeping & model.rest(t1, x1)[2]
-            memo = (s, count, times, positions, events(s, x1, v1), stuck, crept)
+            stuck = stuck | (arrested & (count < n))
+            slowed = (slowed | passed) & creeping & jnp.logical_not(turned)
+            memo = (s, count, times, positions, events(s, x1, v1), stuck, crept, slowed)
             return memo, (turned & (stop | (count >= n))) | arrested
 
         def approach(t0, t1, y0, y1):
@@ -255,6 +274,7 @@ class Smoothed(AbstractSolver):
             events(one, x0, v0),
             jnp.zeros_like(x0, dtype=bool),
             jnp.ones_like(x0, dtype=bool),
+            jnp.zeros_like(x0, dtype=bool),
         )
         sol = ode_solve(
             field,
@@ -267,8 +287,7 @@ class Smoothed(AbstractSolver):
             solver=recording(ode, record, memo),
             limit=approach,
         )
-        _, count, times, positions, _, stuck, _ = sol.solver_state[1]
-        y_end = unpack([c[-1] for c in sol.ys])
+        _, count, times, positions, _, stuck, _, _ = sol.solver_state[1]
         failed = sol.result != dfx.RESULTS.successful
         k = jnp.arange(n)
         valid = k < count
@@ -277,11 +296,12 @@ class Smoothed(AbstractSolver):
         positions = jnp.where(valid, positions, jnp.where(count > 0, positions[last], x0))
         previous = jnp.concatenate([x0[None], positions[:-1]])
         crossed = valid & (positions * previous < 0)
-        # crept to the horizon where the stick rule holds: a frictionless mass that only
-        # slows down (over-damped, or a mass that grows without bound) has not stopped
-        x_end, v_end = model.observe(y_end)[:2]
-        creeping = (count < n) & (jnp.abs(v_end) <= slow) & model.rest(t_end, x_end)[2]
-        stopped = stuck | creeping
+        # `stuck`: the stick rule held at a turning point, or where the mass crept on from
+        # one (`arrested`). A mass that only slowed down, without a velocity zero of the exact
+        # mass (over-damped, with or without dry friction, or a mass that grows without
+        # bound), has not stopped, even where it has crept into the friction's band by the
+        # horizon: it was 'stopped' there, where the exact solver says 'no velocity zero'.
+        stopped = stuck
         incomplete = (count < n) & jnp.logical_not(stopped)
         exhausted = incomplete & (t_end >= 0.998 * model.lifetime())
         code = jnp.where(
@@ -323,6 +343,22 @@ def _components(model, x0, v0, w):
         return pack(model.vector_field(t, unpack(y), w))
 
     return pack(model.initial_state(x0, v0)), field, unpack
+
+
+def _stops(model, s, t, x, speed):
+    """Whether the exact (non-smooth) mass, at `(t, x)` moving in direction `s` at `speed`
+    (`CREEP w`, where `tanh` is 1 to 1e-17 and the smoothed motion is the exact one), comes to
+    a velocity zero: it decelerates, and where that deceleration would stop it, `x + s speed^2 /
+    (2 |a|)`, the dry friction holds it at rest (`s x'' < 0` at `v = 0`: a velocity zero on
+    the near side of `x = 0` needs friction above the spring force). An over-damped mass
+    approaching its rest decelerates as `|a| = lambda |v|` (its slow rate `lambda`), so that
+    its extrapolated stop lies half-way to its rest, where nothing holds it: without this
+    test, its slowing down through `CREEP w` counted as a turning point (released from rest
+    at `-a0` with `zeta = 1.5`, one at `x = -5.2e-3 a0` where the exact solver has none)."""
+    a = s * model.acceleration(t, x, s * speed, s)  # < 0: decelerating
+    reach = x + s * speed * speed / (2 * jnp.where(a < 0, -a, 1.0))
+    held = s * model.acceleration(t, reach, jnp.zeros_like(reach), s) < 0
+    return (a < 0) & held
 
 
 def _turning_point(interpolation, t0, t1, g, g0, g1, position, found):
