@@ -36,7 +36,7 @@ def _same(a, b):
     as read back from a store)."""
     fields = ("times", "positions", "crossed", "count", "stopped", "result")
     got = b if isinstance(b, dict) else {f: getattr(b, f) for f in fields}
-    return all(np.array_equal(getattr(a, f), got[f]) for f in fields)
+    return all(np.array_equal(np.asarray(getattr(a, f)), np.asarray(got[f])) for f in fields)
 
 
 # -- stores ----------------------------------------------------------------------------------

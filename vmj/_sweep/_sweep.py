@@ -730,16 +730,18 @@ def sweep(
         spec_leaves, out_def = jax.tree.flatten(spec)
         axes = job.known(chunk)["axes"]
         per_point = sum(math.prod(s.shape[1:]) * np.dtype(s.dtype).itemsize for s in spec_leaves)
-        check_room(  # (held on the host whole, with a store too)
-            f"the sweep's result, {n} points x {per_point} bytes",
-            n * per_point,
-            "sweep fewer points, or only the fields you need (fn=lambda m, a0, n: "
-            "vmj.turning_points(m, a0, n).stop_time is 8 bytes per point)",
-            jax.devices("cpu")[0],
-        )
-        out = [point_array(n, s.shape[1:], s.dtype, a) for s, a in zip(spec_leaves, axes)]
         names = None  # (the fields' names in a store)
-        if store is not None:
+        if store is None:  # the result held in this process's memory, whole
+            check_room(
+                f"the sweep's result, {n} points x {per_point} bytes",
+                n * per_point,
+                "sweep fewer points, only the fields you need (fn=lambda m, a0, n: "
+                "vmj.turning_points(m, a0, n).stop_time is 8 bytes per point), or give "
+                "store= (the result is then written to disk chunk by chunk and read from it)",
+                jax.devices("cpu")[0],
+            )
+            out = [point_array(n, s.shape[1:], s.dtype, a) for s, a in zip(spec_leaves, axes)]
+        else:  # each finished chunk written to the store and dropped
             names, kdims, kcoords = export_names(
                 spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"}
             )
@@ -761,15 +763,11 @@ def sweep(
                 st = ChunkStore.create(
                     store, kind="sweep", definition=definition, described=described, plan=plan
                 )
-            coord_dims = {
-                k: ((k,) if is_grid else tuple(f"{k}_{i}" for i in range(np.ndim(v))))
-                for k, v in coords.items()
-            }
             # (also those of a resumed store whose creation was interrupted before them)
             st.create_sweep_arrays(
                 [(nm, s.dtype, s.shape[1:], kd) for nm, s, kd in zip(names, spec_leaves, kdims)],
                 coords,
-                coord_dims,
+                is_grid,
                 kcoords,
                 provenance()["units"],
             )
@@ -777,17 +775,16 @@ def sweep(
         def rows(c):
             return slice(c * chunk, min((c + 1) * chunk, n))
 
-        def place(c, got):
-            for o, g in zip(out, got):
-                o[rows(c)] = g
-
-        todo = st.remaining(place, names) if st is not None and resume else list(range(n_chunks))
-        resumed = n_chunks - len(todo)
-
         def sink(c, got):
-            place(c, got)
             if st is not None:
                 st.write(c, got, names)
+            else:
+                for o, g in zip(out, got):
+                    o[rows(c)] = g
+
+        # (a resumed store's chunks are each read once, to check them against their checksum)
+        todo = st.remaining(names) if st is not None and resume else list(range(n_chunks))
+        resumed = n_chunks - len(todo)
 
         failures = {}
 
@@ -797,7 +794,7 @@ def sweep(
             r = rows(c)
             failures[c] = (r.start, r.stop - 1, code, message)
             if st is not None:
-                st.fail(c, code, message)
+                st.fail(c, code, message, names)
 
         if cl is None and todo:
             if not job.known(chunk).get("compiled"):
@@ -820,7 +817,13 @@ def sweep(
             store=st,
         )
 
-    values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out])
+    if st is not None:  # read from the store, lazily
+        values = jax.tree.unflatten(out_def, st.lazy(names))
+    else:
+        for c in failures:
+            for o in out:
+                o[rows(c)] = np.nan if o.dtype.kind in "fc" else 0
+        values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out])
     result = SweepResult(
         values,
         tuple(dims),
@@ -833,9 +836,6 @@ def sweep(
         _attrs=provenance,
     )
     if failures:
-        for c in failures:
-            for o in out:
-                o[rows(c)] = np.nan if o.dtype.kind in "fc" else 0
         lo, hi, code, message = failures[min(failures)]
         text = (
             f"{len(failures)} of {n_chunks} chunks failed (the first: points {lo} to {hi}: "
