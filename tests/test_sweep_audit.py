@@ -302,3 +302,32 @@ def test_paired_points_in_a_store_are_labelled_by_point(tmp_path):
     back = vmj.SweepResult.read_zarr(path)
     assert back.dims == ("point",)
     np.testing.assert_array_equal(back.coords["eps"], r.coords["eps"])
+
+
+def test_cli_store_is_not_refused_as_results_in_memory_and_its_exports_stream(
+    tmp_path, capsys, monkeypatch
+):
+    """`vmj sweep ... --store` refused a sweep whose results exceeded the limit of results
+    held in memory (1 GiB without --force), although with a store they are on disk; its
+    summary and exports (--out, --netcdf) read the store as the in-memory run does."""
+    pytest.importorskip("xarray")
+    import vmj.cli._sweep as cli_sweep
+    from vmj.cli import main
+
+    monkeypatch.setattr(cli_sweep, "MAX_BYTES", 1000)  # (35 points: about 5 kB of results)
+    base = ["sweep", "variable-mass", "--eps", "0:1:5", "--mu", "0:10:7", "--n", str(N)]
+    base += ["--set", "m0=5,c=4900,FT=14.7,a0=0.06,delta=3", "--chunk-size", "8"]
+    assert main(base) == 2
+    assert "GiB of results in memory (--store PATH.zarr" in capsys.readouterr().err
+    memory = [str(tmp_path / "m.csv"), str(tmp_path / "m.nc")]
+    stored = [str(tmp_path / "s.csv"), str(tmp_path / "s.nc")]
+    assert main(base + ["--force", "--out", memory[0], "--netcdf", memory[1]]) == 0
+    summary_memory = capsys.readouterr().out.split("; ")[1:3]
+    store = ["--store", str(tmp_path / "s.zarr"), "--out", stored[0], "--netcdf", stored[1]]
+    assert main(base + store) == 0
+    assert capsys.readouterr().out.split("; ")[1:3] == summary_memory  # stopped, failed
+    assert open(stored[0]).read() == open(memory[0]).read()
+    import xarray as xr
+
+    with xr.open_dataset(memory[1]) as a, xr.open_dataset(stored[1]) as b:
+        xr.testing.assert_identical(a, b)
