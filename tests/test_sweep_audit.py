@@ -331,3 +331,17 @@ def test_cli_store_is_not_refused_as_results_in_memory_and_its_exports_stream(
 
     with xr.open_dataset(memory[1]) as a, xr.open_dataset(stored[1]) as b:
         xr.testing.assert_identical(a, b)
+
+
+def energy_amplitudes(m, a0, n):
+    return vmj.turning_points(m, a0, n, vmj.EnergyBalance()).amplitudes
+
+
+def test_a_sensitivity_over_a_grid_names_its_function(g):
+    """Its `function` attribute (the exports', a store's) was the internal
+    `vmj._sweep._sensitivity._PointSensitivity`, not the function differentiated."""
+    r = vmj.sensitivity(energy_amplitudes, g, ("F", "mu"), a0=A0, n=N)
+    assert r.attrs["function"].startswith("vmj.sensitivity(")
+    assert r.attrs["function"].endswith(
+        "test_sweep_audit.energy_amplitudes, wrt=(F, mu), mode=forward)"
+    )

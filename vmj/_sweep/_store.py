@@ -117,7 +117,11 @@ def digest(obj) -> str:
 
 
 def describe_fn(fn) -> str:
-    """A readable name of a function, for error messages."""
+    """A readable name of a function, for error messages and a sweep's `function` attribute
+    (a function of vmj's own may say what it is: `_vmj_description`)."""
+    own = getattr(fn, "_vmj_description", None)
+    if isinstance(own, str):
+        return own
     if isinstance(fn, functools.partial):
         return f"partial({describe_fn(fn.func)}, ...)"
     name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
