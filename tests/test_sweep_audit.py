@@ -210,7 +210,7 @@ def test_attrs_are_made_when_asked_for_and_pickled_made(g):
     assert callable(r._attrs)
     back = pickle.loads(pickle.dumps(r))
     assert back.attrs == r.attrs and back.attrs["function"].endswith("<lambda>")
-    assert back.attrs["units"] == {"mu": "kg/s"}  # (eps declares no unit)
+    assert back.attrs["units"] == {"eps": "1", "mu": "kg/s"}  # (a bare array: no field units)
 
 
 # -- results larger than memory: streamed to the store ----------------------------------------
@@ -345,3 +345,29 @@ def test_a_sensitivity_over_a_grid_names_its_function(g):
     assert r.attrs["function"].endswith(
         "test_sweep_audit.energy_amplitudes, wrt=(F, mu), mode=forward)"
     )
+
+
+def test_value_fields_and_dimensionless_parameters_carry_their_units(model, g, tmp_path):
+    """The exports gave no unit to the value fields (turning-point times [s], positions [m];
+    the stick-slip cycle's dimensionless ones), nor to the dimensionless parameters that only
+    the command line's help called dimensionless (VariableMass eps; StickSlip eps, Omega):
+    each is now declared by its model or solution type."""
+    xr = pytest.importorskip("xarray")
+    r = vmj.sweep(vmj.turning_points, g, a0=A0, n=N, solver=vmj.EnergyBalance())
+    assert r.attrs["units"] == {"eps": "1", "mu": "kg/s", "times": "s", "positions": "m"}
+    ds = r.to_xarray()
+    assert (ds["times"].attrs["units"], ds["positions"].attrs["units"]) == ("s", "m")
+    assert ds["eps"].attrs["units"] == "1" and "units" not in ds["count"].attrs
+    r.to_netcdf(str(tmp_path / "s.nc"))
+    with xr.open_dataset(str(tmp_path / "s.nc")) as back:
+        assert back["positions"].attrs["units"] == "m"
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, solver=vmj.EnergyBalance(), store=path)
+    with xr.open_zarr(path, consolidated=False) as lazy:
+        assert (lazy["times"].attrs["units"], lazy["eps"].attrs["units"]) == ("s", "1")
+    cycles = vmj.sweep(
+        vmj.limit_cycle, vmj.grid(vmj.StickSlip(3.0, 0.7), eps=[3.0, 5.0], Omega=[0.5, 0.7])
+    )
+    units = cycles.attrs["units"]
+    assert (units["eps"], units["Omega"], units["period"], units["positions"]) == ("1",) * 4
+    assert "count" not in units and "reversals" not in units

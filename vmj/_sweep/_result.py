@@ -238,7 +238,7 @@ class SweepResult:
             }
         data = xr.Dataset(data_vars, coords={**coords, **extra_coords})
         for name, unit in self.attrs.get("units", {}).items():
-            if name in data.coords:
+            if name in data.variables:
                 data[name].attrs["units"] = unit
         data.attrs.update({k: v for k, v in self.attrs.items() if k != "units"})
         return data

@@ -665,10 +665,6 @@ def sweep(
         definition, described = _definition(fn, model, solver_args, shape, dims, coords, chunk_size)
         token = digest(definition)
 
-    # (worked out when asked for: 0.2-1 ms, the Python attribute lookups of equinox modules
-    # and the repr of a solver object, against a warm 35-point sweep's few ms)
-    provenance = functools.cache(functools.partial(_provenance, fn, model, solver_args))
-
     with cluster(client) as cl:
         if cl is not None:
             if devices is not None:
@@ -728,6 +724,11 @@ def sweep(
         # the output's structure, without evaluating anything
         spec = job.spec()
         spec_leaves, out_def = jax.tree.flatten(spec)
+        # (worked out when asked for: 0.2-1 ms, the Python attribute lookups of equinox modules
+        # and the repr of a solver object, against a warm 35-point sweep's few ms)
+        provenance = functools.cache(
+            functools.partial(_provenance, fn, model, solver_args, spec, set(coords) | set(dims))
+        )
         axes = job.known(chunk)["axes"]
         per_point = sum(math.prod(s.shape[1:]) * np.dtype(s.dtype).itemsize for s in spec_leaves)
         names = None  # (the fields' names in a store)
@@ -882,18 +883,25 @@ def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
     return definition, described
 
 
-def _provenance(fn, model, solver_args) -> dict:
+def _provenance(fn, model, solver_args, spec, taken) -> dict:
     """What produced a sweep, for its exports' attributes: the model's kind and laws, the
-    function, the solver arguments, the fixed parameters, vmj's version, and the unit of each
-    swept parameter (`"units"`, where the model declares one in its limits)."""
+    function, the solver arguments, the fixed parameters, vmj's version, and `"units"`: the
+    unit of each swept parameter (where the model declares one in its limits) and of each field
+    of the result (`spec`, its output's structure) whose type declares one (`field_units`),
+    by its name in the exports (`export_names`, the coordinates' names `taken`)."""
     units, fixed = {}, []
     for path, name in named_paths(model):
         owner = _get(model, path[:-1])
         unit = _unit(getattr(type(owner), "_limits", {}).get(path[-1]))
         value = np.asarray(_get(model, path))
         if value.ndim == 0:
-            fixed.append(f"{name}={_number(value.item())}" + (f" {unit}" if unit else ""))
+            shown = f" {unit}" if unit and unit != "1" else ""  # (a number: eps=0)
+            fixed.append(f"{name}={_number(value.item())}{shown}")
         elif unit:
+            units[name] = unit
+    names = export_names(spec, 1, taken)[0]
+    for name, unit in zip(names, _field_units(spec, model)):
+        if unit:
             units[name] = unit
     return {
         "model": _describe_model(model),
@@ -903,6 +911,33 @@ def _provenance(fn, model, solver_args) -> dict:
         "vmj_version": __version__,
         "units": units,
     }
+
+
+def _field_units(spec, model) -> list:
+    """The unit of each leaf of a result `spec` (None where none is declared): a field of a
+    solution type by its `field_units(model)`, a parameter of a model or law (a result that
+    carries its model) by its limits."""
+    out = []
+    for path, _ in jax.tree_util.tree_flatten_with_path(spec)[0]:
+        node, unit = spec, None
+        for key in path[:-1]:
+            node = _child(node, key)
+        last = getattr(path[-1], "name", None) if path else None
+        if last is not None and hasattr(type(node), "field_units"):
+            unit = type(node).field_units(model).get(last)
+        elif last is not None:
+            unit = _unit(getattr(type(node), "_limits", {}).get(last))
+        out.append(unit)
+    return out
+
+
+def _child(node, key):
+    """The child of a pytree `node` at one key of a key path."""
+    if hasattr(key, "name"):
+        return getattr(node, key.name)
+    if hasattr(key, "key"):
+        return node[key.key]
+    return node[key.idx]
 
 
 def _unit(limit) -> str | None:
