@@ -289,7 +289,8 @@ def add_arguments(p) -> None:
         q.add_argument(
             "--force",
             action="store_true",
-            help=f"run a sweep estimated above {MAX_BYTES / 2**30:g} GiB of results or "
+            help=f"run a sweep estimated above {MAX_BYTES / 2**30:g} GiB of results in memory "
+            "(without --store) or "
             f"{MAX_SECONDS:g} s, or an axis of more than {MAX_AXIS:.0e} values",
         )
         add_global_options(q, nested=True)
