@@ -67,7 +67,9 @@ class SweepResult:
       leaves whose leading axes are the sweep's `shape` (e.g. `values.positions[i, j, l, k]`).
       A leaf that the function computes with the points on another axis (a loop's stacked
       output, such as the 12 turning points of the energy balance) is a view of memory laid
-      out that way, as NumPy's `.T` is (`np.ascontiguousarray` gives a C-ordered copy).
+      out that way, as NumPy's `.T` is (`np.ascontiguousarray` gives a C-ordered copy). A
+      sweep with a store (and `read_zarr`) gives dask arrays read lazily from the store instead:
+      `np.asarray` loads one, `.compute()` a part or a reduction of one.
     - `dims`: the names of the leading axes (`("eps", "mu", "delta")` for a grid, `("point",)`
       for paired points).
     - `coords`: parameter values: for a grid one 1-D array per axis; for paired points every
@@ -78,8 +80,9 @@ class SweepResult:
       `resumed` read back from a store.
     - `attrs`: what produced it (strings: `model`, e.g. `VariableMass(friction=Coulomb)`,
       `function`, `solver_arguments`, `fixed_parameters` with their units, `vmj_version`), and
-      `units`, the unit of each swept parameter that the model declares (`{"mu": "kg/s"}`);
-      the exports carry them (xarray's and NetCDF's attributes, the coordinates' `units`).
+      `units`: the unit of each swept parameter that the model declares (`{"mu": "kg/s", "eps":
+      "1"}`) and of each field whose type declares one (`{"times": "s", "positions": "m"}`);
+      the exports carry them (xarray's and NetCDF's attributes, each variable's `units`).
     """
 
     values: Any

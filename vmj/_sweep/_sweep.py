@@ -621,7 +621,9 @@ def sweep(
       in-process on the same kind of machine.
     - `store`: a path of a Zarr store (`"sweep.zarr"`): every finished chunk is written to it
       as it completes (with a checksum and a completion marker), labelled like
-      [`vmj.SweepResult.to_xarray`][]; read it back with [`vmj.SweepResult.read_zarr`][].
+      [`vmj.SweepResult.to_xarray`][], and dropped: the result is on disk, not in memory, so
+      it may be larger than memory; the `values` returned are lazy (dask) arrays read from the
+      store (`np.asarray` loads one); [`vmj.SweepResult.read_zarr`][] opens it again.
     - `resume`: continue the sweep already in `store`: only the chunks not yet in it (or
       whose data does not match their checksum) are computed. The store must hold the same
       sweep (function, model parameters, solver arguments, shape, `chunk_size`); a different
@@ -629,8 +631,10 @@ def sweep(
     - `**solver_args`: passed to `fn` unchanged at every point (e.g. `a0=0.06, n=12,
       solver=vmj.EnergyBalance()`); they are not swept.
 
-    **Returns:** a [`vmj.SweepResult`][] whose `values` have the sweep's shape in front; results
-    are the same as calling `fn` point by point.
+    **Returns:** a [`vmj.SweepResult`][] whose `values` have the sweep's shape in front (NumPy
+    arrays; with a `store`, dask arrays read from it); results are the same as calling `fn`
+    point by point. Without a store, a result larger than the free memory is refused before
+    anything is computed.
 
     **Raises:** with a `client` or a `store`, a chunk that raises (e.g. `throw=True` and a solve
     failed) does not stop the sweep: the other chunks are evaluated (and stored), and then
