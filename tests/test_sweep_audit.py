@@ -304,6 +304,7 @@ def test_paired_points_in_a_store_are_labelled_by_point(tmp_path):
     np.testing.assert_array_equal(back.coords["eps"], r.coords["eps"])
 
 
+@pytest.mark.filterwarnings("error:endian-ness")
 def test_cli_store_is_not_refused_as_results_in_memory_and_its_exports_stream(
     tmp_path, capsys, monkeypatch
 ):

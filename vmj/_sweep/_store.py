@@ -395,7 +395,10 @@ class ChunkStore:
         out = []
         for name in names:
             a = self.group[name]
-            out.append(da.from_zarr(a).reshape(shape + tuple(a.shape[1:])))
+            # (Zarr spells the byte order out, '<f8': NumPy's native spelling, '=f8', is the same
+            # memory, and netCDF4 warns about every variable of the other)
+            lazy = da.from_zarr(a).view(np.dtype(a.dtype).newbyteorder("="))
+            out.append(lazy.reshape(shape + tuple(a.shape[1:])))
         return out
 
     def coords(self) -> dict:
@@ -405,6 +408,7 @@ class ChunkStore:
         out = {}
         for k in self.meta["coords"]:
             value = np.asarray(self.group[k][...])
+            value = value.view(value.dtype.newbyteorder("="))
             if not self.meta["grid"] and value.size == n:
                 value = value.reshape(shape)
             out[k] = value
