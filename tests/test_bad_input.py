@@ -238,7 +238,7 @@ CASES = parameter_cases() + [
     (
         "sweep axis out of range",
         put(SWEEP, "--eps", "0:2:3"),
-        ["--eps must be finite and in [0, 1] (got 2)"],
+        ["--eps must be finite and in [0, 1] [-] (got 2)"],
     ),
     ("sweep axis negative", put(SWEEP, "--mu", "-1,0"), ["--mu must be finite and >= 0 [kg/s]"]),
     (

@@ -144,6 +144,14 @@ class DecaySequence(eqx.Module):
     stopped: Array
     result: Array
 
+    @staticmethod
+    def field_units(model) -> dict:
+        """The unit of each field that has one, for a decay of `model` (exports' `units`):
+        `times` [s], `positions` in the model's `position_unit` (none where the model leaves
+        it to the user); counts, flags and status codes have none."""
+        unit = getattr(model, "position_unit", None)
+        return {"times": "s"} | ({"positions": unit} if unit not in (None, "position unit") else {})
+
     @classmethod
     def from_code(cls, times, positions, crossed, count, code) -> DecaySequence:
         """Assemble a sequence from a solver's turning points, their count and its final status

@@ -73,8 +73,8 @@ class StickSlip(AbstractLimitCycle):
     time_scale: Array = eqx.field(converter=_float, default=1.0)
     angle_scale: Array = eqx.field(converter=_float, default=1.0)
     _limits: ClassVar[dict] = {
-        "eps": (_greater_than_one, "> 1 (static friction M1 must exceed sliding friction M0)"),
-        "Omega": (positive, "> 0"),
+        "eps": (_greater_than_one, "> 1 (static friction M1 must exceed sliding friction M0) [-]"),
+        "Omega": (positive, "> 0 [-]"),
         "time_scale": (positive, "> 0 [s]"),
         "angle_scale": (positive, "> 0 [rad]"),
     }
@@ -246,6 +246,14 @@ class StickSlipCycle(eqx.Module):
     result: Array
     model: StickSlip
     method: str = eqx.field(static=True, default="exact")
+
+    @staticmethod
+    def field_units(model) -> dict:
+        """The unit of each field that has one (exports' `units`): times and positions are
+        dimensionless (`"1"`; [`vmj.StickSlipCycle.physical`][] converts them); counts and
+        status codes have none."""
+        names = ("slip_intervals", "positions", "amplitudes", "slip_time", "stick_time", "period")
+        return dict.fromkeys(names, "1")
 
     @property
     def message(self) -> str:

@@ -53,7 +53,7 @@ class VariableMass(AbstractEnergyMap):
         "m0": (positive, "> 0 [kg]"),
         "c": (positive, "> 0 [N/m]"),
         "delta": (anything, "a real number [kg/s]"),
-        "eps": (unit_interval, "in [0, 1]"),
+        "eps": (unit_interval, "in [0, 1] [-]"),
         "mu": (nonnegative, ">= 0 [kg/s]"),
     }
 

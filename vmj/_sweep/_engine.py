@@ -251,6 +251,9 @@ def worker_memory(client) -> int | None:
 
 # -- running -----------------------------------------------------------------------------------
 LOST_RETRIES = 3  #: resubmissions of a chunk whose result died with its worker
+#: chunks per thread (per worker thread of a cluster) computed ahead of the one `sink` takes,
+#: at most, where results come back to this thread (a store): their memory stays bounded
+BACKLOG = 2
 
 
 class Interrupted(RuntimeError):
@@ -283,7 +286,7 @@ def run_chunks(
         if client is None:
             _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread)
         else:
-            _run_dask(job, todo, sink, fail, progress, client)
+            _run_dask(job, todo, sink, fail, progress, client, window=store is not None)
     except BaseException:
         if store is not None:
             done = int((store.status() == 1).sum())
@@ -302,7 +305,9 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
     of Python's interpreter lock each time (a 10^6-point energy-balance sweep on two cores:
     66 -> 57 ms). Otherwise the results come back to this thread in the order they finish. On
     an exception here (the first failure without `fail`, Ctrl-C) the chunks not yet started
-    are dropped and the running ones finish first."""
+    are dropped and the running ones finish first. Results handed back are bounded: a thread
+    starts a chunk only while fewer than `BACKLOG` per thread wait for `sink` (a store written
+    more slowly than the chunks are computed would otherwise gather the whole result here)."""
     pending = queue.SimpleQueue()
     for c in todo:
         pending.put(c)
@@ -310,9 +315,12 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
     failed = []  # (chunk, exception): with sink_in_thread
     stop = threading.Event()
     lock = threading.Lock()
+    room = None if sink_in_thread else threading.Semaphore(BACKLOG * max(1, threads))
 
     def work():
         while not stop.is_set():
+            if room is not None and not room.acquire(timeout=0.05):
+                continue  # (the results handed back are not yet sunk: wait, or stop)
             try:
                 c = pending.get_nowait()
             except queue.Empty:
@@ -360,6 +368,8 @@ def _run_threads(job, todo, sink, fail, progress, threads, sink_in_thread):
                 fail(c, exc)
             else:
                 sink(c, out)
+            out = None
+            room.release()
             progress.update()
     finally:
         stop.set()
@@ -376,7 +386,11 @@ def _held(client, future) -> bool:
         return False
 
 
-def _run_dask(job, todo, sink, fail, progress, client):
+def _run_dask(job, todo, sink, fail, progress, client, window=False):
+    """The chunks as Dask tasks; their results are passed to `sink` here as they arrive. With
+    `window`, at most `BACKLOG + 1` chunks per worker thread are submitted and not yet sunk
+    (the next is submitted as each is sunk), so that neither the workers nor this process hold
+    more than that of a result larger than memory; otherwise all are submitted at once."""
     import distributed
     import jax
 
@@ -411,7 +425,9 @@ def _run_dask(job, todo, sink, fail, progress, client):
             shared[0] = client.scatter(job, broadcast=True, hash=False)
         return needed is not shared[0]
 
-    futures = {submit(c): c for c in todo}
+    queued = collections.deque(todo)
+    ahead = (BACKLOG + 1) * threads_of(client) if window else len(queued)
+    futures = {submit(c): c for c in (queued.popleft() for _ in range(min(ahead, len(queued))))}
     try:
         # results are fetched in the client's event loop as tasks finish, side by side
         done = distributed.as_completed(list(futures), with_results=True, raise_errors=False)
@@ -436,6 +452,13 @@ def _run_dask(job, todo, sink, fail, progress, client):
                 raise Interrupted(f"the run was interrupted (chunk {c} {f.status})")
             f.release()
             progress.update()
+            if queued:
+                if client.status != "running":
+                    raise Interrupted(f"the run was interrupted (client {client.status})")
+                c = queued.popleft()
+                nxt = submit(c)
+                futures[nxt] = c
+                done.add(nxt)
     finally:
         if futures:
             with contextlib.suppress(Exception):

@@ -112,7 +112,7 @@ def map_chunks(
         def place(c, blob):
             out[c * chunk : (c + 1) * chunk] = pickle.loads(blob)
 
-        todo = st.remaining(place) if st is not None and resume else list(range(n_chunks))
+        todo = st.remaining(None, place) if st is not None and resume else list(range(n_chunks))
         resumed = n_chunks - len(todo)
 
         def sink(c, got):

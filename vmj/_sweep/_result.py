@@ -15,6 +15,15 @@ from .._files import replacing
 
 __all__ = ["SweepResult"]
 
+#: points written per block by `SweepResult.to_csv`
+CSV_ROWS = 1 << 16
+
+
+def _lazy(x) -> bool:
+    """Whether `x` is a lazy array (dask's, as a sweep with a store returns): computed when
+    asked, and read part by part."""
+    return hasattr(x, "dask") and hasattr(x, "compute")
+
 
 def _leaf_names(tree) -> list[str]:
     def name(path):
@@ -58,7 +67,9 @@ class SweepResult:
       leaves whose leading axes are the sweep's `shape` (e.g. `values.positions[i, j, l, k]`).
       A leaf that the function computes with the points on another axis (a loop's stacked
       output, such as the 12 turning points of the energy balance) is a view of memory laid
-      out that way, as NumPy's `.T` is (`np.ascontiguousarray` gives a C-ordered copy).
+      out that way, as NumPy's `.T` is (`np.ascontiguousarray` gives a C-ordered copy). A
+      sweep with a store (and `read_zarr`) gives dask arrays read lazily from the store instead:
+      `np.asarray` loads one, `.compute()` a part or a reduction of one.
     - `dims`: the names of the leading axes (`("eps", "mu", "delta")` for a grid, `("point",)`
       for paired points).
     - `coords`: parameter values: for a grid one 1-D array per axis; for paired points every
@@ -69,8 +80,9 @@ class SweepResult:
       `resumed` read back from a store.
     - `attrs`: what produced it (strings: `model`, e.g. `VariableMass(friction=Coulomb)`,
       `function`, `solver_arguments`, `fixed_parameters` with their units, `vmj_version`), and
-      `units`, the unit of each swept parameter that the model declares (`{"mu": "kg/s"}`);
-      the exports carry them (xarray's and NetCDF's attributes, the coordinates' `units`).
+      `units`: the unit of each swept parameter that the model declares (`{"mu": "kg/s", "eps":
+      "1"}`) and of each field whose type declares one (`{"times": "s", "positions": "m"}`);
+      the exports carry them (xarray's and NetCDF's attributes, each variable's `units`).
     """
 
     values: Any
@@ -96,23 +108,39 @@ class SweepResult:
     def columns(self) -> dict[str, np.ndarray]:
         """Flat columns, one row per point (C order): the parameters, then every field of
         `values`; a field with inner axes gives one column per entry, `name_1 ... name_n`
-        (1-based, as the turning points k)."""
+        (1-based, as the turning points k). Loads the whole result (see `to_csv`, which
+        writes it block by block)."""
+        return self._columns(0, math.prod(self.shape), self._flat())
+
+    def _flat(self) -> list:
+        """`(name, leaf)` for every field, each leaf with its points flattened on the first
+        axis (a lazy leaf stays lazy)."""
         n = math.prod(self.shape)
+        return [
+            (name, leaf.reshape((n,) + tuple(np.shape(leaf)[len(self.shape) :])))
+            if _lazy(leaf)
+            else (name, np.asarray(leaf).reshape((n,) + np.shape(leaf)[len(self.shape) :]))
+            for name, leaf in zip(_leaf_names(self.values), jax.tree.leaves(self.values))
+        ]
+
+    def _columns(self, lo: int, hi: int, flat: list) -> dict[str, np.ndarray]:
+        """`columns()` of the points `lo ... hi - 1` only, from `_flat()`'s leaves (of a lazy
+        result, only those rows are read)."""
+        idx = np.unravel_index(np.arange(lo, hi), self.shape)
         cols = {}
         if self._is_grid:
-            mesh = np.meshgrid(*(self.coords[d] for d in self.dims), indexing="ij")
-            for d, g in zip(self.dims, mesh):
-                cols[d] = g.reshape(n)
+            for i, d in enumerate(self.dims):
+                cols[d] = np.asarray(self.coords[d])[idx[i]]
         else:
             for name, c in self.coords.items():
-                cols[name] = np.broadcast_to(c, self.shape).reshape(n)
-        for name, leaf in zip(_leaf_names(self.values), jax.tree.leaves(self.values)):
-            leaf = np.asarray(leaf).reshape((n,) + np.shape(leaf)[len(self.shape) :])
+                cols[name] = np.broadcast_to(c, self.shape)[idx]
+        for name, leaf in flat:
+            leaf = np.asarray(leaf[lo:hi])
             if leaf.ndim == 1:
                 cols[name] = leaf
             else:
-                for idx in np.ndindex(*leaf.shape[1:]):
-                    cols[name + "".join(f"_{i + 1}" for i in idx)] = leaf[(slice(None),) + idx]
+                for k in np.ndindex(*leaf.shape[1:]):
+                    cols[name + "".join(f"_{i + 1}" for i in k)] = leaf[(slice(None),) + k]
         return cols
 
     @property
@@ -122,32 +150,35 @@ class SweepResult:
         ) == tuple(self.shape)
 
     def to_csv(self, path: str) -> None:
-        """Write the `columns()` to `path`; a first comment line records the axes, so that
+        """Write the `columns()` to `path`, `CSV_ROWS` points at a time (a result read lazily
+        from a store is never loaded whole); a first comment line records the axes, so that
         [`vmj.SweepResult.read_csv`][] restores the result's shape. Floats are written with 17
         significant digits (exact round trip)."""
-        cols = self.columns()
         leaves = dict(zip(_leaf_names(self.values), jax.tree.leaves(self.values)))
         meta = {
             "dims": list(self.dims),
             "shape": list(self.shape),
             "grid": self._is_grid,
             "fields": {
-                k: [str(np.asarray(v).dtype), list(np.shape(v)[len(self.shape) :])]
+                k: [str(np.dtype(v.dtype)), list(np.shape(v)[len(self.shape) :])]
                 for k, v in leaves.items()
             },
             "coords": [k for k in self.coords],
             "attrs": self.attrs,
         }
-        header = list(cols)
-        data = [np.asarray(c) for c in cols.values()]
-        fmts = ["%d" if c.dtype.kind in "biu" else "%.17g" for c in data]
-        table = np.empty((len(data[0]), len(data)), dtype=object)
-        for j, c in enumerate(data):
-            table[:, j] = c.astype(np.int64) if c.dtype.kind == "b" else c
+        n, flat = math.prod(self.shape), self._flat()
         with replacing(path) as tmp, open(tmp, "w", newline="") as fh:
             fh.write("# vmj-sweep " + json.dumps(meta) + "\n")
-            fh.write(",".join(header) + "\n")
-            np.savetxt(fh, table, fmt=fmts, delimiter=",")
+            for lo in range(0, max(n, 1), CSV_ROWS):
+                cols = self._columns(lo, min(lo + CSV_ROWS, n), flat)
+                if lo == 0:
+                    fh.write(",".join(cols) + "\n")
+                data = list(cols.values())
+                fmts = ["%d" if c.dtype.kind in "biu" else "%.17g" for c in data]
+                table = np.empty((len(data[0]), len(data)), dtype=object)
+                for j, c in enumerate(data):
+                    table[:, j] = c.astype(np.int64) if c.dtype.kind == "b" else c
+                np.savetxt(fh, table, fmt=fmts, delimiter=",")
 
     @staticmethod
     def read_csv(path: str) -> SweepResult:
@@ -198,7 +229,8 @@ class SweepResult:
         names, kdims, extra_coords = export_names(
             self.values, len(self.shape), set(self.coords) | set(self.dims)
         )
-        leaves = [np.asarray(v) for v in jax.tree.leaves(self.values)]
+        # (lazy arrays stay lazy: `to_netcdf` then writes them chunk by chunk)
+        leaves = [v if _lazy(v) else np.asarray(v) for v in jax.tree.leaves(self.values)]
         data_vars = {name: (tuple(self.dims) + kd, v) for name, kd, v in zip(names, kdims, leaves)}
         if self._is_grid:
             coords = {d: self.coords[d] for d in self.dims}
@@ -209,7 +241,7 @@ class SweepResult:
             }
         data = xr.Dataset(data_vars, coords={**coords, **extra_coords})
         for name, unit in self.attrs.get("units", {}).items():
-            if name in data.coords:
+            if name in data.variables:
                 data[name].attrs["units"] = unit
         data.attrs.update({k: v for k, v in self.attrs.items() if k != "units"})
         return data
@@ -222,28 +254,19 @@ class SweepResult:
 
     @staticmethod
     def read_zarr(path: str) -> SweepResult:
-        """Read the sweep in a Zarr store written by [`vmj.sweep`][] with `store=` (needs the
-        optional extra `vmj[distributed]`); `values` becomes a dict of field name to array, as
-        for [`vmj.SweepResult.read_csv`][]. Every chunk must be complete and match its
-        checksum; an unfinished sweep is refused (resume it with `vmj.sweep(..., store=path,
-        resume=True)`)."""
+        """Open the sweep in a Zarr store written by [`vmj.sweep`][] with `store=` (needs the
+        optional extra `vmj[distributed]`); `values` becomes a dict of field name to a lazy
+        (dask) array read from the store, as `vmj.sweep(..., store=...)` returns them:
+        `np.asarray` loads a field, `.compute()` a part of one, and the exports stream them.
+        Every chunk must be complete and match its checksum (each is read once, chunk by chunk,
+        to check it); an unfinished sweep is refused (resume it with `vmj.sweep(...,
+        store=path, resume=True)`)."""
         from ._store import ChunkStore
 
         st = ChunkStore.read_only(path, kind="sweep")
         meta = st.meta
         names = [f[0] for f in meta["fields"]]
-        n, shape = meta["n"], tuple(meta["shape"])
-        out = {
-            nm: np.empty((n,) + tuple(inner), dtype=np.dtype(dt))
-            for nm, dt, inner in meta["fields"]
-        }
-
-        def place(c, got):
-            lo = c * meta["chunk"]
-            for nm, g in zip(names, got):
-                out[nm][lo : lo + len(g)] = g
-
-        missing = st.remaining(place, names)
+        missing = st.remaining(names)
         if missing:
             raise ValueError(
                 f"store {path!r} holds an unfinished sweep: {len(missing)} of "
@@ -251,13 +274,11 @@ class SweepResult:
                 f"their checksum; resume it with vmj.sweep(..., store={path!r}, "
                 f"resume=True)"
             )
-        coords = {k: np.asarray(st.group[k][...]) for k in meta["coords"]}
-        values = {nm: v.reshape(shape + v.shape[1:]) for nm, v in out.items()}
         return SweepResult(
-            values,
+            dict(zip(names, st.lazy(names))),
             tuple(meta["dims"]),
-            coords,
-            shape,
+            st.coords(),
+            tuple(meta["shape"]),
             1,
             meta["n_chunks"],
             resumed=meta["n_chunks"],

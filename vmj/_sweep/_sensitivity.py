@@ -119,6 +119,17 @@ class _PointSensitivity(eqx.Module):
     wrt: tuple = eqx.field(static=True)
     mode: str = eqx.field(static=True)
 
+    @property
+    def _vmj_description(self) -> str:
+        """What a sweep's `function` attribute says: `vmj.sensitivity(module.fn, wrt=(F, mu),
+        mode=forward)`."""
+        from ._store import describe_fn
+
+        return (
+            f"vmj.sensitivity({describe_fn(self.fn)}, wrt=({', '.join(self.wrt)}), "
+            f"mode={self.mode})"
+        )
+
     def __call__(self, model, **solver_args):
         got = sensitivity(self.fn, model, self.wrt, mode=self.mode, **solver_args)
         return {f"d_{w}": got[w] for w in self.wrt}

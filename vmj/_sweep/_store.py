@@ -117,7 +117,11 @@ def digest(obj) -> str:
 
 
 def describe_fn(fn) -> str:
-    """A readable name of a function, for error messages."""
+    """A readable name of a function, for error messages and a sweep's `function` attribute
+    (a function of vmj's own may say what it is: `_vmj_description`)."""
+    own = getattr(fn, "_vmj_description", None)
+    if isinstance(own, str):
+        return own
     if isinstance(fn, functools.partial):
         return f"partial({describe_fn(fn.func)}, ...)"
     name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
@@ -142,6 +146,16 @@ def _zarr():
             "a store needs the optional extra: pip install 'vmj[distributed]'"
         ) from None
     return zarr
+
+
+def _dask_array():
+    try:
+        import dask.array as da
+    except ImportError:  # pragma: no cover - exercised only without the extra
+        raise ImportError(
+            "a sweep read from a store needs the optional extra: pip install 'vmj[distributed]'"
+        ) from None
+    return da
 
 
 def _opened(zarr, path: str, mode: str):
@@ -261,14 +275,20 @@ class ChunkStore:
 
     # -- sweeps --------------------------------------------------------------------------------
     def create_sweep_arrays(
-        self, fields, coords: dict, coord_dims: dict, inner_coords: dict, units: dict
+        self, fields, coords: dict, grid: bool, inner_coords: dict, units: dict
     ):
         """The arrays of a sweep's fields (`[(name, dtype, inner shape, inner dims)]`) and its
-        coordinates (with their `units`, attribute `units`); created once (a resumed store has
-        them)."""
+        coordinates: a grid's axes, each along its own dimension; paired points' parameters
+        along `point`, as the fields are (named in each field's `coordinates` attribute, so that
+        `xarray.open_zarr` attaches them). `units` (by name) become each array's attribute
+        `units`. Created once (a resumed store has them)."""
         n, chunk = self.meta["n"], self.meta["chunk"]
+        paired = "" if grid else " ".join(coords)
         for name, dtype, inner, kdims in fields:
             if name not in self.group:
+                attributes = {"units": units[name]} if name in units else {}
+                if paired:
+                    attributes["coordinates"] = paired
                 self.group.create_array(
                     name,
                     shape=(n,) + tuple(inner),
@@ -276,18 +296,35 @@ class ChunkStore:
                     dtype=dtype,
                     fill_value=np.zeros((), dtype).item(),
                     dimension_names=("point",) + tuple(kdims),
+                    attributes=attributes or None,
                 )
         for name, value in {**coords, **inner_coords}.items():
-            if name not in self.group:
-                value = np.asarray(value)
-                dims = coord_dims.get(name, (name,))
+            if name in self.group:
+                continue
+            value = np.asarray(value)
+            attributes = {"units": units[name]} if name in units else None
+            if grid or name in inner_coords:
                 self.group.create_array(
                     name,
                     data=value,
                     chunks=value.shape or (1,),
-                    dimension_names=tuple(dims),
-                    attributes={"units": units[name]} if name in units else None,
+                    dimension_names=(name,),
+                    attributes=attributes,
                 )
+                continue
+            # a paired parameter, broadcast to the points and flattened as the fields are
+            # (written chunk by chunk: never the whole broadcast in memory)
+            full = np.broadcast_to(value, tuple(self.meta["shape"]))
+            array = self.group.create_array(
+                name,
+                shape=(n,),
+                chunks=(chunk,),
+                dtype=value.dtype,
+                dimension_names=("point",),
+                attributes=attributes,
+            )
+            for lo in range(0, n, chunk):
+                array[lo : lo + chunk] = full.flat[lo : min(lo + chunk, n)]
 
     def write(self, c: int, arrays, names=None) -> None:
         """Write chunk `c` (one array per field, its rows only; for a map, `names=None` and one
@@ -309,8 +346,15 @@ class ChunkStore:
         if self._failures.pop(str(c), None) is not None:
             self.group.attrs["vmj_failures"] = self._failures
 
-    def fail(self, c: int, code: int, message: str) -> None:
-        """Record that chunk `c` raised (its status code, or -1, and message)."""
+    def fail(self, c: int, code: int, message: str, names=None) -> None:
+        """Record that chunk `c` raised (its status code, or -1, and message); a sweep's fields
+        (`names`) get NaN in the chunk's rows (0 where they are not floats)."""
+        if names is not None:
+            lo = c * self.meta["chunk"]
+            hi = min(lo + self.meta["chunk"], self.meta["n"])
+            for name in names:
+                a = self.group[name]
+                a[lo:hi] = np.nan if a.dtype.kind in "fc" else 0
         self._status[c] = FAILED
         self._failures[str(c)] = {"code": int(code), "message": message}
         self.group.attrs["vmj_failures"] = self._failures
@@ -328,18 +372,47 @@ class ChunkStore:
                     pass
             return out
 
-    def remaining(self, place, names=None) -> list:
-        """The chunks still to compute (a resumed sweep); each complete one (marked done and
-        matching its checksum) is handed to `place(c, data)` instead."""
+    def remaining(self, names=None, place=None) -> list:
+        """The chunks still to compute (a resumed sweep): those not marked done or whose data
+        does not match its checksum (each read once, chunk by chunk); each complete one is
+        handed to `place(c, data)`, if given."""
         status = self.status()
         todo = []
         for c in range(self.meta["n_chunks"]):
             data = self.read(c, names) if status[c] == DONE else None
             if data is None:
                 todo.append(c)
-            else:
+            elif place is not None:
                 place(c, data)
         return todo
+
+    def lazy(self, names) -> list:
+        """A sweep's fields `names`, read lazily from the store (dask arrays with the sweep's
+        shape in front, a dask chunk per chunk of work where the shape allows): nothing is read
+        until they are computed, `np.asarray` loads one whole."""
+        da = _dask_array()
+        shape = tuple(self.meta["shape"])
+        out = []
+        for name in names:
+            a = self.group[name]
+            # (Zarr spells the byte order out, '<f8': NumPy's native spelling, '=f8', is the same
+            # memory, and netCDF4 warns about every variable of the other)
+            lazy = da.from_zarr(a).view(np.dtype(a.dtype).newbyteorder("="))
+            out.append(lazy.reshape(shape + tuple(a.shape[1:])))
+        return out
+
+    def coords(self) -> dict:
+        """A sweep's coordinates: a grid's axes; paired points' parameters with the sweep's
+        shape (read whole: 8 bytes per point and parameter)."""
+        shape, n = tuple(self.meta["shape"]), self.meta["n"]
+        out = {}
+        for k in self.meta["coords"]:
+            value = np.asarray(self.group[k][...])
+            value = value.view(value.dtype.newbyteorder("="))
+            if not self.meta["grid"] and value.size == n:
+                value = value.reshape(shape)
+            out[k] = value
+        return out
 
     def read(self, c: int, names=None):
         """The data of chunk `c` (marked done) if it matches its checksum, else None."""

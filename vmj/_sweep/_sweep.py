@@ -621,7 +621,9 @@ def sweep(
       in-process on the same kind of machine.
     - `store`: a path of a Zarr store (`"sweep.zarr"`): every finished chunk is written to it
       as it completes (with a checksum and a completion marker), labelled like
-      [`vmj.SweepResult.to_xarray`][]; read it back with [`vmj.SweepResult.read_zarr`][].
+      [`vmj.SweepResult.to_xarray`][], and dropped: the result is on disk, not in memory, so
+      it may be larger than memory; the `values` returned are lazy (dask) arrays read from the
+      store (`np.asarray` loads one); [`vmj.SweepResult.read_zarr`][] opens it again.
     - `resume`: continue the sweep already in `store`: only the chunks not yet in it (or
       whose data does not match their checksum) are computed. The store must hold the same
       sweep (function, model parameters, solver arguments, shape, `chunk_size`); a different
@@ -629,8 +631,10 @@ def sweep(
     - `**solver_args`: passed to `fn` unchanged at every point (e.g. `a0=0.06, n=12,
       solver=vmj.EnergyBalance()`); they are not swept.
 
-    **Returns:** a [`vmj.SweepResult`][] whose `values` have the sweep's shape in front; results
-    are the same as calling `fn` point by point.
+    **Returns:** a [`vmj.SweepResult`][] whose `values` have the sweep's shape in front (NumPy
+    arrays; with a `store`, dask arrays read from it); results are the same as calling `fn`
+    point by point. Without a store, a result larger than the free memory is refused before
+    anything is computed.
 
     **Raises:** with a `client` or a `store`, a chunk that raises (e.g. `throw=True` and a solve
     failed) does not stop the sweep: the other chunks are evaluated (and stored), and then
@@ -664,10 +668,6 @@ def sweep(
     if store is not None or client is not None:
         definition, described = _definition(fn, model, solver_args, shape, dims, coords, chunk_size)
         token = digest(definition)
-
-    # (worked out when asked for: 0.2-1 ms, the Python attribute lookups of equinox modules
-    # and the repr of a solver object, against a warm 35-point sweep's few ms)
-    provenance = functools.cache(functools.partial(_provenance, fn, model, solver_args))
 
     with cluster(client) as cl:
         if cl is not None:
@@ -728,18 +728,25 @@ def sweep(
         # the output's structure, without evaluating anything
         spec = job.spec()
         spec_leaves, out_def = jax.tree.flatten(spec)
+        # (worked out when asked for: 0.2-1 ms, the Python attribute lookups of equinox modules
+        # and the repr of a solver object, against a warm 35-point sweep's few ms)
+        provenance = functools.cache(
+            functools.partial(_provenance, fn, model, solver_args, spec, set(coords) | set(dims))
+        )
         axes = job.known(chunk)["axes"]
         per_point = sum(math.prod(s.shape[1:]) * np.dtype(s.dtype).itemsize for s in spec_leaves)
-        check_room(  # (held on the host whole, with a store too)
-            f"the sweep's result, {n} points x {per_point} bytes",
-            n * per_point,
-            "sweep fewer points, or only the fields you need (fn=lambda m, a0, n: "
-            "vmj.turning_points(m, a0, n).stop_time is 8 bytes per point)",
-            jax.devices("cpu")[0],
-        )
-        out = [point_array(n, s.shape[1:], s.dtype, a) for s, a in zip(spec_leaves, axes)]
         names = None  # (the fields' names in a store)
-        if store is not None:
+        if store is None:  # the result held in this process's memory, whole
+            check_room(
+                f"the sweep's result, {n} points x {per_point} bytes",
+                n * per_point,
+                "sweep fewer points, only the fields you need (fn=lambda m, a0, n: "
+                "vmj.turning_points(m, a0, n).stop_time is 8 bytes per point), or give "
+                "store= (the result is then written to disk chunk by chunk and read from it)",
+                jax.devices("cpu")[0],
+            )
+            out = [point_array(n, s.shape[1:], s.dtype, a) for s, a in zip(spec_leaves, axes)]
+        else:  # each finished chunk written to the store and dropped
             names, kdims, kcoords = export_names(
                 spec, 1, set(coords) | set(dims) | {"point", "vmj_status", "vmj_checksum"}
             )
@@ -761,15 +768,11 @@ def sweep(
                 st = ChunkStore.create(
                     store, kind="sweep", definition=definition, described=described, plan=plan
                 )
-            coord_dims = {
-                k: ((k,) if is_grid else tuple(f"{k}_{i}" for i in range(np.ndim(v))))
-                for k, v in coords.items()
-            }
             # (also those of a resumed store whose creation was interrupted before them)
             st.create_sweep_arrays(
                 [(nm, s.dtype, s.shape[1:], kd) for nm, s, kd in zip(names, spec_leaves, kdims)],
                 coords,
-                coord_dims,
+                is_grid,
                 kcoords,
                 provenance()["units"],
             )
@@ -777,17 +780,16 @@ def sweep(
         def rows(c):
             return slice(c * chunk, min((c + 1) * chunk, n))
 
-        def place(c, got):
-            for o, g in zip(out, got):
-                o[rows(c)] = g
-
-        todo = st.remaining(place, names) if st is not None and resume else list(range(n_chunks))
-        resumed = n_chunks - len(todo)
-
         def sink(c, got):
-            place(c, got)
             if st is not None:
                 st.write(c, got, names)
+            else:
+                for o, g in zip(out, got):
+                    o[rows(c)] = g
+
+        # (a resumed store's chunks are each read once, to check them against their checksum)
+        todo = st.remaining(names) if st is not None and resume else list(range(n_chunks))
+        resumed = n_chunks - len(todo)
 
         failures = {}
 
@@ -797,7 +799,7 @@ def sweep(
             r = rows(c)
             failures[c] = (r.start, r.stop - 1, code, message)
             if st is not None:
-                st.fail(c, code, message)
+                st.fail(c, code, message, names)
 
         if cl is None and todo:
             if not job.known(chunk).get("compiled"):
@@ -820,7 +822,13 @@ def sweep(
             store=st,
         )
 
-    values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out])
+    if st is not None:  # read from the store, lazily
+        values = jax.tree.unflatten(out_def, st.lazy(names))
+    else:
+        for c in failures:
+            for o in out:
+                o[rows(c)] = np.nan if o.dtype.kind in "fc" else 0
+        values = jax.tree.unflatten(out_def, [o.reshape(shape + o.shape[1:]) for o in out])
     result = SweepResult(
         values,
         tuple(dims),
@@ -833,9 +841,6 @@ def sweep(
         _attrs=provenance,
     )
     if failures:
-        for c in failures:
-            for o in out:
-                o[rows(c)] = np.nan if o.dtype.kind in "fc" else 0
         lo, hi, code, message = failures[min(failures)]
         text = (
             f"{len(failures)} of {n_chunks} chunks failed (the first: points {lo} to {hi}: "
@@ -882,18 +887,25 @@ def _definition(fn, model, solver_args, shape, dims, coords, chunk_size):
     return definition, described
 
 
-def _provenance(fn, model, solver_args) -> dict:
+def _provenance(fn, model, solver_args, spec, taken) -> dict:
     """What produced a sweep, for its exports' attributes: the model's kind and laws, the
-    function, the solver arguments, the fixed parameters, vmj's version, and the unit of each
-    swept parameter (`"units"`, where the model declares one in its limits)."""
+    function, the solver arguments, the fixed parameters, vmj's version, and `"units"`: the
+    unit of each swept parameter (where the model declares one in its limits) and of each field
+    of the result (`spec`, its output's structure) whose type declares one (`field_units`),
+    by its name in the exports (`export_names`, the coordinates' names `taken`)."""
     units, fixed = {}, []
     for path, name in named_paths(model):
         owner = _get(model, path[:-1])
         unit = _unit(getattr(type(owner), "_limits", {}).get(path[-1]))
         value = np.asarray(_get(model, path))
         if value.ndim == 0:
-            fixed.append(f"{name}={_number(value.item())}" + (f" {unit}" if unit else ""))
+            shown = f" {unit}" if unit and unit != "1" else ""  # (a number: eps=0)
+            fixed.append(f"{name}={_number(value.item())}{shown}")
         elif unit:
+            units[name] = unit
+    names = export_names(spec, 1, taken)[0]
+    for name, unit in zip(names, _field_units(spec, model)):
+        if unit:
             units[name] = unit
     return {
         "model": _describe_model(model),
@@ -903,6 +915,33 @@ def _provenance(fn, model, solver_args) -> dict:
         "vmj_version": __version__,
         "units": units,
     }
+
+
+def _field_units(spec, model) -> list:
+    """The unit of each leaf of a result `spec` (None where none is declared): a field of a
+    solution type by its `field_units(model)`, a parameter of a model or law (a result that
+    carries its model) by its limits."""
+    out = []
+    for path, _ in jax.tree_util.tree_flatten_with_path(spec)[0]:
+        node, unit = spec, None
+        for key in path[:-1]:
+            node = _child(node, key)
+        last = getattr(path[-1], "name", None) if path else None
+        if last is not None and hasattr(type(node), "field_units"):
+            unit = type(node).field_units(model).get(last)
+        elif last is not None:
+            unit = _unit(getattr(type(node), "_limits", {}).get(last))
+        out.append(unit)
+    return out
+
+
+def _child(node, key):
+    """The child of a pytree `node` at one key of a key path."""
+    if hasattr(key, "name"):
+        return getattr(node, key.name)
+    if hasattr(key, "key"):
+        return node[key.key]
+    return node[key.idx]
 
 
 def _unit(limit) -> str | None:

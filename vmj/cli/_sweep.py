@@ -39,7 +39,7 @@ from ._params import MODELS, add_options
 
 __all__ = ["add_arguments", "run", "SWEEPS", "MAX_BYTES", "MAX_SECONDS", "MAX_AXIS"]
 
-MAX_BYTES = 2**30  #: results held in memory without --force [bytes]
+MAX_BYTES = 2**30  #: results held in memory without --force (no --store) [bytes]
 MAX_SECONDS = 600.0  #: estimated run time without --force [s]
 MAX_AXIS = 10**7  #: values of one axis without --force
 
@@ -88,26 +88,33 @@ def _turning_points(args, g, scalars, method=None):
 
 def _failures(codes) -> tuple:
     """`(count of failed points, one line per failure status with its count)`."""
-    import numpy as np
 
     import vmj
 
-    failed = np.asarray(codes)[vmj.RESULTS.failed(np.asarray(codes))]
-    statuses, counts = np.unique(failed, return_counts=True)
-    lines = [
-        f"  {k} points: {cli_message(vmj.RESULTS(int(c)).message)}"
-        for c, k in zip(statuses, counts)
-    ]
-    return failed.size, lines
+    counts = _bincount(codes, len(vmj.RESULTS))
+    failed = [(c, int(k)) for c, k in enumerate(counts) if k and vmj.RESULTS.failed(c)]
+    lines = [f"  {k} points: {cli_message(vmj.RESULTS(c).message)}" for c, k in failed]
+    return sum(k for _, k in failed), lines
+
+
+def _bincount(codes, length: int):
+    """How many of `codes` (non-negative integers) there are of each value below `length`;
+    a result read lazily from a store (`--store`) is counted chunk by chunk, never loaded."""
+    import numpy as np
+
+    if hasattr(codes, "compute"):
+        import dask.array as da
+
+        return da.bincount(codes.ravel(), minlength=length).compute()[:length]
+    return np.bincount(np.asarray(codes).ravel(), minlength=length)[:length]
 
 
 def _decay_summary(args, result) -> tuple:
     """`(summary items, lines below the summary)` of a turning-point sweep."""
-    import numpy as np
 
     seq = result.values
     failed, lines = _failures(seq.result)
-    stopped = int(np.sum(np.asarray(seq.stopped)))
+    stopped = int(seq.stopped.sum())  # (a lazy result: summed chunk by chunk)
     return [f"stopped within {args.n} swings: {stopped}", f"failed: {failed}"], lines
 
 
@@ -151,7 +158,7 @@ def _cycle_summary(args, result):
         from ._linear import RESONANCE
 
         D = result.values.get("forced_amplitude")
-        k = 0 if D is None else int(np.sum(np.isinf(np.asarray(D))))
+        k = 0 if D is None else int(np.isinf(D).sum())
         if not k:
             return [], []
         return [f"forced_amplitude inf: {k}"], [f"  forced_amplitude inf: {RESONANCE}"]
@@ -282,7 +289,8 @@ def add_arguments(p) -> None:
         q.add_argument(
             "--force",
             action="store_true",
-            help=f"run a sweep estimated above {MAX_BYTES / 2**30:g} GiB of results or "
+            help=f"run a sweep estimated above {MAX_BYTES / 2**30:g} GiB of results in memory "
+            "(without --store) or "
             f"{MAX_SECONDS:g} s, or an axis of more than {MAX_AXIS:.0e} values",
         )
         add_global_options(q, nested=True)
@@ -413,10 +421,10 @@ def run(args) -> int:
     size = points * how.bytes(args.method, n, top) * runs
     seconds = points * how.seconds(args.method, n, top) * runs
     shape = " x ".join(f"{name} {len(v)}" for name, v in axes.items())
-    if not args.force:
+    if not args.force and not args.store:  # (with --store the results are on disk)
         refuse_above(
             f"the sweep of {points:.4g} points ({shape}) holds about {size / 2**30:.3g} "
-            "GiB of results",
+            "GiB of results in memory (--store PATH.zarr writes them to disk instead)",
             size / 2**30,
             MAX_BYTES / 2**30,
             "GiB",
