@@ -65,7 +65,15 @@ from ._params import (
     transform_for,
     warn_if_float32,
 )
-from ._result import FitResult, _assess, _information, _result, _robust_scale, _values_of
+from ._result import (
+    FitResult,
+    _assess,
+    _information,
+    _result,
+    _robust_scale,
+    _values_of,
+    shared_test,
+)
 from ._solve import _TUNING, _job_arrays, _profiles, _rss, _Shape, _solve
 from ._space import FORWARDS, Space, series_space
 
@@ -503,9 +511,9 @@ def _reweight(prob, job, loss, N):
     _set_weights(prob, N)
 
 
-def _fit_jobs(jobs, problems, shape):
-    """Solve `jobs` (one round) grouped by space; a slot that runs into a bound is held there
-    and the job solved again."""
+def _fit_jobs(jobs, problems, shape, optimizer=None):
+    """Solve `jobs` (one round) grouped by space (with the fit's optimizer, or `optimizer`);
+    a slot that runs into a bound is held there and the job solved again."""
     pending = list(jobs)
     for _ in range(2 * shape.q + 2):
         if not pending:
@@ -516,7 +524,7 @@ def _fit_jobs(jobs, problems, shape):
         again = []
         for space, group in by_space.items():
             items = [_job_arrays(job, problems[job.problem], shape) for job in group]
-            for job, out in zip(group, _solve(space, items, shape)):
+            for job, out in zip(group, _solve(space, items, shape, optimizer)):
                 q = len(job.slots)
                 job.out = out
                 job.p = out["p"][:q]
@@ -881,6 +889,71 @@ def _series_stage(problems, jobs, bounds, settings):
     return sprobs, sjobs, shape
 
 
+def _alone(prob, lead, bounds, shape):
+    """Each record of a joint problem fitted alone: `lead`'s model (its law set, fixed and
+    held values) with every parameter free per record, started from the joint solution and
+    solved by Levenberg-Marquardt (exact minima, as the profiles). The records keep the joint
+    fit's robust weights and times' precisions, and their positions' and times' noise scales
+    are re-estimated from their own fits (between two solves): the scales against which
+    `fits._result.shared_test` measures both fits. Returns the problems and the jobs."""
+    probs, jobs = [], []
+    start = _values_of(lead)
+    bounds = {k: v for k, v in bounds.items() if k in lead.space.names}
+    for i, rec in enumerate(prob.records):
+        one = _Problem(
+            [rec],
+            [prob.givens[i]],
+            prob.free,
+            (),
+            [prob.decs[i]],
+            turning=None if prob.turning is None else [prob.turning[i]],
+        )
+        for name in ("robust_x", "robust_t", "tw"):
+            setattr(one, name, [np.copy(getattr(prob, name)[i])])
+        one.sx, one.st = [prob.sx[i]], [prob.st[i]]
+        _set_weights(one, shape.N)
+        probs.append(one)
+        jobs.append(
+            _make_job(
+                i,
+                one,
+                lead.space,
+                lead.label,
+                lead.free,
+                lead.hold,
+                bounds,
+                True,
+                fixed=[dict(lead.fixed[i])],
+                start=[dict(start[i])],
+            )
+        )
+    _fit_jobs(jobs, probs, shape, optimizer="lm")
+    for one, job in zip(probs, jobs):
+        _reweight(one, job, "l2", shape.N)  # (the scales alone: the robust weights kept)
+    _fit_jobs(jobs, probs, shape, optimizer="lm")
+    return probs, jobs
+
+
+def _check_shared(problems, jobs, bounds, shape) -> list:
+    """Per problem, the test of its shared parameters against each record fitted alone
+    (`fits._result.shared_test`), or None (a single record, nothing shared)."""
+    out = []
+    for i, prob in enumerate(problems):
+        if len(prob.records) < 2 or not prob.shared:
+            out.append(None)
+            continue
+        lead = _lead(jobs, i, prob, shape.N)
+        probs, alone = _alone(prob, lead, bounds, shape)
+        out.append(
+            shared_test(
+                _assess(lead, prob, shape),
+                [_assess(j, p, shape) for j, p in zip(alone, probs)],
+                shape.N,
+            )
+        )
+    return out
+
+
 def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     jobs = []
     for i, prob in enumerate(problems):
@@ -893,8 +966,11 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     assessed = [
         _assess(_lead(jobs, i, prob, shape.N), prob, shape) for i, prob in enumerate(problems)
     ]
+    tests = _check_shared(problems, jobs, bounds, shape)
     ends = _profiles([a.profile(settings) for a in assessed], shape)
-    results = [_result(a, jobs, shape, outlier_sigma, e) for a, e in zip(assessed, ends)]
+    results = [
+        _result(a, jobs, shape, outlier_sigma, e, t) for a, e, t in zip(assessed, ends, tests)
+    ]
     for res in results:
         for w in res.warnings:
             warnings.warn(w, stacklevel=4)
