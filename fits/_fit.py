@@ -266,9 +266,12 @@ class _Job:
     signs: list = None  # per record: sides assumed for amplitude-only data (a start hypothesis)
 
 
-def _make_job(index, prob, space, label, free, hold, bounds, headline, fixed=None, start=None):
+def _make_job(
+    index, prob, space, label, free, hold, bounds, headline, fixed=None, start=None, only=None
+):
     """A job of problem `index`; `fixed` and `start` (per record dicts) default to the
-    parameters' given or default values and the starting guess from the decrement estimate."""
+    parameters' given or default values and the starting guess from the decrement estimate;
+    `only`: a record index, whose parameters alone are fitted (the others held at `start`)."""
     R = len(prob.records)
     fixed = fixed or [
         _fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names}, hold)
@@ -277,7 +280,9 @@ def _make_job(index, prob, space, label, free, hold, bounds, headline, fixed=Non
     start = start or _starts(prob, space, free, fixed)
     slots = []
     for name in free:
-        if R == 1 or name in prob.shared:
+        if only is not None:
+            slots.append((name, only))
+        elif R == 1 or name in prob.shared:
             slots.append((name, None))
         else:
             slots.extend((name, r) for r in range(R))
@@ -891,26 +896,22 @@ def _series_stage(problems, jobs, bounds, settings):
 
 def _alone(prob, lead, bounds, shape):
     """Each record of a joint problem fitted alone: `lead`'s model (its law set, fixed and
-    held values) with every parameter free per record, started from the joint solution and
-    solved by Levenberg-Marquardt (exact minima, as the profiles). The records keep the joint
-    fit's robust weights and times' precisions, and their positions' and times' noise scales
-    are re-estimated from their own fits (between two solves): the scales against which
-    `fits._result.shared_test` measures both fits. Returns the problems and the jobs."""
+    held values) with every parameter free for that record, started from the joint solution
+    and solved by Levenberg-Marquardt (exact minima, as the profiles). Job `i` keeps the joint
+    problem's records and shape (the same compiled solve as the joint fit's and its profiles')
+    with the other records' weights 0. The records keep the joint fit's robust weights and
+    times' precisions; their positions' and times' noise scales are re-estimated from their
+    own fits (between two solves): the scales against which `fits._result.shared_test`
+    measures both fits. Returns per record its problem and job."""
     probs, jobs = [], []
     start = _values_of(lead)
     bounds = {k: v for k, v in bounds.items() if k in lead.space.names}
-    for i, rec in enumerate(prob.records):
-        one = _Problem(
-            [rec],
-            [prob.givens[i]],
-            prob.free,
-            (),
-            [prob.decs[i]],
-            turning=None if prob.turning is None else [prob.turning[i]],
-        )
-        for name in ("robust_x", "robust_t", "tw"):
-            setattr(one, name, [np.copy(getattr(prob, name)[i])])
-        one.sx, one.st = [prob.sx[i]], [prob.st[i]]
+    R = len(prob.records)
+    for i in range(R):
+        one = dataclasses.replace(prob, shared=())
+        for name in ("robust_x", "robust_t"):  # (the other records: weight 0)
+            setattr(one, name, [np.copy(v) * (j == i) for j, v in enumerate(getattr(prob, name))])
+        one.sx, one.st, one.tw = list(prob.sx), list(prob.st), list(prob.tw)
         _set_weights(one, shape.N)
         probs.append(one)
         jobs.append(
@@ -923,8 +924,9 @@ def _alone(prob, lead, bounds, shape):
                 lead.hold,
                 bounds,
                 True,
-                fixed=[dict(lead.fixed[i])],
-                start=[dict(start[i])],
+                fixed=[dict(f) for f in lead.fixed],
+                start=[dict(v) for v in start],
+                only=i,
             )
         )
     _fit_jobs(jobs, probs, shape, optimizer="lm")
