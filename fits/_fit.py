@@ -956,12 +956,53 @@ def _check_shared(problems, jobs, bounds, shape) -> list:
     return out
 
 
+#: seconds per Adam step of the smoothed forward model, per record of a job and turning point
+#: predicted (a smoothed ODE solve and its adjoint; measured on 2 shared cores, 2026-11-28:
+#: 2 jobs of 2 records of 24 turning points, 0.47-0.50 s for 20 steps, warm)
+_SMOOTH_ADAM_STEP_S = 2.5e-4
+#: a fit whose estimated solving time exceeds this [s] is refused before it starts
+MAX_ESTIMATED_S = 600.0
+
+
+def _refuse_slow_adam(jobs, problems, shape, settings) -> None:
+    """Refuse `forward="smooth"` with `optimizer="adam"` where its estimated time exceeds
+    `MAX_ESTIMATED_S`: every Adam step solves the smoothed ODE and its adjoint for every job
+    and record of a solve, and a solve takes `adam_steps` (3000) of them, in every round of
+    sub-models and every pass (the times' weights, the robust loss's ten reweightings).
+    Measured before this check (2026-11-28): two records of 25 turning points, `--forward
+    smooth --optimizer adam --loss huber`, past 1800 s of its first solve of 24."""
+    if settings["forward"] != "smooth" or settings["optimizer"] != "adam":
+        return
+    has_times = any(_timed(prob, rec) for prob in problems for rec in prob.records)
+    passes = 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
+    solves = 0
+    for sp in {j.space for j in jobs}:
+        for q in {len(j.slots) for j in jobs if j.space == sp}:
+            n = sum(1 for j in jobs if j.space == sp and len(j.slots) == q)
+            solves += -(-n // shape.B)
+    records = max(len(prob.records) for prob in problems)
+    step = _SMOOTH_ADAM_STEP_S * shape.B * records * shape.n_model
+    total = settings["adam_steps"] * solves * passes * step
+    if total <= MAX_ESTIMATED_S:
+        return
+    raise ValueError(
+        f"forward 'smooth' with optimizer 'adam' would take about {total / 60:.0f} minutes "
+        f"(more than {MAX_ESTIMATED_S / 60:.0f}): {settings['adam_steps']} Adam steps "
+        f"(--adam-steps) in each of {solves * passes} solves ({solves} per pass of sub-models, "
+        f"{passes} passes{' for the robust loss' if passes > 2 else ''}), each step a "
+        f"smoothed ODE solve and its adjoint, about {step:.2g} s for {shape.B} jobs of {records} "
+        f"record(s) of {shape.n_model} turning points. Use --optimizer lm (tens of steps), "
+        "--forward exact (Adam's steps in about a millisecond), or fewer --adam-steps"
+    )
+
+
 def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     jobs = []
     for i, prob in enumerate(problems):
         jobs.extend(_jobs_for(i, prob, space, bounds, compare))
     n_model = max(int(rec.k[-1]) for prob in problems for rec in prob.records)
     shape = _shape(jobs, problems, settings, n_model)
+    _refuse_slow_adam(jobs, problems, shape, settings)
     _passes(jobs, problems, shape, settings)
     if settings["residuals"] == "series":
         problems, jobs, shape = _series_stage(problems, jobs, bounds, settings)

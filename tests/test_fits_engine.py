@@ -479,7 +479,9 @@ def test_a_shared_parameter_the_records_disagree_about_is_rejected():
     r = _joint((20.0, 25.0, 30.0), 1, 0.002, shared=("omega",))
     test = r.diagnostics["shared"]
     assert not r.converged and test["rejected"] and test["p"] < 1e-100
-    assert test["df"][0] == 2  # omega once against three times
+    # omega once against three times (and a parameter the joint fit held at a bound, here
+    # one record's xF, that its fit alone moves)
+    assert test["df"][0] >= 2
     # fitted alone, each record's omega is its own (within 5 standard errors, the noise's)
     for rec, truth in zip(test["records"], (20.0, 25.0, 30.0)):
         assert abs(rec["params"]["omega"] - truth) < 5 * rec["stderr"]["omega"], rec
@@ -488,7 +490,7 @@ def test_a_shared_parameter_the_records_disagree_about_is_rejected():
     assert test["records"][0]["scale"]["time"] > 100 > test["records"][1]["scale"]["time"]
     message = r.warnings[0]
     assert message.startswith("the records disagree about the shared parameters (omega)")
-    assert "rejected by the data" in message and "decay 10 " in message
+    assert "rejected by the data" in message and "(decay 10)" in message
     assert json.loads(json.dumps(r.to_json()))["diagnostics"]["shared"]["rejected"] is True
 
 
@@ -682,3 +684,88 @@ def test_cli_hands_adam_steps_to_the_fit(tmp_path, monkeypatch):
     argv = ["fit", table, "--model", "oscillator", "--optimizer", "adam", "--adam-steps", "77"]
     assert main(argv) == 2
     assert seen["optimizer"] == "adam" and seen["adam_steps"] == 77
+
+
+def test_a_smoothed_adam_fit_that_would_run_for_hours_is_refused_up_front(
+    tmp_path, capsys, monkeypatch
+):
+    """`vmj fit A B --forward smooth --optimizer adam --loss huber`: each of Adam's 3000 steps
+    solves the smoothed ODE and its adjoint for every job and record of a solve (about 0.024 s
+    here, 2 jobs of 2 records), in 24 solves (2 rounds of sub-models, 12 passes with the
+    robust loss's reweightings): about 29 minutes. Until 2026-11-28 it started anyway (and
+    each step cost 0.17-0.55 s): past 1800 s its first solve of 24 had not ended. Now it is
+    refused before anything is compiled, with the estimate and the options; fewer steps (an
+    estimate below 10 minutes) are let through."""
+    import fits._fit as F
+
+    def never(*args):
+        raise AssertionError("the fit started")
+
+    monkeypatch.setattr(F, "_passes", never)
+    paths = []
+    for i, (a0, off) in enumerate(((10.0, 1.0), (8.0, -0.5))):
+        rec = _decay(20.0, a0, off, i, 0.002)
+        paths.append(_csv(tmp_path / f"r{i}.csv", [rec.times, rec.positions], "time,position"))
+    argv = ["fit", *paths, "--model", "oscillator", "--shared", "omega,zeta,xF"]
+    argv += ["--forward", "smooth", "--optimizer", "adam", "--loss", "huber", "--json"]
+    assert main(argv) == 2
+    assert "would take about" in capsys.readouterr().err
+    records = [fits.read_record(p) for p in paths]
+    kwargs = dict(shared=("omega", "zeta", "xF"), forward="smooth", optimizer="adam")
+    with pytest.raises(ValueError) as info:
+        fits.fit(records, "oscillator", RELEASE_FREE, loss="huber", **kwargs)
+    message = str(info.value)
+    minutes = float(re.search(r"about (\d+) minutes", message).group(1))
+    assert 10 < minutes < 120, message
+    for option in ("--optimizer lm", "--forward exact", "--adam-steps"):
+        assert option in message
+    with pytest.raises(AssertionError, match="the fit started"):  # 30 steps: about 20 s
+        fits.fit(records, "oscillator", RELEASE_FREE, loss="huber", adam_steps=30, **kwargs)
+
+
+@pytest.mark.long
+def test_adams_gradient_of_the_smoothed_model_is_one_reverse_pass(tmp_path):
+    """Adam's objective with `forward="smooth"` is differentiated in one reverse pass, not
+    through the materialised Jacobian (a reverse pass per residual: 0.18-0.55 s a step against
+    0.023 s for 2 jobs of 2 records of 24 turning points); the two gradients agree to 1e-6
+    relative (the adjoint's rounding; measured: see the report of 2026-11-28). About 4
+    minutes: two compilations of the smoothed model's adjoint."""
+    import jax
+    import jax.numpy as jnp
+
+    import fits._fit as F
+    import fits._solve as S
+
+    space = SPACES["oscillator"]
+    records = [_decay(20.0, a0, off, i, 0.002) for i, (a0, off) in enumerate(((10, 1), (8, -0.5)))]
+    shared = ("omega", "zeta", "xF")
+    free, bounds, settings = F._settings(
+        space, RELEASE_FREE, shared, [{}, {}], None, "smooth", "huber", "adam", 200, 3000,
+        False, "turning-points", records, 5.0,
+    )  # fmt: skip
+    prob = F._problem(space, records, [{}, {}], free, shared)
+    jobs = F._jobs_for(0, prob, space, bounds, False)
+    shape = F._shape(jobs, [prob], settings, 24)
+    F._init_weights(prob, shape.N, space)
+    arrays = S._job_arrays(jobs[0], prob, shape)
+    p = jnp.asarray(arrays.pop("p"), dtype=float) * 1.001 + 1e-3  # (off the start)
+    d = S._Data(
+        **{
+            k: jnp.asarray(v) if k in ("k", "code") else jnp.asarray(v, dtype=float)
+            for k, v in arrays.items()
+        }
+    )
+
+    def reverse(p):
+        r = S._residual(space, "smooth", shape.n_model, S._place(d, S._values(d, p)), d)
+        r, _ = S._align_clocks(r, jnp.zeros((r.size, 0)), d.wt)
+        return jnp.sum(S._rho("huber", r))
+
+    def through_jacobian(p):
+        r, _ = S._residual_and_jacobian(space, "smooth", shape.n_model, p, d)
+        return jnp.sum(S._rho("huber", r))
+
+    with jax.sharding.use_abstract_mesh(S._NO_MESH):
+        g1 = np.asarray(jax.jit(jax.grad(reverse))(p))
+        g2 = np.asarray(jax.jit(jax.grad(through_jacobian))(p))
+    assert np.all(np.abs(g1 - g2) <= 1e-6 * np.max(np.abs(g2))), (g1, g2)
