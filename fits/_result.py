@@ -591,7 +591,7 @@ def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
             continue
         w = 1 / se[ok] ** 2
         mean = float(w @ v[ok] / w.sum())
-        chi2 = float(w @ (v[ok] - mean) ** 2) / inflation
+        chi2 = float(w @ (v[ok] - mean) ** 2)  # (`se`: corrected for correlated residuals)
         spread[name] = {
             "chi2": chi2,
             "df": int(ok.sum() - 1),

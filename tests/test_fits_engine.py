@@ -486,6 +486,12 @@ def test_a_shared_parameter_the_records_disagree_about_is_rejected():
     for rec, truth in zip(test["records"], (20.0, 25.0, 30.0)):
         assert abs(rec["params"]["omega"] - truth) < 5 * rec["stderr"]["omega"], rec
         assert set(rec["scale"]) == {"position", "time"}
+    # the values' spread in their standard errors (corrected for correlated residuals, not
+    # divided by the inflation once more: until 2026-11-28 it was)
+    v = np.array([rec["params"]["omega"] for rec in test["records"]])
+    w = np.array([rec["stderr"]["omega"] for rec in test["records"]]) ** -2.0
+    chi2 = float(w @ (v - w @ v / w.sum()) ** 2)
+    assert test["spread"]["omega"]["chi2"] == pytest.approx(chi2, rel=1e-9)
     # the record whose omega the shared value misses most is furthest from its own noise
     assert test["records"][0]["scale"]["time"] > 100 > test["records"][1]["scale"]["time"]
     message = r.warnings[0]
