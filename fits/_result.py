@@ -652,7 +652,8 @@ def _disagreement(joint: _Assessed, test: dict) -> str:
             else f" (scaled by 1/{test['inflation']:.3g} for correlated residuals)"
         )
         + f", p {_p(test['p'])} (below {SHARED_P:g}): fit the records separately or share "
-        "fewer parameters (--shared)"
+        "fewer parameters (--shared); where they cover different amplitudes, the model may "
+        "lack a law that depends on the amplitude"
     )
 
 
