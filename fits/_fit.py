@@ -58,7 +58,15 @@ from ._params import (
     warn_if_float32,
 )
 from ._record import EDGE_RELEASE, HELD_RELEASE, Record, in_metres
-from ._result import FitResult, _assess, _information, _result, _robust_scale, _values_of
+from ._result import (
+    FitResult,
+    _assess,
+    _information,
+    _result,
+    _robust_scale,
+    _values_of,
+    shared_test,
+)
 from ._solve import _TUNING, _job_arrays, _profiles, _rss, _Shape, _solve
 from ._space import FORWARDS, Space, series_space
 
@@ -251,9 +259,12 @@ class _Job:
     signs: list = None  # per record: sides assumed for amplitude-only data (a start hypothesis)
 
 
-def _make_job(index, prob, space, label, free, hold, bounds, headline, fixed=None, start=None):
+def _make_job(
+    index, prob, space, label, free, hold, bounds, headline, fixed=None, start=None, only=None
+):
     """A job of problem `index`; `fixed` and `start` (per record dicts) default to the
-    parameters' given or default values and the starting guess from the decrement estimate."""
+    parameters' given or default values and the starting guess from the decrement estimate;
+    `only`: a record index, whose parameters alone are fitted (the others held at `start`)."""
     R = len(prob.records)
     fixed = fixed or [
         _fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names}, hold)
@@ -262,7 +273,9 @@ def _make_job(index, prob, space, label, free, hold, bounds, headline, fixed=Non
     start = start or _starts(prob, space, free, fixed)
     slots = []
     for name in free:
-        if R == 1 or name in prob.shared:
+        if only is not None:
+            slots.append((name, only))
+        elif R == 1 or name in prob.shared:
             slots.append((name, None))
         else:
             slots.extend((name, r) for r in range(R))
@@ -496,9 +509,9 @@ def _reweight(prob, job, loss, N):
     _set_weights(prob, N)
 
 
-def _fit_jobs(jobs, problems, shape):
-    """Solve `jobs` (one round) grouped by space; a slot that runs into a bound is held there
-    and the job solved again."""
+def _fit_jobs(jobs, problems, shape, optimizer=None):
+    """Solve `jobs` (one round) grouped by space (with the fit's optimizer, or `optimizer`);
+    a slot that runs into a bound is held there and the job solved again."""
     pending = list(jobs)
     for _ in range(2 * shape.q + 2):
         if not pending:
@@ -509,7 +522,7 @@ def _fit_jobs(jobs, problems, shape):
         again = []
         for space, group in by_space.items():
             items = [_job_arrays(job, problems[job.problem], shape) for job in group]
-            for job, out in zip(group, _solve(space, items, shape)):
+            for job, out in zip(group, _solve(space, items, shape, optimizer)):
                 q = len(job.slots)
                 job.out = out
                 job.p = out["p"][:q]
@@ -874,20 +887,126 @@ def _series_stage(problems, jobs, bounds, settings):
     return sprobs, sjobs, shape
 
 
+def _alone(prob, lead, bounds, shape):
+    """Each record of a joint problem fitted alone: `lead`'s model (its law set, fixed and
+    held values) with every parameter free for that record, started from the joint solution
+    and solved by Levenberg-Marquardt (exact minima, as the profiles). Job `i` keeps the joint
+    problem's records and shape (the same compiled solve as the joint fit's and its profiles')
+    with the other records' weights 0. The records keep the joint fit's robust weights and
+    times' precisions; their positions' and times' noise scales are re-estimated from their
+    own fits (between two solves): the scales against which `fits._result.shared_test`
+    measures both fits. Returns per record its problem and job."""
+    probs, jobs = [], []
+    start = _values_of(lead)
+    bounds = {k: v for k, v in bounds.items() if k in lead.space.names}
+    R = len(prob.records)
+    for i in range(R):
+        one = dataclasses.replace(prob, shared=())
+        for name in ("robust_x", "robust_t"):  # (the other records: weight 0)
+            setattr(one, name, [np.copy(v) * (j == i) for j, v in enumerate(getattr(prob, name))])
+        one.sx, one.st, one.tw = list(prob.sx), list(prob.st), list(prob.tw)
+        _set_weights(one, shape.N)
+        probs.append(one)
+        jobs.append(
+            _make_job(
+                i,
+                one,
+                lead.space,
+                lead.label,
+                lead.free,
+                lead.hold,
+                bounds,
+                True,
+                fixed=[dict(f) for f in lead.fixed],
+                start=[dict(v) for v in start],
+                only=i,
+            )
+        )
+    _fit_jobs(jobs, probs, shape, optimizer="lm")
+    for one, job in zip(probs, jobs):
+        _reweight(one, job, "l2", shape.N)  # (the scales alone: the robust weights kept)
+    _fit_jobs(jobs, probs, shape, optimizer="lm")
+    return probs, jobs
+
+
+def _check_shared(problems, jobs, bounds, shape) -> list:
+    """Per problem, the test of its shared parameters against each record fitted alone
+    (`fits._result.shared_test`), or None (a single record, nothing shared)."""
+    out = []
+    for i, prob in enumerate(problems):
+        if len(prob.records) < 2 or not prob.shared:
+            out.append(None)
+            continue
+        lead = _lead(jobs, i, prob, shape.N)
+        probs, alone = _alone(prob, lead, bounds, shape)
+        out.append(
+            shared_test(
+                _assess(lead, prob, shape),
+                [_assess(j, p, shape) for j, p in zip(alone, probs)],
+                shape.N,
+            )
+        )
+    return out
+
+
+#: seconds per Adam step of the smoothed forward model, per record of a job and turning point
+#: predicted (a smoothed ODE solve and its adjoint; measured on 2 shared cores, 2026-11-28:
+#: 2 jobs of 2 records of 24 turning points, 0.47-0.50 s for 20 steps, warm)
+_SMOOTH_ADAM_STEP_S = 2.5e-4
+#: a fit whose estimated solving time exceeds this [s] is refused before it starts
+MAX_ESTIMATED_S = 600.0
+
+
+def _refuse_slow_adam(jobs, problems, shape, settings) -> None:
+    """Refuse `forward="smooth"` with `optimizer="adam"` where its estimated time exceeds
+    `MAX_ESTIMATED_S`: every Adam step solves the smoothed ODE and its adjoint for every job
+    and record of a solve, and a solve takes `adam_steps` (3000) of them, in every round of
+    sub-models and every pass (the times' weights, the robust loss's ten reweightings).
+    Measured before this check (2026-11-28): two records of 25 turning points, `--forward
+    smooth --optimizer adam --loss huber`, past 1800 s of its first solve of 24."""
+    if settings["forward"] != "smooth" or settings["optimizer"] != "adam":
+        return
+    has_times = any(_timed(prob, rec) for prob in problems for rec in prob.records)
+    passes = 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
+    solves = 0
+    for sp in {j.space for j in jobs}:
+        for q in {len(j.slots) for j in jobs if j.space == sp}:
+            n = sum(1 for j in jobs if j.space == sp and len(j.slots) == q)
+            solves += -(-n // shape.B)
+    records = max(len(prob.records) for prob in problems)
+    step = _SMOOTH_ADAM_STEP_S * shape.B * records * shape.n_model
+    total = settings["adam_steps"] * solves * passes * step
+    if total <= MAX_ESTIMATED_S:
+        return
+    raise ValueError(
+        f"forward 'smooth' with optimizer 'adam' would take about {total / 60:.0f} minutes "
+        f"(more than {MAX_ESTIMATED_S / 60:.0f}): {settings['adam_steps']} Adam steps "
+        f"(--adam-steps) in each of {solves * passes} solves ({solves} per pass of sub-models, "
+        f"{passes} passes{' for the robust loss' if passes > 2 else ''}), each step a "
+        f"smoothed ODE solve and its adjoint, about {step:.2g} s for {shape.B} jobs of {records} "
+        f"record(s) of {shape.n_model} turning points. Use --optimizer lm (tens of steps), "
+        "--forward exact (Adam's steps in about a millisecond), or fewer --adam-steps"
+    )
+
+
 def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     jobs = []
     for i, prob in enumerate(problems):
         jobs.extend(_jobs_for(i, prob, space, bounds, compare))
     n_model = max(int(rec.k[-1]) for prob in problems for rec in prob.records)
     shape = _shape(jobs, problems, settings, n_model)
+    _refuse_slow_adam(jobs, problems, shape, settings)
     _passes(jobs, problems, shape, settings)
     if settings["residuals"] == "series":
         problems, jobs, shape = _series_stage(problems, jobs, bounds, settings)
     assessed = [
         _assess(_lead(jobs, i, prob, shape.N), prob, shape) for i, prob in enumerate(problems)
     ]
+    tests = _check_shared(problems, jobs, bounds, shape)
     ends = _profiles([a.profile(settings) for a in assessed], shape)
-    results = [_result(a, jobs, shape, outlier_sigma, e) for a, e in zip(assessed, ends)]
+    results = [
+        _result(a, jobs, shape, outlier_sigma, e, t) for a, e, t in zip(assessed, ends, tests)
+    ]
     for res in results:
         for w in res.warnings:
             warnings.warn(w, stacklevel=4)

@@ -14,7 +14,7 @@ from vmj.cli import jsonable
 
 from ._params import HELD
 from ._record import ROWS_AS_HALF_SWINGS, Record, value_name
-from ._stats import RANK_RTOL, covariance, diagnostics
+from ._stats import RANK_RTOL, _chi2_sf, covariance, diagnostics, f_sf
 
 __all__ = ["FitResult"]
 
@@ -141,6 +141,11 @@ def _interval(lo, hi) -> str:
         6 if width <= 0 or size <= 0 else int(min(15, max(6, np.ceil(np.log10(size / width)) + 3)))
     )
     return f"[{lo:.{digits}g}, {hi:.{digits}g}]"
+
+
+def _p(p: float) -> str:
+    """A p-value; one that underflows is below the smallest double."""
+    return "< 1e-300" if p == 0 else f"= {p:.2g}"
 
 
 def _short(v, digits: int) -> str:
@@ -277,6 +282,13 @@ def text_report(result: FitResult) -> str:
                     for n, v in values.items()
                 )
             )
+    test = diag.get("shared") if diag else None
+    if test:
+        lines.append(
+            f"  shared ({', '.join(test['parameters'])}) against each record alone: F = "
+            f"{test['F']:.3g} on ({test['df'][0]}, {test['df'][1]}), p {_p(test['p'])}"
+            + (" -- rejected by the data" if test["rejected"] else "")
+        )
     clock = _field(result, "clock", None) or result.record.clock
     if clock:
         lines.append(
@@ -511,6 +523,140 @@ def _assess(job, prob, shape) -> _Assessed:
     )
 
 
+#: a joint fit whose shared parameters raise the residual sum of squares beyond what noise does
+#: at this chance (`shared_test`) is rejected by the data (not converged)
+SHARED_P = 1e-3
+
+
+def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
+    """Whether the records of a joint fit (`joint`) share its shared parameters: the fit
+    against each record fitted alone (`alone`, one `_Assessed` per record, in order: its
+    parameters its own, the other records' weights 0; `fits._fit._alone`), the nested models compared by the extra sum of squares,
+
+        F = ((RSS_joint - RSS_alone) / (q_alone - q_joint)) / (RSS_alone / (n - q_alone)),
+
+    both sums in units of each record's own noise scales (those of its fit alone, so that a
+    misfit does not widen its own yardstick: the joint fit's scales are estimated from its
+    residuals), `q` the parameters moved and the clock shifts, divided by the largest
+    inflation of the records' covariances for correlated residuals (as the profiles' deviance
+    is) and referred to the F distribution. `p` below `SHARED_P` (1e-3): the joint model is
+    rejected by the data. Returns the evidence (`diagnostics["shared"]` of the result): `F`,
+    `df`, `inflation`, `p`, `rejected`, per record its values and standard errors alone and
+    its joint residuals' RMS in units of its own noise scales (`scale`: about 1 where it
+    shares the parameters), and per shared parameter the spread of the values alone (`spread`:
+    `sum (v_i - mean)^2 / se_i^2` about their weighted mean, chi-square on the records less
+    one); `message` where rejected. None where nothing can be tested (no degree of freedom)."""
+    prob, job = joint.prob, joint.job
+    R = len(prob.records)
+    r = np.asarray(job.out["r"], dtype=float).reshape(R, 2, N)
+    rss_joint, rss_alone, q_alone, records = 0.0, 0.0, 0, []
+    for i, a in enumerate(alone):
+        own = a.prob
+        # the joint residuals in units of the record's own noise scales (the weights differ
+        # from the joint fit's by these factors alone: the robust weights are the same)
+        rx = r[i, 0] * prob.sx[i] / own.sx[i]
+        rt = r[i, 1] * prob.st[i] / own.st[i]
+        rss_joint += float(rx @ rx + rt @ rt)
+        rss_alone += a.job.rss
+        q_alone += a.info["q"]
+        used_x, used_t = own.wx[i] > 0, own.wt[i] > 0
+        shared_slots = [s for s, (name, _) in enumerate(a.job.slots) if name in prob.shared]
+        records.append(
+            {
+                "source": prob.records[i].source,
+                "params": {a.job.slots[s][0]: float(a.est[s]) for s in shared_slots},
+                "stderr": {
+                    a.job.slots[s][0]: float(a.se_c[s]) if np.isfinite(a.se_c[s]) else None
+                    for s in shared_slots
+                },
+                "scale": {
+                    "position": float(np.sqrt(np.mean(rx[used_x] ** 2))) if used_x.any() else None,
+                    "time": float(np.sqrt(np.mean(rt[used_t] ** 2))) if used_t.any() else None,
+                },
+            }
+        )
+    n, q_joint = joint.info["n"], joint.info["q"]
+    df1, df2 = q_alone - q_joint, n - q_alone
+    if df1 < 1 or df2 < 1 or not (math.isfinite(rss_alone) and rss_alone > 0):
+        return None
+    inflation = max(max(a.inflation for a in alone), 1.0)
+    F = max((rss_joint - rss_alone) / df1, 0.0) / (rss_alone / df2)
+    p = f_sf(F / inflation, df1, df2)
+    spread = {}
+    for name in prob.shared:
+        v = np.array([rec["params"].get(name, np.nan) for rec in records], dtype=float)
+        se = np.array([np.nan if (e := rec["stderr"].get(name)) is None else e for rec in records])
+        ok = np.isfinite(v) & np.isfinite(se) & (se > 0)
+        if ok.sum() < 2:
+            continue
+        w = 1 / se[ok] ** 2
+        mean = float(w @ v[ok] / w.sum())
+        chi2 = float(w @ (v[ok] - mean) ** 2)  # (`se`: corrected for correlated residuals)
+        spread[name] = {
+            "chi2": chi2,
+            "df": int(ok.sum() - 1),
+            "p": _chi2_sf(chi2, int(ok.sum() - 1)),
+        }
+    out = {
+        "parameters": list(prob.shared),
+        "F": F,
+        "df": [int(df1), int(df2)],
+        "inflation": inflation,
+        "p": p,
+        "rejected": bool(p < SHARED_P),
+        "records": records,
+        "spread": spread,
+    }
+    if out["rejected"]:
+        out["message"] = _disagreement(joint, out)
+    return out
+
+
+def _disagreement(joint: _Assessed, test: dict) -> str:
+    """The warning of a joint fit that `shared_test` rejects: the values of the records fitted
+    alone, their residuals in the joint fit against their own noise, and the test."""
+    space, records = joint.job.space, test["records"]
+    shared_est = dict(zip(joint.names, joint.est))
+    spread = test["spread"]
+    names = [nm for nm, sp in spread.items() if sp["p"] < SHARED_P] or list(test["parameters"])
+    parts = []
+    for name in names:
+        unit = space.unit(name)
+        values = ", ".join(
+            f"{rec['params'][name]:.6g}"
+            + ("" if rec["stderr"].get(name) is None else f" +- {rec['stderr'][name]:.2g}")
+            + f" ({rec['source'] or f'record {i}'})"
+            for i, rec in enumerate(records)
+            if name in rec["params"]
+        )
+        sp = spread.get(name)
+        chi = "" if sp is None else f"; spread chi2 {sp['chi2']:.3g} on {sp['df']}, p {_p(sp['p'])}"
+        shared = shared_est.get(name)
+        joint_value = "" if shared is None else f", shared {shared:.6g}"
+        parts.append(f"{name} [{unit}] {values}{joint_value}{chi}")
+    scales = []
+    for kind in ("position", "time"):
+        got = [rec["scale"][kind] for rec in records]
+        if any(g is not None for g in got):
+            scales.append(f"{kind}s " + ", ".join("-" if g is None else f"{g:.3g}" for g in got))
+    df1, df2 = test["df"]
+    return (
+        f"the records disagree about the shared parameters ({', '.join(test['parameters'])}): "
+        f"the joint model is rejected by the data. Fitted alone: {'; '.join(parts)}. The "
+        f"joint fit's residuals, in each record's own noise scale (about 1 where it fits): "
+        f"{'; '.join(scales)}. Sharing raises the residual sum of squares by F = "
+        f"{test['F']:.3g} on ({df1}, {df2}) degrees of freedom"
+        + (
+            ""
+            if test["inflation"] <= 1
+            else f" (scaled by 1/{test['inflation']:.3g} for correlated residuals)"
+        )
+        + f", p {_p(test['p'])} (below {SHARED_P:g}): fit the records separately or share "
+        "fewer parameters (--shared); where they cover different amplitudes, the model may "
+        "lack a law that depends on the amplitude"
+    )
+
+
 def _steepening(rec: Record) -> str | None:
     """A warning where `rec`'s amplitudes fall faster later than earlier (the mean decrement
     over windows of an even number of half-swings, so that the sides' asymmetry cancels, rises
@@ -649,9 +795,10 @@ def _undecided(job, mine, bic: dict) -> list:
     ]
 
 
-def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
+def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends, shared=None):
     """The [`fits.FitResult`][] of an assessed job; `ends`: its profile-likelihood interval
-    ends (`fits._solve._profiles`; None where they were not computed)."""
+    ends (`fits._solve._profiles`; None where they were not computed); `shared`: the test of a
+    joint fit's shared parameters (`shared_test`), None for none."""
     job, prob = assessed.job, assessed.prob
     space, settings = job.space, shape.settings
     N = shape.N
@@ -792,6 +939,11 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends):
     structured = bool(diag["warnings"])
     warn += diag["warnings"]
     diag = {**diag, "warnings": warn}
+    if shared is not None:  # a joint fit's shared parameters tested against each record alone
+        diag["shared"] = {k: v for k, v in shared.items() if k != "message"}
+        if shared["rejected"]:
+            warn.insert(0, shared["message"])
+            converged = False
     # per-record residuals in data units
     per_record = []
     R = len(prob.records)

@@ -314,7 +314,11 @@ def _rho(loss, u):
 def _solve_adam(space, forward, n, steps, loss, d, p0):
     def one(d, p0):
         def objective(p):
-            r, _ = _residual_and_jacobian(space, forward, n, p, d)
+            if forward == "smooth":  # reverse mode: the gradient in one backward pass
+                r = _residual(space, forward, n, _place(d, _values(d, p)), d)
+                r, _ = _align_clocks(r, jnp.zeros((r.size, 0)), d.wt)
+            else:  # (forward mode: the gradient from the materialised Jacobian)
+                r, _ = _residual_and_jacobian(space, forward, n, p, d)
             return jnp.sum(_rho(loss, r))
 
         opt = optax.adam(optax.cosine_decay_schedule(0.02, steps, alpha=1e-3))

@@ -67,6 +67,51 @@ def _chi2_sf(x: float, k: int) -> float:
     return min(1.0, total)
 
 
+def _betacf(a: float, b: float, x: float) -> float:
+    """The continued fraction of the regularised incomplete beta function (modified Lentz)."""
+    tiny = 1e-300
+    c, d = 1.0, 1.0 - (a + b) * x / (a + 1)
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, 1000):
+        for num in (
+            m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m)),
+            -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1)),
+        ):
+            d = 1.0 + num * d
+            d = 1.0 / (d if abs(d) > tiny else tiny)
+            c = 1.0 + num / c
+            c = c if abs(c) > tiny else tiny
+            h *= d * c
+        if abs(d * c - 1.0) < 1e-15:
+            break
+    return h
+
+
+def _betainc(a: float, b: float, x: float) -> float:
+    """The regularised incomplete beta function `I_x(a, b)`."""
+    if x <= 0:
+        return 0.0
+    if x >= 1:
+        return 1.0
+    log_front = (
+        math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x) + b * math.log1p(-x)
+    )
+    if x < (a + 1) / (a + b + 2):
+        return math.exp(log_front) * _betacf(a, b, x) / a
+    return 1.0 - math.exp(log_front) * _betacf(b, a, 1.0 - x) / b
+
+
+def f_sf(f: float, d1: float, d2: float) -> float:
+    """Survival function of the F distribution with `d1` and `d2` degrees of freedom: the
+    chance of an F statistic above `f` (`I_{d2/(d2 + d1 f)}(d2/2, d1/2)`)."""
+    if not f > 0:
+        return 1.0
+    if math.isinf(f):
+        return 0.0
+    return _betainc(d2 / 2, d1 / 2, d2 / (d2 + d1 * f))
+
+
 def _runs(blocks) -> float:
     """Two-sided Wald-Wolfowitz runs test on the signs of the residuals: per block the runs'
     z-score given its numbers of positive and negative residuals (normal approximation), the
