@@ -714,6 +714,16 @@ API = [
         "eps must be finite and in [0, 1]",
     ),
     (
+        "grid axis of strings",  # was taken: eps = [0.1, 0.2]
+        lambda: vmj.grid(vmj.VariableMass(**_vm()), eps=["0.1", "0.2"]),
+        "each value of grid axis eps must be a number, not an array holding booleans or strings",
+    ),
+    (
+        "grid axis of booleans",  # was taken: F = [1.0, 1.0]
+        lambda: vmj.grid(vmj.VariableMass(**_vm()), F=[True, True]),
+        "each value of grid axis F must be a number",
+    ),
+    (
         "grid name",
         lambda: vmj.grid(vmj.VariableMass(**_vm()), bogus=[0.0]),
         "'bogus' is not a parameter",

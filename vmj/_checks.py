@@ -69,7 +69,7 @@ def _kind_of(value) -> str:
     return "a boolean"
 
 
-def _not_a_number(x) -> bool:
+def not_a_number(x) -> bool:
     """Whether `x` is a boolean or a string, or an array or sequence holding one: `float(True)`
     and `np.asarray("5", dtype=float)` convert silently (`vmj.VariableMass(m0=True, ...)` had
     `m0 = 1.0`). Numbers, NumPy and JAX arrays of numbers and tracers are not."""
@@ -77,9 +77,9 @@ def _not_a_number(x) -> bool:
         return True
     kind = getattr(getattr(x, "dtype", None), "kind", None)
     if kind is not None:  # NumPy scalars and arrays, JAX arrays and tracers
-        return kind in "bUSV" or (kind == "O" and any(_not_a_number(v) for v in np.ravel(x)))
+        return kind in "bUSV" or (kind == "O" and any(not_a_number(v) for v in np.ravel(x)))
     if isinstance(x, (list, tuple)):
-        return any(_not_a_number(v) for v in x)
+        return any(not_a_number(v) for v in x)
     return False
 
 
@@ -100,7 +100,7 @@ def _float(x) -> jax.Array:
         if x.dtype == bool:
             raise NotANumber(x)
         return jnp.asarray(x, dtype=dtype)
-    if _not_a_number(x):
+    if not_a_number(x):
         raise NotANumber(x)
     return jax.device_put(np.asarray(x, dtype=dtype))
 
@@ -127,7 +127,7 @@ def scalar(name: str, value):
     recompilation for Python floats), traced values unchanged but cast. An array of any other
     shape is a `ValueError` naming the argument (the solvers' arrays have one lane: an array
     of `a0` broke the results' shapes; a sweep or `jax.vmap` maps over several)."""
-    if not isinstance(value, float) and _not_a_number(value):
+    if not isinstance(value, float) and not_a_number(value):
         raise NotANumber(value, name)
     if not isinstance(value, float) and np.ndim(value) != 0:
         raise ValueError(
@@ -155,7 +155,7 @@ def check_all(items) -> list:
                 continue
             traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))), message))
             continue
-        if _not_a_number(value):
+        if not_a_number(value):
             raise NotANumber(value, name, allowed)
         if np.iscomplexobj(value):
             raise ValueError(f"{message}, a real number (got {value!r})")
@@ -345,7 +345,7 @@ def _problems(m, traced: bool = True) -> list:
                 )
             )
         else:
-            if _not_a_number(value):  # (set without the converter: eqx.tree_at)
+            if not_a_number(value):  # (set without the converter: eqx.tree_at)
                 raise NotANumber(value, n, allowed)
             arr = np.asarray(value, dtype=float)
             out.append(

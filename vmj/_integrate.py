@@ -53,9 +53,10 @@ __all__ = ["turning_points", "decay_trajectory", "simulate", "limit_cycle"]
 #: turning point with 8 substeps) [bytes]
 TURNING_POINT_BYTES, SUBSTEP_BYTES = 32, 320
 
-#: the solver object of each solver's name (the command line's `--method`), for the messages
-#: below
-_OBJECTS = {k.name: f"vmj.{k.__name__}()" for k in (Exact, Smoothed, EnergyBalance, ClosedForm)}
+#: the solver class of each solver's name (the command line's `--method`)
+SOLVERS = {k.name: k for k in (Exact, Smoothed, EnergyBalance, ClosedForm)}
+#: the solver object of each name, for the messages below
+_OBJECTS = {name: f"vmj.{k.__name__}()" for name, k in SOLVERS.items()}
 #: solver settings refused as keywords of an entry point, with the object that takes them
 _SETTINGS = {
     "smoothing": "vmj.Smoothed(smoothing=...)",

@@ -30,12 +30,20 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import _float, _is_traced, check, check_int, positive, validated
+from .._checks import (
+    _float,
+    _is_traced,
+    check,
+    check_int,
+    positive,
+    validated,
+    warn_if_float32,
+)
 from .._closed_forms._belokobylsky import closed_form_cycle
 from .._exported import filter_jit
 from .._numerics._roots import bracketed_newton, implicit_step
 from .._solution import RESULTS, Trajectory
-from ._base import AbstractLimitCycle
+from ._base import AbstractLimitCycle, require_scalar_fields
 
 __all__ = ["StickSlip", "StickSlipCycle", "MAX_REVERSALS"]
 
@@ -207,8 +215,10 @@ class StickSlip(AbstractLimitCycle):
                 "solver must be a vmj.Smoothed: the rest memory z is a state of the smoothed "
                 f"model only (got {type(solver).__name__})"
             )
+        warn_if_float32()
         n_save = check_int("n_save", n_save, 2)
-        model = validated(self)
+        require_scalar_fields(self)
+        model = type(solver).check(solver, validated(self), "simulate")  # (as vmj.simulate)
         t1 = check("t1", t1, positive, "> 0 (dimensionless time)")
         x0, v0 = model.breakaway()
         _, ys, _ = smoothed_states(model, solver.with_defaults(model, x0, v0), _float(t1), n_save)

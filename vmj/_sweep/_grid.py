@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 import jax
 import numpy as np
 
+from .._checks import NotANumber, not_a_number
 from ._tree import _set_fields, resolve_field
 
 if TYPE_CHECKING:  # names used in annotations only
@@ -58,6 +59,8 @@ def grid(model: eqx.Module, **axes: ArrayLike) -> Grid:
         raise ValueError("each parameter may be given once in grid")
     coords, shaped = {}, []
     for i, (name, values) in enumerate(axes.items()):
+        if not_a_number(values):  # (np.asarray would take True as 1.0, "0.5" as 0.5)
+            raise NotANumber(values, f"each value of grid axis {name}")
         arr = np.asarray(values, dtype=float)
         if arr.ndim != 1 or arr.size == 0:
             raise ValueError(

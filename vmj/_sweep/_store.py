@@ -395,9 +395,7 @@ class ChunkStore:
         out = []
         for name in names:
             a = self.group[name]
-            # (Zarr spells the byte order out, '<f8': NumPy's native spelling, '=f8', is the same
-            # memory, and netCDF4 warns about every variable of the other)
-            lazy = da.from_zarr(a).view(np.dtype(a.dtype).newbyteorder("="))
+            lazy = _native(da.from_zarr(a))
             out.append(lazy.reshape(shape + tuple(a.shape[1:])))
         return out
 
@@ -408,7 +406,7 @@ class ChunkStore:
         out = {}
         for k in self.meta["coords"]:
             value = np.asarray(self.group[k][...])
-            value = value.view(value.dtype.newbyteorder("="))
+            value = _native(value)
             if not self.meta["grid"] and value.size == n:
                 value = value.reshape(shape)
             out[k] = value
@@ -441,3 +439,11 @@ def _differences(stored: dict, now: dict) -> str:
         else:
             parts.append(f"{k} differ" if k.endswith("s") else f"{k} differs")
     return "; ".join(parts)
+
+
+def _native(a):
+    """`a` (a NumPy or Dask array) in the native byte order spelled `=`: Zarr spells it out,
+    `'<f8'`, the same memory on a little-endian machine, about whose every variable netCDF4
+    warns (a view then; converted where the store's order is the other)."""
+    native = a.dtype.newbyteorder("=")
+    return a.view(native) if a.dtype.isnative else a.astype(native)

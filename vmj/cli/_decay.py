@@ -77,9 +77,9 @@ def solver_of(args, method: str | None = None):
             raise ValueError("--smoothing applies to --method smooth")
         if not w > 0:
             raise ValueError(f"--smoothing must be finite and > 0 (got {w:g})")
-    kind = {k.name: k for k in (vmj.Exact, vmj.Smoothed, vmj.EnergyBalance, vmj.ClosedForm)}[
-        method or args.method
-    ]
+    from vmj._integrate import SOLVERS
+
+    kind = SOLVERS[method or args.method]
     if kind is vmj.Exact:
         if steps is None and getattr(args, "model", None) == "rope":
             steps = ROPE_SUBSTEPS
