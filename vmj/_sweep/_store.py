@@ -138,24 +138,17 @@ def chunk_checksum(arrays) -> int:
 
 
 # -- the store ---------------------------------------------------------------------------------
-def _zarr():
+def _extra(module: str, what: str):
+    """`module` of the optional extra `vmj[distributed]`, or an ImportError saying that `what`
+    needs it."""
+    import importlib
+
     try:
-        import zarr
+        return importlib.import_module(module)
     except ImportError:  # pragma: no cover - exercised only without the extra
         raise ImportError(
-            "a store needs the optional extra: pip install 'vmj[distributed]'"
+            f"{what} needs the optional extra: pip install 'vmj[distributed]'"
         ) from None
-    return zarr
-
-
-def _dask_array():
-    try:
-        import dask.array as da
-    except ImportError:  # pragma: no cover - exercised only without the extra
-        raise ImportError(
-            "a sweep read from a store needs the optional extra: pip install 'vmj[distributed]'"
-        ) from None
-    return da
 
 
 def _opened(zarr, path: str, mode: str):
@@ -195,7 +188,7 @@ class ChunkStore:
         (`"sweep"` or `"map"`) with the same `definition` (a dict of digests; `described` says
         the same in words), and `resume=True` is needed to continue it; its stored plan (chunk
         size, number of chunks) is the one used."""
-        zarr = _zarr()
+        zarr = _extra("zarr", "a store")
         path = os.fspath(path)
         if not os.path.exists(path):
             return None
@@ -224,7 +217,7 @@ class ChunkStore:
     @classmethod
     def read_only(cls, path, *, kind: str) -> ChunkStore:
         """An existing store opened for reading."""
-        zarr = _zarr()
+        zarr = _extra("zarr", "a store")
         path = os.fspath(path)
         group, meta = _opened(zarr, path, "r")
         if not isinstance(meta, dict) or meta.get("kind") != kind:
@@ -237,7 +230,7 @@ class ChunkStore:
     ) -> ChunkStore:
         """A new store at `path` for work of `kind` with `plan` (`n`, `chunk`, `n_chunks`, and
         for a sweep its `dims`, `shape`, `grid`, `fields`)."""
-        zarr = _zarr()
+        zarr = _extra("zarr", "a store")
         path = os.fspath(path)
         meta = {
             "format": FORMAT,
@@ -390,7 +383,7 @@ class ChunkStore:
         """A sweep's fields `names`, read lazily from the store (dask arrays with the sweep's
         shape in front, a dask chunk per chunk of work where the shape allows): nothing is read
         until they are computed, `np.asarray` loads one whole."""
-        da = _dask_array()
+        da = _extra("dask.array", "a sweep read from a store")
         shape = tuple(self.meta["shape"])
         out = []
         for name in names:
