@@ -808,6 +808,12 @@ def _shape(jobs, problems, settings, n_model) -> _Shape:
     return _Shape(N, q, max(_bucket(n_model), 1), max(per_round.values()), settings)
 
 
+def _pass_count(problems, settings) -> int:
+    """Passes of `_passes`: one, once more with times, `_ROBUST_PASSES` more for a robust loss."""
+    has_times = any(_timed(prob, rec) for prob in problems for rec in prob.records)
+    return 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
+
+
 def _passes(jobs, problems, shape, settings):
     """Every job solved in rounds (`_fit_all`), the noise scales (and robust weights) of each
     problem re-estimated from its headline fit between passes: once more with times (the
@@ -815,8 +821,7 @@ def _passes(jobs, problems, shape, settings):
     for i, prob in enumerate(problems):
         head = next(j for j in jobs if j.problem == i and j.headline)
         _init_weights(prob, shape.N, head.space)
-    has_times = any(_timed(prob, rec) for prob in problems for rec in prob.records)
-    passes = 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
+    passes = _pass_count(problems, settings)
     for it in range(passes):
         _fit_all(jobs, problems, shape, first_pass=it == 0)
         if it + 1 < passes:
@@ -929,23 +934,17 @@ def _alone(prob, lead, bounds, shape):
     return probs, jobs
 
 
-def _check_shared(problems, jobs, bounds, shape) -> list:
-    """Per problem, the test of its shared parameters against each record fitted alone
-    (`fits._result.shared_test`), or None (a single record, nothing shared)."""
+def _check_shared(assessed, bounds, shape) -> list:
+    """Per problem (its lead job `assessed`), the test of its shared parameters against each
+    record fitted alone (`fits._result.shared_test`), or None (a single record, nothing
+    shared)."""
     out = []
-    for i, prob in enumerate(problems):
-        if len(prob.records) < 2 or not prob.shared:
+    for a in assessed:
+        if len(a.prob.records) < 2 or not a.prob.shared:
             out.append(None)
             continue
-        lead = _lead(jobs, i, prob, shape.N)
-        probs, alone = _alone(prob, lead, bounds, shape)
-        out.append(
-            shared_test(
-                _assess(lead, prob, shape),
-                [_assess(j, p, shape) for j, p in zip(alone, probs)],
-                shape.N,
-            )
-        )
+        probs, alone = _alone(a.prob, a.job, bounds, shape)
+        out.append(shared_test(a, [_assess(j, p, shape) for j, p in zip(alone, probs)], shape.N))
     return out
 
 
@@ -966,8 +965,7 @@ def _refuse_slow_adam(jobs, problems, shape, settings) -> None:
     smooth --optimizer adam --loss huber`, past 1800 s of its first solve of 24."""
     if settings["forward"] != "smooth" or settings["optimizer"] != "adam":
         return
-    has_times = any(_timed(prob, rec) for prob in problems for rec in prob.records)
-    passes = 1 + has_times + (_ROBUST_PASSES if settings["loss"] != "l2" else 0)
+    passes = _pass_count(problems, settings)
     solves = 0
     for sp in {j.space for j in jobs}:
         for q in {len(j.slots) for j in jobs if j.space == sp}:
@@ -1002,7 +1000,7 @@ def _run(space, problems, free, bounds, settings, compare, outlier_sigma):
     assessed = [
         _assess(_lead(jobs, i, prob, shape.N), prob, shape) for i, prob in enumerate(problems)
     ]
-    tests = _check_shared(problems, jobs, bounds, shape)
+    tests = _check_shared(assessed, bounds, shape)
     ends = _profiles([a.profile(settings) for a in assessed], shape)
     results = [
         _result(a, jobs, shape, outlier_sigma, e, t) for a, e, t in zip(assessed, ends, tests)
