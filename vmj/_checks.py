@@ -96,12 +96,10 @@ def _float(x) -> jax.Array:
             f"vmj's parameters are real numbers (got the complex {x!r}); for derivatives use "
             "jax.grad, jax.jvp or jax.jacfwd"
         )
-    if isinstance(x, jax.Array) or _is_traced(x):
-        if x.dtype == bool:
-            raise NotANumber(x)
-        return jnp.asarray(x, dtype=dtype)
     if not_a_number(x):
         raise NotANumber(x)
+    if isinstance(x, jax.Array) or _is_traced(x):
+        return jnp.asarray(x, dtype=dtype)
     return jax.device_put(np.asarray(x, dtype=dtype))
 
 
@@ -148,15 +146,13 @@ def check_all(items) -> list:
     traced = []
     for i, (name, value, ok, allowed) in enumerate(items):
         message = f"{name} must be finite and {allowed}"
+        if not_a_number(value):
+            raise NotANumber(value, name, allowed)
         if _is_traced(value):
-            if value.dtype == bool:
-                raise NotANumber(value, name, allowed)
             if _ASSUMED.get():
                 continue
             traced.append((i, jnp.logical_not(jnp.all(jnp.isfinite(value) & ok(value))), message))
             continue
-        if not_a_number(value):
-            raise NotANumber(value, name, allowed)
         if np.iscomplexobj(value):
             raise ValueError(f"{message}, a real number (got {value!r})")
         try:
