@@ -130,34 +130,42 @@ def test_sensitivity_stick_slip_against_finite_differences(capsys):
         np.testing.assert_allclose(got, diff, rtol=1e-6)
 
 
-def test_the_smoothed_solver_is_differentiated_in_reverse_mode(capsys, monkeypatch):
-    """`--method smooth` asks for the derivatives in reverse mode (diffrax's adjoint; forward
-    mode is refused) and reports them by name; the reverse-mode numbers themselves are checked
-    against central differences in tests/test_variable_mass.py, end to end through the command
-    in the long run below (23 s of compiling). (The command's compiled function is replaced,
+def test_the_smoothed_solver_is_differentiated_in_forward_mode(capsys, monkeypatch):
+    """`--method smooth` asks for the derivatives in forward mode through diffrax's forward
+    adjoint (`vmj.Smoothed(adjoint=diffrax.ForwardMode())`, a few parameters and many
+    outputs) and reports them by name; the numbers themselves are checked against the exact
+    solver's in tests/test_sensitivity.py, end to end through the command in the long run
+    below (11 s of compiling). (The command's compiled function is replaced,
     not `vmj.sensitivity` inside it: a trace of a stand-in would be kept, in memory and in the
     exported-program cache, for the real command.)"""
+    import diffrax
+
     from vmj.cli import _sensitivity
 
     asked = {}
 
     def derivatives(model, a0, n, solver, keys, mode):
-        asked.update(mode=mode, n=n, solver=type(solver))
+        asked.update(mode=mode, n=n, solver=type(solver), adjoint=type(solver.adjoint))
         return {w: {"times": np.full(n, 1.0), "amplitudes": np.full(n, -2.0)} for w in keys}
 
     monkeypatch.setattr(_sensitivity, "_decay_derivatives", derivatives)
     argv = ["sensitivity", "variable-mass", *VARIABLE_MASS, "--n", "4", "--wrt", "FT"]
     out = run_json(capsys, [*argv, "--method", "smooth"])
-    assert asked == {"mode": "reverse", "n": 4, "solver": vmj.Smoothed}
+    assert asked == {
+        "mode": "forward",
+        "n": 4,
+        "solver": vmj.Smoothed,
+        "adjoint": diffrax.ForwardMode,
+    }
     assert out["method"] == "smooth" and out["d_amplitudes"]["FT"] == [-2.0] * len(out["times"])
     seq = vmj.turning_points(MODEL, 0.06, 4, vmj.Smoothed())
     np.testing.assert_allclose(out["amplitudes"], seq.reached()["amplitudes"], rtol=1e-12)
 
 
-@pytest.mark.long  # 23 s of compiling, with the long runs for CI's time
-def test_sensitivity_of_the_smoothed_solver_in_reverse_mode(capsys):
-    """The smoothed solve is differentiated by diffrax's adjoint (reverse mode only): against
-    central differences of the exact solver's amplitudes (the two solvers agree to ~1e-8)."""
+@pytest.mark.long  # 11 s of compiling, with the long runs for CI's time
+def test_sensitivity_of_the_smoothed_solver_in_forward_mode(capsys):
+    """The smoothed solve is differentiated by diffrax's forward adjoint: against central
+    differences of the exact solver's amplitudes (the two solvers agree to ~1e-8)."""
     argv = ["sensitivity", "variable-mass", *VARIABLE_MASS, "--n", "4", "--wrt", "FT"]
     out = run_json(capsys, [*argv, "--method", "smooth"])
     model = lambda F: vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 2.0, vmj.Coulomb(F))  # noqa: E731

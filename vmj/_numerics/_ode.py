@@ -115,6 +115,7 @@ def _recording_class():
         solver: dfx.AbstractSolver
         record: object
         memo: object
+        scan_kind: None = None  # (read by diffrax.ForwardMode, which sets it for its own loops)
 
         @property
         def term_structure(self):
@@ -226,16 +227,19 @@ def ode_solve(
     event=None,
     resume=None,
     limit=None,
+    adjoint=None,
 ):
     """`field(t, y, args)` integrated from `t0` (default 0) to `t1` with diffrax (`solver`,
     default `dopri8()`) under a PID step-size controller, stopping early at a `diffrax.Event`;
     never raises (check `sol.result`). `resume`: `(solver_state, controller_state, made_jump)`
     of a solve that ended at `t0` (saved with `SaveAt(solver_state=True,
     controller_state=True, made_jump=True)`), which this one continues with the same steps.
-    `limit`: the step-size controller's (`step_size_controller`)."""
+    `limit`: the step-size controller's (`step_size_controller`). `adjoint`: diffrax's
+    (default: its `RecursiveCheckpointAdjoint`, reverse mode)."""
     import diffrax as dfx  # here, not at the top: `import vmj` and the vmj command stay light
 
     solver_state, controller_state, made_jump = (None, None, None) if resume is None else resume
+    extra = {} if adjoint is None else {"adjoint": adjoint}
     return dfx.diffeqsolve(
         dfx.ODETerm(field),
         dopri8() if solver is None else solver,
@@ -251,4 +255,5 @@ def ode_solve(
         solver_state=solver_state,
         controller_state=controller_state,
         made_jump=made_jump,
+        **extra,
     )

@@ -193,14 +193,17 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     keep = len(got["times"])
     if args.model == "rope":  # the turning points up to --t1
         keep = int(np.sum(got["times"] <= args.t1))
-    # the smoothed solve differentiates by diffrax's adjoint, in reverse mode only (in
-    # forward mode vmj.sensitivity says so)
-    mode = "reverse" if method == "smooth" else "forward"
+    if method == "smooth":  # forward mode (a few parameters, many outputs) by diffrax's adjoint
+        import dataclasses
+
+        import diffrax
+
+        solver = dataclasses.replace(solver, adjoint=diffrax.ForwardMode())
     # that concrete solve checked the model and a0 on the host (a failed check raised there):
     # the derivatives are traced without guards, so that the program is exported and a
     # repeated command loads it (vmj/_exported.py)
     with vmj.assume_valid():
-        d = _decay_derivatives(model, a0, n, solver, tuple(keys), mode)
+        d = _decay_derivatives(model, a0, n, solver, tuple(keys), "forward")
     out = {
         "model": args.model,
         "method": method,
