@@ -131,21 +131,19 @@ def test_sensitivity_stick_slip_against_finite_differences(capsys):
 
 
 def test_the_smoothed_solver_is_differentiated_in_forward_mode(capsys, monkeypatch):
-    """`--method smooth` asks for the derivatives in forward mode through diffrax's forward
-    adjoint (`vmj.Smoothed(adjoint=diffrax.ForwardMode())`, a few parameters and many
-    outputs) and reports them by name; the numbers themselves are checked against the exact
-    solver's in tests/test_sensitivity.py, end to end through the command in the long run
-    below (11 s of compiling). (The command's compiled function is replaced,
-    not `vmj.sensitivity` inside it: a trace of a stand-in would be kept, in memory and in the
-    exported-program cache, for the real command.)"""
-    import diffrax
-
+    """`--method smooth` asks for the derivatives in forward mode (a few parameters, many
+    outputs: `vmj.Smoothed(derivatives="forward")`, diffrax's forward adjoint) and reports
+    them by name; the numbers themselves are checked against the exact solver's in
+    tests/test_sensitivity.py, end to end through the command in the long run below (11 s of
+    compiling). (The command's compiled function is replaced, not `vmj.sensitivity` inside
+    it: a trace of a stand-in would be kept, in memory and in the exported-program cache, for
+    the real command.)"""
     from vmj.cli import _sensitivity
 
     asked = {}
 
     def derivatives(model, a0, n, solver, keys, mode):
-        asked.update(mode=mode, n=n, solver=type(solver), adjoint=type(solver.adjoint))
+        asked.update(mode=mode, n=n, solver=type(solver), derivatives=solver.derivatives)
         return {w: {"times": np.full(n, 1.0), "amplitudes": np.full(n, -2.0)} for w in keys}
 
     monkeypatch.setattr(_sensitivity, "_decay_derivatives", derivatives)
@@ -155,7 +153,7 @@ def test_the_smoothed_solver_is_differentiated_in_forward_mode(capsys, monkeypat
         "mode": "forward",
         "n": 4,
         "solver": vmj.Smoothed,
-        "adjoint": diffrax.ForwardMode,
+        "derivatives": "forward",
     }
     assert out["method"] == "smooth" and out["d_amplitudes"]["FT"] == [-2.0] * len(out["times"])
     seq = vmj.turning_points(MODEL, 0.06, 4, vmj.Smoothed())

@@ -186,8 +186,8 @@ def turning_points(
       returning it in `result`. With `throw=False` check `result`/`message`.
 
     **Returns:** a [`vmj.DecaySequence`][]. Differentiable with `jax.grad`/`jax.jacfwd` with
-    respect to every model parameter and `a0` (with [`vmj.Smoothed`][]: in the mode of its
-    `adjoint`, reverse by default).
+    respect to every model parameter and `a0` (with [`vmj.Smoothed`][]: in its `derivatives`
+    mode, reverse by default).
     """
     warn_if_float32()
     solver = _solver(solver, Exact)

@@ -50,24 +50,24 @@ class Smoothed(AbstractSolver):
     - `ode_solver`: a diffrax solver (default: Dopri8, as `diffrax.Dopri8()` with its stages
       written out, which is faster on CPUs; `Kvaerno5()` for stiff models such as stick-slip).
 
-    - `adjoint`: how the solve is differentiated, a diffrax adjoint: `None` (default,
-      diffrax's `RecursiveCheckpointAdjoint`) for reverse mode (`jax.grad`, `jax.jacrev`,
-      `vmj.sensitivity(..., mode="reverse")`), `diffrax.ForwardMode()` for forward mode
-      (`jax.jvp`, `jax.jacfwd`, `mode="forward"`). Each mode works only with its adjoint: JAX
-      refuses forward mode through the default ("can't apply forward-mode autodiff (jvp) to a
-      custom_vjp function") and reverse mode through `ForwardMode` (its loops have no
-      reverse). Forward mode is the cheaper for a few parameters and many outputs: the 8
-      smoothed turning points of a variable-mass model against `mu` and `F_T`, one warm
-      jitted Jacobian, 1.4 ms forward against 13 ms reverse, compiled in 19 s against 37 s
-      (one after the other, the 2-core machine); `vmj sensitivity --method smooth` runs in
-      forward mode.
+    - `derivatives`: the mode the solve is differentiated in (diffrax's adjoint): `"reverse"`
+      (default; diffrax's checkpointed `RecursiveCheckpointAdjoint`): `jax.grad`,
+      `jax.jacrev`, `vmj.sensitivity(..., mode="reverse")`; `"forward"` (`diffrax.ForwardMode`):
+      `jax.jvp`, `jax.jacfwd`, `mode="forward"`. Each works only in its mode: JAX refuses
+      forward mode through the default ("can't apply forward-mode autodiff (jvp) to a
+      custom_vjp function") and reverse mode through `"forward"` (its loops have no reverse),
+      as [`vmj.Exact`][]`(derivatives="forward")`. Forward mode is the cheaper for a few
+      parameters and many outputs: the 8 smoothed turning points of a variable-mass model
+      against `mu` and `F_T`, one warm jitted Jacobian, 1.4 ms forward against 13 ms reverse,
+      compiled in 19 s against 37 s (one after the other, the 2-core machine); `vmj
+      sensitivity --method smooth` runs in forward mode.
     """
 
     smoothing: Array | None = None
     rtol: float | None = eqx.field(static=True, default=None)
     max_steps: int | None = eqx.field(static=True, default=None)
     ode_solver: dfx.AbstractSolver | None = eqx.field(static=True, default=None)
-    adjoint: dfx.AbstractAdjoint | None = eqx.field(static=True, default=None)
+    derivatives: str = eqx.field(static=True, default="reverse")
     name: ClassVar[str] = "smooth"
 
     def __check_init__(self):
@@ -77,14 +77,10 @@ class Smoothed(AbstractSolver):
             check("rtol", self.rtol, positive, "> 0")
         if self.max_steps is not None:
             check_int("max_steps", self.max_steps, 1)
-        if self.adjoint is not None:
-            import diffrax as dfx
-
-            if not isinstance(self.adjoint, (dfx.RecursiveCheckpointAdjoint, dfx.ForwardMode)):
-                raise ValueError(
-                    "adjoint must be None (reverse mode) or diffrax.ForwardMode() (forward "
-                    f"mode) (got {self.adjoint!r})"
-                )
+        if self.derivatives not in ("reverse", "forward"):
+            raise ValueError(
+                f"derivatives must be 'reverse' or 'forward' (got {self.derivatives!r})"
+            )
 
     def check(self, model, task):
         ok = {
@@ -131,6 +127,12 @@ class Smoothed(AbstractSolver):
             ode = dfx.Kvaerno5() if model.smoothed_stiff else dopri8()
         return rtol, steps, ode
 
+    def _adjoint(self):
+        """diffrax's adjoint for `derivatives` (`None`: diffrax's default)."""
+        import diffrax as dfx
+
+        return dfx.ForwardMode() if self.derivatives == "forward" else None
+
     # -- the one diffrax call ------------------------------------------------------------------
     def solve(self, model, x0, v0, t1, saveat):
         """The smoothed model's states (`model.initial_state`'s form) at `saveat`'s times of a
@@ -148,7 +150,7 @@ class Smoothed(AbstractSolver):
             atol=rtol,
             max_steps=steps,
             solver=ode,
-            adjoint=self.adjoint,
+            adjoint=self._adjoint(),
         )
         ok = sol.result == dfx.RESULTS.successful
         return unpack(sol.ys), jnp.where(ok, RESULTS.successful, RESULTS.solver_failed)
@@ -177,7 +179,7 @@ class Smoothed(AbstractSolver):
                 solver=ode,
                 t0=t_a,
                 resume=resume,
-                adjoint=self.adjoint,
+                adjoint=self._adjoint(),
             )
             resume = (sol.solver_state, sol.controller_state, sol.made_jump)
             return tuple(c[-1] for c in sol.ys), resume, sol.result == dfx.RESULTS.successful
@@ -313,7 +315,7 @@ class Smoothed(AbstractSolver):
             max_steps=n * steps,
             solver=recording(ode, record, memo),
             limit=approach,
-            adjoint=self.adjoint,
+            adjoint=self._adjoint(),
         )
         _, count, times, positions, _, stuck, _, _ = sol.solver_state[1]
         failed = sol.result != dfx.RESULTS.successful

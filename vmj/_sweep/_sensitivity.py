@@ -49,8 +49,8 @@ def sensitivity(
       or a dotted path) and float keyword arguments of `fn` (e.g. `"a0"`).
     - `mode`: `"forward"` (`jax.jacfwd`, best for few parameters) or `"reverse"`
       (`jax.jacrev`, best for a scalar output); both give the same numbers. A smoothed solve
-      differentiates in the mode its adjoint allows: [`vmj.Smoothed`][]`()` in reverse mode,
-      `vmj.Smoothed(adjoint=diffrax.ForwardMode())` in forward mode.
+      differentiates in its `derivatives` mode: [`vmj.Smoothed`][]`()` in reverse mode,
+      `vmj.Smoothed(derivatives="forward")` in forward mode.
     - `chunk_size`, `progress`, `devices`, `client`, `store`, `resume`: for a grid, as in
       [`vmj.sweep`][].
     - `**solver_args`: passed to `fn` (e.g. `a0=0.06, n=12`).
@@ -109,7 +109,7 @@ def sensitivity(
         raise ValueError(
             "mode='forward' cannot differentiate fn: it solves by reverse mode only (e.g. "
             "vmj.Smoothed(), through diffrax's adjoint): use mode='reverse', or solve with "
-            "vmj.Smoothed(adjoint=diffrax.ForwardMode())"
+            "vmj.Smoothed(derivatives='forward')"
         ) from None
     return {w: out[w] for w in wrt}
 

@@ -193,12 +193,8 @@ def _decay(args, model, a0, n, wrt, keys, units) -> int:
     keep = len(got["times"])
     if args.model == "rope":  # the turning points up to --t1
         keep = int(np.sum(got["times"] <= args.t1))
-    if method == "smooth":  # forward mode (a few parameters, many outputs) by diffrax's adjoint
-        import dataclasses
-
-        import diffrax
-
-        solver = dataclasses.replace(solver, adjoint=diffrax.ForwardMode())
+    if method == "smooth":  # forward mode (a few parameters, many outputs)
+        solver = vmj.Smoothed(smoothing=solver.smoothing, derivatives="forward")
     # that concrete solve checked the model and a0 on the host (a failed check raised there):
     # the derivatives are traced without guards, so that the program is exported and a
     # repeated command loads it (vmj/_exported.py)
