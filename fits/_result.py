@@ -344,7 +344,7 @@ def _used(job, prob, N):
             if sel.size:
                 idx.append(sel)
                 blocks.append(slice(at, at + sel.size))
-                names.append(f"the {what[kind]} of {prob.records[r].source}")
+                names.append(f"the {what[kind]} of {prob.records[r].source or f'record {r}'}")
                 at += sel.size
     return np.concatenate(idx), blocks, names
 
@@ -635,10 +635,12 @@ def _disagreement(joint: _Assessed, test: dict) -> str:
         joint_value = "" if shared is None else f", shared {shared:.6g}"
         parts.append(f"{name} [{unit}] {values}{joint_value}{chi}")
     scales = []
-    for kind in ("position", "time"):
+    # (a fit on the whole time series: its position residuals are the samples')
+    labels = ("samples", "times") if joint.prob.turning is not None else ("positions", "times")
+    for kind, label in zip(("position", "time"), labels):
         got = [rec["scale"][kind] for rec in records]
         if any(g is not None for g in got):
-            scales.append(f"{kind}s " + ", ".join("-" if g is None else f"{g:.3g}" for g in got))
+            scales.append(f"{label} " + ", ".join("-" if g is None else f"{g:.3g}" for g in got))
     df1, df2 = test["df"]
     return (
         f"the records disagree about the shared parameters ({', '.join(test['parameters'])}): "
