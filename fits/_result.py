@@ -444,7 +444,11 @@ class _Assessed:
         """The request of its profile-likelihood intervals (`fits._solve._profiles`), or None
         where they are not computed."""
         job = self.job
-        if not (self.active.any() and job.out["ok"] and self.full_rank and settings["intervals"]):
+        # (a slot held at a bound gets its one-sided limit also where it is the only one: a
+        # fit whose every slot ended held at the user's bounds had "no interval" until
+        # 2026-11-28, where beside a moved slot it had its limit)
+        wanted = self.active.any() or job.bound_hit.any()
+        if not (wanted and job.out["ok"] and self.full_rank and settings["intervals"]):
             return None
         s2 = job.rss / max(self.n_dof, 1)
         return (job, self.prob, self.est, self._held_se(s2), self.inflation, s2)

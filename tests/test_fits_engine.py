@@ -91,6 +91,25 @@ def test_converged_rules_at_bounds(viscous_decay):
     assert bounded.params["omega"] == pytest.approx(plain.params["omega"], rel=1e-8)
 
 
+def test_a_fit_whose_every_slot_is_held_at_the_users_bound_gets_its_limit(viscous_decay):
+    """The viscous decay with xF alone fitted (the others given at the full fit's values),
+    bounded to 0:0.5: xF ends held at 0, the only slot, and gets its 95 % one-sided limit as
+    beside moved slots. Until 2026-11-28 it got "no interval" (NaN, NaN), "converged": the
+    profiles were asked only of fits with a moved slot. Its limit lies inside the full fit's
+    (the other parameters there profiled, here fixed: the deviance rises at least as fast)."""
+    path, plain, bounded = viscous_decay
+    given = {k: v for k, v in plain.params.items() if k != "xF"}
+    record = fits.read_record(path, series=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        alone = fits.fit(record, "oscillator", ("xF",), given, bounds={"xF": (0.0, 0.5)})
+    assert alone.params["xF"] == 0.0 and alone.converged
+    lo, hi = alone.intervals["xF"]
+    assert lo == 0.0 < hi <= bounded.intervals["xF"][1] * (1 + 1e-6), (alone.intervals, bounded)
+    held = [w for w in alone.warnings if w.startswith("xF is held at 0")]
+    assert len(held) == 1 and f"its interval [0, {hi:.6g}]" in held[0], held
+
+
 def test_json_contract(viscous_decay, capsys):
     path, _, _ = viscous_decay
     assert main(["fit", path, "--model", "oscillator", "--bounds", "xF=0:0.5", "--json"]) == 0
