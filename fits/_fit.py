@@ -67,7 +67,7 @@ from ._result import (
     _values_of,
     shared_test,
 )
-from ._solve import _TUNING, _job_arrays, _profiles, _rss, _Shape, _solve
+from ._solve import _job_arrays, _profiles, _rss, _Shape, _solve
 from ._space import FORWARDS, Space, series_space
 
 __all__ = ["FitResult", "fit", "fit_batch", "LOSSES", "OPTIMIZERS", "RESIDUALS"]
@@ -391,6 +391,9 @@ def _bucket(n: int, step: int = 8) -> int:
 
 
 # -- weights -----------------------------------------------------------------------------------
+_TUNING = {"huber": 1.345, "cauchy": 2.385}  #: 95 % efficiency constants of the robust losses
+
+
 def _psi_weight(loss, u):
     """IRLS weight `psi(u)/u` of a robust loss."""
     if loss == "l2":
@@ -1247,8 +1250,9 @@ def fit(
       `"energy"` (the closed-form energy-balance recurrence).
     - `loss`: `"l2"`, or a robust `"huber"`/`"cauchy"` (iteratively reweighted, with the scale
       re-estimated from the residuals' MAD each pass).
-    - `optimizer`: `"lm"` (Levenberg-Marquardt, optimistix) or `"adam"` (optax; minimises the
-      loss directly for `adam_steps` steps).
+    - `optimizer`: `"lm"` (Levenberg-Marquardt, optimistix) or `"adam"` (optax; `adam_steps`
+      steps on the same weighted sum of squares in each pass, so a robust loss's
+      reweighting reaches the same estimate).
     - `compare`: also fit the model's sub-models (`Space.variants`: Coulomb-only and
       viscous-only) and compare them by AIC/BIC.
     - `max_steps`: Levenberg-Marquardt step limit per pass.

@@ -344,7 +344,7 @@ def _used(job, prob, N):
             if sel.size:
                 idx.append(sel)
                 blocks.append(slice(at, at + sel.size))
-                names.append(f"the {what[kind]} of {prob.records[r].source}")
+                names.append(f"the {what[kind]} of {prob.records[r].source or f'record {r}'}")
                 at += sel.size
     return np.concatenate(idx), blocks, names
 
@@ -444,7 +444,11 @@ class _Assessed:
         """The request of its profile-likelihood intervals (`fits._solve._profiles`), or None
         where they are not computed."""
         job = self.job
-        if not (self.active.any() and job.out["ok"] and self.full_rank and settings["intervals"]):
+        # (a slot held at a bound gets its one-sided limit also where it is the only one: a
+        # fit whose every slot ended held at the user's bounds had "no interval" until
+        # 2026-11-28, where beside a moved slot it had its limit)
+        wanted = self.active.any() or job.bound_hit.any()
+        if not (wanted and job.out["ok"] and self.full_rank and settings["intervals"]):
             return None
         s2 = job.rss / max(self.n_dof, 1)
         return (job, self.prob, self.est, self._held_se(s2), self.inflation, s2)
@@ -635,10 +639,12 @@ def _disagreement(joint: _Assessed, test: dict) -> str:
         joint_value = "" if shared is None else f", shared {shared:.6g}"
         parts.append(f"{name} [{unit}] {values}{joint_value}{chi}")
     scales = []
-    for kind in ("position", "time"):
+    # (a fit on the whole time series: its position residuals are the samples')
+    labels = ("samples", "times") if joint.prob.turning is not None else ("positions", "times")
+    for kind, label in zip(("position", "time"), labels):
         got = [rec["scale"][kind] for rec in records]
         if any(g is not None for g in got):
-            scales.append(f"{kind}s " + ", ".join("-" if g is None else f"{g:.3g}" for g in got))
+            scales.append(f"{label} " + ", ".join("-" if g is None else f"{g:.3g}" for g in got))
     df1, df2 = test["df"]
     return (
         f"the records disagree about the shared parameters ({', '.join(test['parameters'])}): "
