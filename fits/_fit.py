@@ -952,8 +952,9 @@ def _check_shared(assessed, bounds, shape) -> list:
 
 
 #: seconds per Adam step of the smoothed forward model, per record of a job and turning point
-#: predicted (a smoothed ODE solve and its adjoint; measured on 2 shared cores, 2026-11-28:
-#: 2 jobs of 2 records of 24 turning points, 0.47-0.50 s for 20 steps, warm)
+#: predicted (measured on 2 shared cores, 2026-11-28, with a reverse pass for the gradient:
+#: 2 jobs of 2 records of 24 turning points, 0.47-0.50 s for 20 steps, warm; the forward-mode
+#: Jacobian that replaced it took as long a step within the loaded machine's noise)
 _SMOOTH_ADAM_STEP_S = 2.5e-4
 #: a fit whose estimated solving time exceeds this [s] is refused before it starts
 MAX_ESTIMATED_S = 600.0
@@ -961,7 +962,7 @@ MAX_ESTIMATED_S = 600.0
 
 def _refuse_slow_adam(jobs, problems, shape, settings) -> None:
     """Refuse `forward="smooth"` with `optimizer="adam"` where its estimated time exceeds
-    `MAX_ESTIMATED_S`: every Adam step solves the smoothed ODE and its adjoint for every job
+    `MAX_ESTIMATED_S`: every Adam step solves the smoothed ODE and its Jacobian for every job
     and record of a solve, and a solve takes `adam_steps` (3000) of them, in every round of
     sub-models and every pass (the times' weights, the robust loss's ten reweightings).
     Measured before this check (2026-11-28): two records of 25 turning points, `--forward
@@ -984,7 +985,7 @@ def _refuse_slow_adam(jobs, problems, shape, settings) -> None:
         f"(more than {MAX_ESTIMATED_S / 60:.0f}): {settings['adam_steps']} Adam steps "
         f"(--adam-steps) in each of {solves * passes} solves ({solves} per pass of sub-models, "
         f"{passes} passes{' for the robust loss' if passes > 2 else ''}), each step a "
-        f"smoothed ODE solve and its adjoint, about {step:.2g} s for {shape.B} jobs of {records} "
+        f"smoothed ODE solve and its Jacobian, about {step:.2g} s for {shape.B} jobs of {records} "
         f"record(s) of {shape.n_model} turning points. Use --optimizer lm (tens of steps), "
         "--forward exact (Adam's steps in about a millisecond), or fewer --adam-steps"
     )

@@ -166,9 +166,7 @@ def _residual_and_jacobian_impl(space, forward, n, p, d):
         r = _residual(space, forward, n, _place(d, v), d)
         return r, r
 
-    # the smoothed model's diffrax solve differentiates in reverse mode only
-    jacobian = jax.jacrev if forward == "smooth" else jax.jacfwd
-    J, r = jacobian(r_of, has_aux=True)(val)
+    J, r = jax.jacfwd(r_of, has_aux=True)(val)
     return _align_clocks(r, J, d.wt)
 
 
@@ -319,12 +317,8 @@ def _solve_adam(space, forward, n, steps, d, p0):
     outliers, and more elsewhere, both "converged".)"""
 
     def one(d, p0):
-        def objective(p):
-            if forward == "smooth":  # reverse mode: the gradient in one backward pass
-                r = _residual(space, forward, n, _place(d, _values(d, p)), d)
-                r, _ = _align_clocks(r, jnp.zeros((r.size, 0)), d.wt)
-            else:  # (forward mode: the gradient from the materialised Jacobian)
-                r, _ = _residual_and_jacobian(space, forward, n, p, d)
+        def objective(p):  # (its gradient from the forward-mode Jacobian)
+            r, _ = _residual_and_jacobian(space, forward, n, p, d)
             return 0.5 * jnp.sum(r * r)
 
         rate = optax.warmup_cosine_decay_schedule(

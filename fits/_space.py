@@ -31,14 +31,18 @@ __all__ = ["Space", "Variant", "FORWARDS", "SOLVERS", "series_space"]
 
 FORWARDS = ("exact", "smooth", "energy")
 SMOOTH_RTOL = 1e-8  #: the smoothed forward model's relative (and scaled absolute) tolerance
-#: the Jacobians of the exact forward model are forward-mode (fits._solve): the exact
-#: solver's early-exit loops serve them
+#: the Jacobians of every forward model are forward-mode (fits._solve): the exact solver's
+#: early-exit loops serve them, and the smoothed model's diffrax forward adjoint (a residual
+#: per turning point against a few parameters; until 2026-11-28 reverse mode, a pass per
+#: residual: one job of 2 records of 24 turning points, 7 parameters, its Jacobian 186 ms
+#: warm and 43 s to compile against 41 ms and 17 s; the same Jacobian to 7e-9 of its
+#: largest entry)
 SOLVERS = {
     "exact": functools.partial(vmj.Exact, derivatives="forward"),
     # (the smoothed model's own tolerance, 1e-12 for the linear oscillator, took twice as long
     # a solve for turning points that move by 3e-8 of the amplitude and 1e-7 s: far below any
     # record's noise, and the smoothing's own offset from the exact model is 1e-7)
-    "smooth": functools.partial(vmj.Smoothed, rtol=SMOOTH_RTOL),
+    "smooth": functools.partial(vmj.Smoothed, rtol=SMOOTH_RTOL, derivatives="forward"),
     "energy": vmj.EnergyBalance,
 }
 
