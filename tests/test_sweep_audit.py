@@ -280,6 +280,111 @@ def test_store_results_are_lazy_and_equal_the_in_memory_sweep(g, reference, tmp_
     assert (tmp_path / "lazy.csv").read_text() == (tmp_path / "memory.csv").read_text()
 
 
+def test_read_zarr_reads_the_markers_and_checks_each_chunk_when_read(g, reference, tmp_path):
+    """Opening a store read every chunk of every field to check it (a 4 x 10^6-point
+    energy-balance store, 884 MB of values: 4.9 s of CPU before anything was asked for, the
+    time of reading it all; a store far larger than memory took as long as reading all of
+    it). Now opening reads the completion markers and checksums only; a chunk of a field is checked against
+    its own checksum when it is read, and one that does not match raises, naming it. A
+    damaged field leaves the others readable, and resuming computes the chunk again."""
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    # garbage in chunk 2 of positions (the sweep's chunks are 6 points: points 12-17)
+    (data,) = (tmp_path / "s.zarr" / "positions" / "c" / "2").iterdir()
+    raw = bytearray(data.read_bytes())
+    raw[8:16] = bytes(b ^ 0xFF for b in raw[8:16])
+    data.write_bytes(bytes(raw))
+    back = vmj.SweepResult.read_zarr(path)  # (raised: "unfinished sweep: 1 of 6 chunks")
+    np.testing.assert_array_equal(back.values["count"], reference.values.count)
+    np.testing.assert_array_equal(back.values["positions"][0], reference.values.positions[0])
+    with pytest.raises(
+        ValueError,
+        match=r"s.zarr': the field 'positions' of chunk 2 \(points 12 to 17\) does not match "
+        r"its checksum .*resume=True\) computes it again",
+    ):
+        back.values["positions"].sum().compute()
+    again = vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    assert (again.resumed, again.computed) == (5, 1)
+    assert _same(reference.values, vmj.SweepResult.read_zarr(path).values)
+
+
+def test_a_memory_error_while_checking_a_store_is_not_taken_for_damage(
+    g, reference, tmp_path, monkeypatch
+):
+    """A chunk that could not be read for want of memory counted as damaged: `read_zarr` under
+    a 600 MB address-space limit called a sound 884 MB store 'unfinished: 1 of 246 chunks
+    ... do not match their checksum', and resuming would have computed such chunks again.
+    Now the MemoryError is raised."""
+    import zarr
+
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    read = zarr.Array.__getitem__
+
+    def short_of_memory(self, key):
+        if self.basename == "times":
+            raise MemoryError("(simulated)")
+        return read(self, key)
+
+    monkeypatch.setattr(zarr.Array, "__getitem__", short_of_memory)
+    with pytest.raises(MemoryError):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    with pytest.raises(MemoryError):
+        np.asarray(vmj.SweepResult.read_zarr(path).values["times"])
+    monkeypatch.undo()
+    assert _same(reference.values, vmj.SweepResult.read_zarr(path).values)
+
+
+def test_a_store_of_another_format_is_refused_as_such(g, tmp_path):
+    """A store written by another version of vmj (here: format 1, one checksum per chunk over
+    all its fields) was called 'not a vmj store' on resuming, and read with the wrong
+    layout by `read_zarr`."""
+    import zarr
+
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    group = zarr.open_group(path, mode="r+")
+    group.attrs["vmj"] = {**group.attrs["vmj"], "format": 1}
+    refusal = r"written by another version of vmj \(store format 1; this version reads format 2\)"
+    with pytest.raises(ValueError, match=refusal + ": delete it to start over"):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    with pytest.raises(ValueError, match=refusal + r": read it with that version"):
+        vmj.SweepResult.read_zarr(path)
+
+
+def test_columns_too_large_for_memory_are_refused_with_their_size(
+    g, reference, tmp_path, monkeypatch
+):
+    """`columns()` of a result read from a store loaded every field whole whatever the memory
+    (the 4 x 10^6-point energy-balance store, 884 MB of values: the peak RSS grew by 1562 MB,
+    the fields read in blocks and concatenated). Now the columns are refused before anything
+    is read where they need more than the free memory, with their size and what to do; where
+    they fit, each field is read block by block into its columns (1049 MB)."""
+    path = str(tmp_path / "s.zarr")
+    lazy = vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    got, want = lazy.columns(), reference.columns()
+    assert list(got) == list(want)
+    assert all(np.array_equal(got[k], want[k]) for k in want)
+    monkeypatch.setattr(vmj._checks, "ROOM_CHECKED_FROM", 0)
+    # 35 points x (index 24 + eps, mu 16 + fields 111) = 35 x 151 = 5285 bytes; 5000 free
+    monkeypatch.setattr(vmj._host, "available_memory", lambda device, enough: 5000)
+    read = []
+    monkeypatch.setattr(vmj._sweep._store._CheckedField, "_chunk", lambda *a: read.append(a))
+    with pytest.raises(
+        ValueError,
+        match=r"SweepResult.columns\(\) of 35 points x 151 bytes: about 5.29e-06 GB, more than "
+        r"the 5e-06 GB free on cpu; write them to a file block by block with to_csv",
+    ):
+        lazy.columns()
+    assert read == []  # (refused before anything was read)
+    # 24 + 16 bytes a point of an in-memory result (its fields are the result's own)
+    monkeypatch.setattr(vmj._host, "available_memory", lambda device, enough: 1000)
+    with pytest.raises(ValueError, match=r"of 35 points x 40 bytes"):
+        vmj.SweepResult(
+            reference.values, reference.dims, reference.coords, reference.shape
+        ).columns()
+
+
 def test_paired_points_in_a_store_are_labelled_by_point(tmp_path):
     """A store of paired points kept its coordinates in their own dimensions `eps_0`,
     `delta_0`, unrelated to the fields' `point`: `xarray.open_zarr` could not tell which point
