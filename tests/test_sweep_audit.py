@@ -334,6 +334,34 @@ def test_read_zarr_reads_the_markers_and_checks_each_chunk_when_read(g, referenc
     assert _same(reference.values, vmj.SweepResult.read_zarr(path).values)
 
 
+def test_a_checked_field_cuts_any_part_from_whole_checked_chunks(g, reference, tmp_path):
+    """What dask may ask a stored field for (its parts, slices fused with later indexing: an
+    integer, a step, a negative step, an empty range) equals the same part of the in-memory
+    field, each chunk read whole and checked (exact: the same bytes)."""
+    from vmj._sweep._store import _markers
+
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    st = ChunkStore.read_only(path, kind="sweep")
+    j = [f[0] for f in st.meta["fields"]].index("positions")
+    field = vmj._sweep._store._CheckedField(st, "positions", _markers(st._checksum)[:, j])
+    flat = np.asarray(reference.values.positions).reshape(35, N)
+    keys = [
+        (5,),
+        (-1, slice(1, 3)),
+        (slice(3, 20, 4),),
+        (slice(None), 2),
+        (slice(30, 2, -5), slice(None, None, 2)),
+        (Ellipsis, 0),
+        (slice(7, 7),),
+        (np.int64(12), 3),
+        slice(10, 30),
+    ]
+    for key in keys:
+        got, want = field[key], flat[key]
+        assert got.shape == want.shape and np.array_equal(got, want), key
+
+
 def test_a_memory_error_while_checking_a_store_is_not_taken_for_damage(
     g, reference, tmp_path, monkeypatch
 ):
