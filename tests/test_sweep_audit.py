@@ -220,7 +220,13 @@ def test_a_store_sweep_larger_than_memory_streams_to_disk(tmp_path):
     1.26 GB per 3e6 points. Now each chunk is written and dropped; `values` are read lazily
     from the store. The limit imposed is 64 MB of free memory (the result is 3.5 times it);
     the bound asserted, half the result, leaves room for the chunks in flight (measured: 54-92
-    MB of growth at 0.3-3 x 10^6 points, whatever the result's size)."""
+    MB of growth at 0.3-3 x 10^6 points, whatever the result's size).
+
+    A reduction over the stored values runs within memory smaller than the field it reduces
+    (a guard, not a defect: it did before): the mean of `positions` (96 MB) over eps, with the
+    address space capped at what the process had mapped plus 64 MB, where loading the field
+    whole fails (measured: the mean also ran with 32 MB; its peak RSS grows by 49-51 MB at
+    10^6 points, 59-63 MB at 4 x 10^6, see docs/sweeps.md)."""
     import json
     import subprocess
     import sys
@@ -247,10 +253,21 @@ def test_a_store_sweep_larger_than_memory_streams_to_disk(tmp_path):
         before = hwm()
         r = vmj.sweep(vmj.turning_points, g, store={str(tmp_path / "big.zarr")!r}, **kw)
         grew = hwm() - before
-        print(json.dumps({{"mb": grew, "lazy": hasattr(r.values.positions, "compute"),
-                           "shape": list(r.values.positions.shape),
-                           "stopped": int(r.values.stopped.sum().compute()),
-                           "corner": float(r.values.positions[99, 99, 99, 11].compute())}}))
+        got = {{"mb": grew, "lazy": hasattr(r.values.positions, "compute"),
+               "shape": list(r.values.positions.shape),
+               "stopped": int(r.values.stopped.sum().compute()),
+               "corner": float(r.values.positions[99, 99, 99, 11].compute())}}
+        import resource
+        mapped = [l for l in open("/proc/self/status") if l.startswith("VmSize")][0]
+        cap = int(mapped.split()[1]) * 1024 + 64 * 2**20
+        resource.setrlimit(resource.RLIMIT_AS, (cap, resource.getrlimit(resource.RLIMIT_AS)[1]))
+        got["mean"] = float(r.values.positions.mean(axis=0).compute()[99, 99, 11])
+        try:
+            np.asarray(r.values.positions)
+            got["whole"] = "loaded"
+        except MemoryError:
+            got["whole"] = "MemoryError"
+        print(json.dumps(got))
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -265,6 +282,15 @@ def test_a_store_sweep_larger_than_memory_streams_to_disk(tmp_path):
     )
     assert got["corner"] == float(one.positions[11])  # (the same compiled arithmetic: exact)
     assert got["stopped"] > 0
+    assert got["whole"] == "MemoryError"  # (the cap is below the field's 96 MB)
+    edge = vmj.grid(
+        vmj.VariableMass(5.0, 4900.0, 3.0, 0.0, 10.0, vmj.Coulomb(14.7)), eps=np.linspace(0, 1, 100)
+    )
+    want = vmj.sweep(vmj.turning_points, edge, a0=A0, n=12, solver=vmj.EnergyBalance())
+    # summed in another order: 100 terms of magnitude <= a0, each sum's rounding <= 99 x 2^-53
+    # x the sum of magnitudes, twice, over 100
+    bound = 2 * 99 * 2.0**-53 * A0
+    assert abs(got["mean"] - float(np.mean(want.values.positions[:, 11]))) <= bound
 
 
 def test_store_results_are_lazy_and_equal_the_in_memory_sweep(g, reference, tmp_path):
@@ -278,6 +304,139 @@ def test_store_results_are_lazy_and_equal_the_in_memory_sweep(g, reference, tmp_
     r.to_csv(str(tmp_path / "lazy.csv"))
     reference.to_csv(str(tmp_path / "memory.csv"))
     assert (tmp_path / "lazy.csv").read_text() == (tmp_path / "memory.csv").read_text()
+
+
+def test_read_zarr_reads_the_markers_and_checks_each_chunk_when_read(g, reference, tmp_path):
+    """Opening a store read every chunk of every field to check it (a 4 x 10^6-point
+    energy-balance store, 884 MB of values: 4.9 s of CPU before anything was asked for, the
+    time of reading it all; a store far larger than memory took as long as reading all of
+    it). Now opening reads the completion markers and checksums only; a chunk of a field is checked against
+    its own checksum when it is read, and one that does not match raises, naming it. A
+    damaged field leaves the others readable, and resuming computes the chunk again."""
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    # garbage in chunk 2 of positions (the sweep's chunks are 6 points: points 12-17)
+    (data,) = (tmp_path / "s.zarr" / "positions" / "c" / "2").iterdir()
+    raw = bytearray(data.read_bytes())
+    raw[8:16] = bytes(b ^ 0xFF for b in raw[8:16])
+    data.write_bytes(bytes(raw))
+    back = vmj.SweepResult.read_zarr(path)  # (raised: "unfinished sweep: 1 of 6 chunks")
+    np.testing.assert_array_equal(back.values["count"], reference.values.count)
+    np.testing.assert_array_equal(back.values["positions"][0], reference.values.positions[0])
+    with pytest.raises(
+        ValueError,
+        match=r"s.zarr': the field 'positions' of chunk 2 \(points 12 to 17\) does not match "
+        r"its checksum .*resume=True\) computes it again",
+    ):
+        back.values["positions"].sum().compute()
+    again = vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    assert (again.resumed, again.computed) == (5, 1)
+    assert _same(reference.values, vmj.SweepResult.read_zarr(path).values)
+
+
+def test_a_checked_field_cuts_any_part_from_whole_checked_chunks(g, reference, tmp_path):
+    """What dask may ask a stored field for (its parts, slices fused with later indexing: an
+    integer, a step, a negative step, an empty range) equals the same part of the in-memory
+    field, each chunk read whole and checked (exact: the same bytes)."""
+    from vmj._sweep._store import _markers
+
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    st = ChunkStore.read_only(path, kind="sweep")
+    j = [f[0] for f in st.meta["fields"]].index("positions")
+    field = vmj._sweep._store._CheckedField(st, "positions", _markers(st._checksum)[:, j])
+    flat = np.asarray(reference.values.positions).reshape(35, N)
+    keys = [
+        (5,),
+        (-1, slice(1, 3)),
+        (slice(3, 20, 4),),
+        (slice(None), 2),
+        (slice(30, 2, -5), slice(None, None, 2)),
+        (Ellipsis, 0),
+        (slice(7, 7),),
+        (np.int64(12), 3),
+        slice(10, 30),
+    ]
+    for key in keys:
+        got, want = field[key], flat[key]
+        assert got.shape == want.shape and np.array_equal(got, want), key
+
+
+def test_a_memory_error_while_checking_a_store_is_not_taken_for_damage(
+    g, reference, tmp_path, monkeypatch
+):
+    """A chunk that could not be read for want of memory counted as damaged: `read_zarr` under
+    a 600 MB address-space limit called a sound 884 MB store 'unfinished: 1 of 246 chunks
+    ... do not match their checksum', and resuming would have computed such chunks again.
+    Now the MemoryError is raised."""
+    import zarr
+
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    read = zarr.Array.__getitem__
+
+    def short_of_memory(self, key):
+        if self.basename == "times":
+            raise MemoryError("(simulated)")
+        return read(self, key)
+
+    monkeypatch.setattr(zarr.Array, "__getitem__", short_of_memory)
+    with pytest.raises(MemoryError):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    with pytest.raises(MemoryError):
+        np.asarray(vmj.SweepResult.read_zarr(path).values["times"])
+    monkeypatch.undo()
+    assert _same(reference.values, vmj.SweepResult.read_zarr(path).values)
+
+
+def test_a_store_of_another_format_is_refused_as_such(g, tmp_path):
+    """A store written by another version of vmj (here: format 1, one checksum per chunk over
+    all its fields) was called 'not a vmj store' on resuming, and read with the wrong
+    layout by `read_zarr`."""
+    import zarr
+
+    path = str(tmp_path / "s.zarr")
+    vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    group = zarr.open_group(path, mode="r+")
+    group.attrs["vmj"] = {**group.attrs["vmj"], "format": 1}
+    refusal = r"written by another version of vmj \(store format 1; this version reads format 2\)"
+    with pytest.raises(ValueError, match=refusal + ": delete it to start over"):
+        vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path, resume=True)
+    with pytest.raises(ValueError, match=refusal + r": read it with that version"):
+        vmj.SweepResult.read_zarr(path)
+
+
+def test_columns_too_large_for_memory_are_refused_with_their_size(
+    g, reference, tmp_path, monkeypatch
+):
+    """`columns()` of a result read from a store loaded every field whole whatever the memory
+    (the 4 x 10^6-point energy-balance store, 884 MB of values: the peak RSS grew by 1562 MB,
+    the fields read in blocks and concatenated). Now the columns are refused before anything
+    is read where they need more than the free memory, with their size and what to do; where
+    they fit, each field is read block by block into its columns (1049 MB)."""
+    path = str(tmp_path / "s.zarr")
+    lazy = vmj.sweep(vmj.turning_points, g, a0=A0, n=N, chunk_size=8, store=path)
+    got, want = lazy.columns(), reference.columns()
+    assert list(got) == list(want)
+    assert all(np.array_equal(got[k], want[k]) for k in want)
+    monkeypatch.setattr(vmj._checks, "ROOM_CHECKED_FROM", 0)
+    # 35 points x (index 24 + eps, mu 16 + fields 111) = 35 x 151 = 5285 bytes; 5000 free
+    monkeypatch.setattr(vmj._host, "available_memory", lambda device, enough: 5000)
+    read = []
+    monkeypatch.setattr(vmj._sweep._store._CheckedField, "_chunk", lambda *a: read.append(a))
+    with pytest.raises(
+        ValueError,
+        match=r"SweepResult.columns\(\) of 35 points x 151 bytes: about 5.29e-06 GB, more than "
+        r"the 5e-06 GB free on cpu; write them to a file block by block with to_csv",
+    ):
+        lazy.columns()
+    assert read == []  # (refused before anything was read)
+    # 24 + 16 bytes a point of an in-memory result (its fields are the result's own)
+    monkeypatch.setattr(vmj._host, "available_memory", lambda device, enough: 1000)
+    with pytest.raises(ValueError, match=r"of 35 points x 40 bytes"):
+        vmj.SweepResult(
+            reference.values, reference.dims, reference.coords, reference.shape
+        ).columns()
 
 
 def test_paired_points_in_a_store_are_labelled_by_point(tmp_path):

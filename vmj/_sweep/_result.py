@@ -11,6 +11,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from .._checks import check_room
 from .._files import replacing
 
 __all__ = ["SweepResult"]
@@ -23,6 +24,16 @@ def _lazy(x) -> bool:
     """Whether `x` is a lazy array (dask's, as a sweep with a store returns): computed when
     asked, and read part by part."""
     return hasattr(x, "dask") and hasattr(x, "compute")
+
+
+def _loaded(leaf):
+    """`leaf` in memory: a lazy one read block by block into one array (never its blocks and
+    their concatenation side by side, as `np.asarray` holds them)."""
+    if not _lazy(leaf):
+        return leaf
+    out = np.empty(leaf.shape, leaf.dtype)
+    leaf.store(out, lock=False)
+    return out
 
 
 def _leaf_names(tree) -> list[str]:
@@ -108,9 +119,33 @@ class SweepResult:
     def columns(self) -> dict[str, np.ndarray]:
         """Flat columns, one row per point (C order): the parameters, then every field of
         `values`; a field with inner axes gives one column per entry, `name_1 ... name_n`
-        (1-based, as the turning points k). Loads the whole result (see `to_csv`, which
-        writes it block by block)."""
-        return self._columns(0, math.prod(self.shape), self._flat())
+        (1-based, as the turning points k). Loads the whole result: lazy values (read from a
+        store) are read chunk by chunk into their columns. Where the columns need more than
+        the free memory, they are refused before anything is read, with their size (see
+        `to_csv`, which writes them block by block, or compute a part or a reduction of
+        `values`)."""
+        n = math.prod(self.shape)
+        index = 8 * (len(self.shape) + 1)  # (np.unravel_index of np.arange(n))
+        params = sum(
+            np.asarray(self.coords[k]).dtype.itemsize
+            for k in (self.dims if self._is_grid else self.coords)
+        )
+        # the fields' bytes made anew: lazy ones read, in-memory ones copied where their
+        # points are not laid out in C order
+        fields = sum(
+            leaf.nbytes // n
+            for leaf in jax.tree.leaves(self.values)
+            if _lazy(leaf) or not np.asarray(leaf).flags.c_contiguous
+        )
+        check_room(
+            f"SweepResult.columns() of {n} points x {index + params + fields} bytes",
+            n * (index + params + fields),
+            "write them to a file block by block with to_csv(path), or compute only what you "
+            "need from values (lazy with a store: values['count'].sum().compute(), "
+            "values['positions'][..., 0].compute())",
+            jax.devices("cpu")[0],
+        )
+        return self._columns(0, n, [(name, _loaded(leaf)) for name, leaf in self._flat()])
 
     def _flat(self) -> list:
         """`(name, leaf)` for every field, each leaf with its points flattened on the first
@@ -258,21 +293,22 @@ class SweepResult:
         optional extra `vmj[distributed]`); `values` becomes a dict of field name to a lazy
         (dask) array read from the store, as `vmj.sweep(..., store=...)` returns them:
         `np.asarray` loads a field, `.compute()` a part of one, and the exports stream them.
-        Every chunk must be complete and match its checksum (each is read once, chunk by chunk,
-        to check it); an unfinished sweep is refused (resume it with `vmj.sweep(...,
-        store=path, resume=True)`)."""
-        from ._store import ChunkStore
+        Every chunk must be marked complete (an unfinished sweep is refused: resume it with
+        `vmj.sweep(..., store=path, resume=True)`); opening reads only these markers and the
+        chunks' checksums, and each chunk of a field is checked against its checksum when it
+        is read (one that does not match raises a ValueError naming it), so a store larger
+        than memory opens in the time of its markers."""
+        from ._store import DONE, ChunkStore
 
         st = ChunkStore.read_only(path, kind="sweep")
         meta = st.meta
         names = [f[0] for f in meta["fields"]]
-        missing = st.remaining(names)
+        missing = int(np.sum(st.status() != DONE))
         if missing:
             raise ValueError(
-                f"store {path!r} holds an unfinished sweep: {len(missing)} of "
-                f"{meta['n_chunks']} chunks are missing, failed or do not match "
-                f"their checksum; resume it with vmj.sweep(..., store={path!r}, "
-                f"resume=True)"
+                f"store {path!r} holds an unfinished sweep: {missing} of "
+                f"{meta['n_chunks']} chunks are missing or failed; resume it with "
+                f"vmj.sweep(..., store={path!r}, resume=True)"
             )
         return SweepResult(
             dict(zip(names, st.lazy(names))),

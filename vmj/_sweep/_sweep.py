@@ -620,12 +620,14 @@ def sweep(
       worker once; each worker compiles once. Results are the same, to the last bit, as
       in-process on the same kind of machine.
     - `store`: a path of a Zarr store (`"sweep.zarr"`): every finished chunk is written to it
-      as it completes (with a checksum and a completion marker), labelled like
+      as it completes (with a checksum per field and a completion marker), labelled like
       [`vmj.SweepResult.to_xarray`][], and dropped: the result is on disk, not in memory, so
       it may be larger than memory; the `values` returned are lazy (dask) arrays read from the
-      store (`np.asarray` loads one); [`vmj.SweepResult.read_zarr`][] opens it again.
+      store, each chunk checked against its checksums when read (`np.asarray` loads one);
+      [`vmj.SweepResult.read_zarr`][] opens it again.
     - `resume`: continue the sweep already in `store`: only the chunks not yet in it (or
-      whose data does not match their checksum) are computed. The store must hold the same
+      whose data does not match their checksums: every finished chunk is read once, one
+      field of one chunk at a time) are computed. The store must hold the same
       sweep (function, model parameters, solver arguments, shape, `chunk_size`); a different
       one is refused. Without `resume=True` an existing store is refused.
     - `**solver_args`: passed to `fn` unchanged at every point (e.g. `a0=0.06, n=12,
