@@ -646,16 +646,22 @@ def test_fits_solved_in_threads_at_once():
         assert a.params == b.params and a.intervals == b.intervals
 
 
-def _sensor_table(path):
-    """A table of 40 turning points read from a sensor whose zero is at 2 (omega 20 rad/s,
-    zeta 0.01, xF 0.05, a0 10; noise 1e-4 s and 0.02), with a logger's digits."""
+def _sensor_points(n):
+    """Times and positions of `n` turning points read from a sensor whose zero is at 2 (omega
+    20 rad/s, zeta 0.01, xF 0.05, a0 10; noise 1e-4 s and 0.02)."""
     osc = vmj.Oscillator(
         20.0, dissipation=(vmj.ViscousDamping(0.01), vmj.CoulombDamping(0.05, 0.05))
     )
-    seq = vmj.turning_points(osc, 10.0, 40)
+    seq = vmj.turning_points(osc, 10.0, n)
     rng = np.random.default_rng(1)
-    t = np.asarray(seq.times) + rng.normal(0, 1e-4, 40)
-    x = 2.0 + np.asarray(seq.positions) + rng.normal(0, 0.02, 40)
+    t = np.asarray(seq.times) + rng.normal(0, 1e-4, n)
+    return t, 2.0 + np.asarray(seq.positions) + rng.normal(0, 0.02, n)
+
+
+def _sensor_table(path):
+    """A table of 40 turning points read from the sensor (`_sensor_points`), with a logger's
+    digits."""
+    t, x = _sensor_points(40)
     path.write_text("time,position\n" + "".join(f"{a:.7f},{b:.6f}\n" for a, b in zip(t, x)))
     return fits.read_record(path)
 
@@ -691,13 +697,7 @@ def record_with_outliers():
     """30 turning points of the sensor's oscillator (omega 20 rad/s, zeta 0.01, xF 0.05, a0 10,
     zero at 2; noise 0.02 and 1e-4 s) with two positions 15 and 12 noise sd off and one time
     20 noise sd late."""
-    osc = vmj.Oscillator(
-        20.0, dissipation=(vmj.ViscousDamping(0.01), vmj.CoulombDamping(0.05, 0.05))
-    )
-    seq = vmj.turning_points(osc, 10.0, 30)
-    rng = np.random.default_rng(1)
-    t = np.asarray(seq.times) + rng.normal(0, 1e-4, 30)
-    x = 2.0 + np.asarray(seq.positions) + rng.normal(0, 0.02, 30)
+    t, x = _sensor_points(30)
     x[7] += 0.3
     x[18] -= 0.25
     t[12] += 2e-3
