@@ -539,8 +539,9 @@ SHARED_P = 1e-3
 
 def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
     """Whether the records of a joint fit (`joint`) share its shared parameters: the fit
-    against each record fitted alone (`alone`, one `_Assessed` per record, in order: its
-    parameters its own, the other records' weights 0; `fits._fit._alone`), the nested models compared by the extra sum of squares,
+    against each record fitted alone (`alone`, one `_Assessed` per record, in order: a problem
+    of that record, its parameters its own; `fits._fit._alone`), the nested models compared
+    by the extra sum of squares,
 
         F = ((RSS_joint - RSS_alone) / (q_alone - q_joint)) / (RSS_alone / (n - q_alone)),
 
@@ -590,12 +591,12 @@ def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
         own = a.prob
         # the joint residuals in units of the record's own noise scales (the weights differ
         # from the joint fit's by these factors alone: the robust weights are the same)
-        rx = r[i, 0] * prob.sx[i] / own.sx[i]
-        rt = r[i, 1] * prob.st[i] / own.st[i]
+        rx = r[i, 0] * prob.sx[i] / own.sx[0]
+        rt = r[i, 1] * prob.st[i] / own.st[0]
         rss_joint += float(rx @ rx + rt @ rt)
         rss_alone += a.job.rss
         q_alone += a.info["q"]
-        used_x, used_t = own.wx[i] > 0, own.wt[i] > 0
+        used_x, used_t = own.wx[0] > 0, own.wt[0] > 0
         shared_slots = [s for s, (name, _) in enumerate(a.job.slots) if name in prob.shared]
         records.append(
             {

@@ -60,9 +60,9 @@ def test_a_record_whose_fit_alone_failed_leaves_the_shared_test_undone(three, mo
     alone = fits._fit._alone
 
     def second_fails(*args, **kwargs):
-        probs, jobs = alone(*args, **kwargs)
+        probs, jobs, shape = alone(*args, **kwargs)
         jobs[1].out = {**jobs[1].out, "ok": False}  # as the solver's step limit leaves it
-        return probs, jobs
+        return probs, jobs, shape
 
     monkeypatch.setattr(fits._fit, "_alone", second_fails)
     r = joint(three)
@@ -101,3 +101,51 @@ def test_per_record_warnings_name_a_record_without_a_source(three):
     r = joint([three[0], rows])
     said = [w for w in r.warnings if "rows are read as successive half-swings" in w]
     assert len(said) == 1 and said[0].startswith("record 1: its rows"), said
+
+
+def test_the_joint_jacobian_matches_finite_differences(three):
+    """The Jacobian of a joint problem, each record differentiated along its own and the
+    shared slots only (`fits._solve._record_slots`: 5 of the 9 slots here), scattered into
+    the job's columns, against central differences of the residuals (relative step 1e-6;
+    tolerance 1e-5 relative, as `tests/test_fits_signal.py`'s one-record check), and a
+    record's columns of another record's slots are exactly 0."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from fits._fit import _init_weights, _make_job, _problem, _shape
+    from fits._models import SPACES
+    from fits._params import HELD
+    from fits._solve import _Data, _job_arrays, _residual_and_jacobian, _values
+
+    space = SPACES["oscillator"]
+    prob = _problem(space, three, [{}] * 3, FREE, SHARED)
+    job = _make_job(0, prob, space, "both", FREE, {}, {}, True)
+    settings = {"max_steps": 1, "optimizer": "lm", "forward": "exact"}
+    shape = _shape([job], [prob], settings, max(int(rec.k[-1]) for rec in three))
+    assert (shape.q, shape.qr) == (9, 5)
+    _init_weights(prob, shape.N, space)
+    arrays = _job_arrays(job, prob, shape)
+    p = jnp.asarray(arrays.pop("p"))
+    d = _Data(**{k: jnp.asarray(v) for k, v in arrays.items()})
+    n = shape.n_model
+    r, J = _residual_and_jacobian(space, "exact", n, p, d)
+    values = _values(d, p)
+    J = np.asarray(J)
+    for s in range(len(job.slots)):
+        h = 1e-6 * max(abs(float(values[s])), 1e-3)
+        at = [
+            eqx.tree_at(
+                lambda z: (z.code, z.held),
+                d,
+                (d.code.at[s].set(HELD), d.held.at[s].set(values[s] + e)),
+            )
+            for e in (h, -h)
+        ]
+        up, dn = (np.asarray(_residual_and_jacobian(space, "exact", n, p, a)[0]) for a in at)
+        np.testing.assert_allclose(
+            J[:, s], (up - dn) / (2 * h), rtol=1e-5, atol=1e-6 * np.max(np.abs(J[:, s]))
+        )
+        rr = job.slots[s][1]
+        if rr is not None:  # a record's own slot: nothing in the other records' rows
+            others = np.delete(J[:, s].reshape(3, -1), rr, axis=0)
+            assert np.all(others == 0), s
