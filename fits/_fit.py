@@ -259,12 +259,9 @@ class _Job:
     signs: list = None  # per record: sides assumed for amplitude-only data (a start hypothesis)
 
 
-def _make_job(
-    index, prob, space, label, free, hold, bounds, headline, fixed=None, start=None, only=None
-):
+def _make_job(index, prob, space, label, free, hold, bounds, headline, fixed=None, start=None):
     """A job of problem `index`; `fixed` and `start` (per record dicts) default to the
-    parameters' given or default values and the starting guess from the decrement estimate;
-    `only`: a record index, whose parameters alone are fitted (the others held at `start`)."""
+    parameters' given or default values and the starting guess from the decrement estimate."""
     R = len(prob.records)
     fixed = fixed or [
         _fixed_values(space, rec, free, {k: v for k, v in g.items() if k in space.names}, hold)
@@ -273,9 +270,7 @@ def _make_job(
     start = start or _starts(prob, space, free, fixed)
     slots = []
     for name in free:
-        if only is not None:
-            slots.append((name, only))
-        elif R == 1 or name in prob.shared:
+        if R == 1 or name in prob.shared:
             slots.append((name, None))
         else:
             slots.extend((name, r) for r in range(R))
@@ -808,7 +803,13 @@ def _shape(jobs, problems, settings, n_model) -> _Shape:
         amp_only = not all(rec.sides_known for rec in problems[j.problem].records)
         starts = 1 + any(_nested_in(a, j) for a in jobs) + amp_only * len(_HYPOTHESES)
         per_round[(len(j.slots), j.space)] = per_round.get((len(j.slots), j.space), 0) + starts
-    return _Shape(N, q, max(_bucket(n_model), 1), max(per_round.values()), settings)
+    # a record's slots: the shared ones and its own (`fits._solve._record_slots`)
+    qr = max(
+        sum(1 for _, r in j.slots if r is None or r == i)
+        for j in jobs
+        for i in range(len(problems[j.problem].records))
+    )
+    return _Shape(N, q, max(_bucket(n_model), 1), max(per_round.values()), settings, qr)
 
 
 def _pass_count(problems, settings) -> int:
@@ -898,21 +899,28 @@ def _series_stage(problems, jobs, bounds, settings):
 def _alone(prob, lead, bounds, shape):
     """Each record of a joint problem fitted alone: `lead`'s model (its law set, fixed and
     held values) with every parameter free for that record, started from the joint solution
-    and solved by Levenberg-Marquardt (exact minima, as the profiles). Job `i` keeps the joint
-    problem's records and shape (the same compiled solve as the joint fit's and its profiles')
-    with the other records' weights 0. The records keep the joint fit's robust weights and
-    times' precisions; their positions' and times' noise scales are re-estimated from their
-    own fits (between two solves): the scales against which `fits._result.shared_test`
-    measures both fits. Returns per record its problem and job."""
+    and solved by Levenberg-Marquardt (exact minima, as the profiles). Each is a problem of
+    one record (its forward model alone in each solve), all of them one compiled solve of the
+    joint records' length. (Until 2026-11-29 each kept the joint problem's records, the
+    others' weights 0, in the joint fit's compiled solve: every solve of a record alone ran
+    every record's forward model.) The records keep the joint fit's robust weights and times'
+    precisions; their positions' and times' noise scales are re-estimated from their own fits
+    (between two solves): the scales against which `fits._result.shared_test` measures both
+    fits. Returns per record its problem and job, and their shape."""
     probs, jobs = [], []
     start = _values_of(lead)
     bounds = {k: v for k, v in bounds.items() if k in lead.space.names}
-    R = len(prob.records)
-    for i in range(R):
-        one = dataclasses.replace(prob, shared=())
-        for name in ("robust_x", "robust_t"):  # (the other records: weight 0)
-            setattr(one, name, [np.copy(v) * (j == i) for j, v in enumerate(getattr(prob, name))])
-        one.sx, one.st, one.tw = list(prob.sx), list(prob.st), list(prob.tw)
+    for i, rec in enumerate(prob.records):
+        one = _Problem(
+            [rec],
+            [prob.givens[i]],
+            prob.free,
+            (),
+            [prob.decs[i]],
+            turning=None if prob.turning is None else [prob.turning[i]],
+        )
+        one.robust_x, one.robust_t = [np.copy(prob.robust_x[i])], [np.copy(prob.robust_t[i])]
+        one.sx, one.st, one.tw = [prob.sx[i]], [prob.st[i]], [prob.tw[i]]
         _set_weights(one, shape.N)
         probs.append(one)
         jobs.append(
@@ -925,16 +933,17 @@ def _alone(prob, lead, bounds, shape):
                 lead.hold,
                 bounds,
                 True,
-                fixed=[dict(f) for f in lead.fixed],
-                start=[dict(v) for v in start],
-                only=i,
+                fixed=[dict(lead.fixed[i])],
+                start=[dict(start[i])],
             )
         )
+    q = len(jobs[0].slots)
+    shape = dataclasses.replace(shape, q=q, qr=q, B=min(len(jobs), shape.B))
     _fit_jobs(jobs, probs, shape, optimizer="lm")
     for one, job in zip(probs, jobs):
         _reweight(one, job, "l2", shape.N)  # (the scales alone: the robust weights kept)
     _fit_jobs(jobs, probs, shape, optimizer="lm")
-    return probs, jobs
+    return probs, jobs, shape
 
 
 def _check_shared(assessed, bounds, shape) -> list:
@@ -946,8 +955,8 @@ def _check_shared(assessed, bounds, shape) -> list:
         if len(a.prob.records) < 2 or not a.prob.shared:
             out.append(None)
             continue
-        probs, alone = _alone(a.prob, a.job, bounds, shape)
-        out.append(shared_test(a, [_assess(j, p, shape) for j, p in zip(alone, probs)], shape.N))
+        probs, alone, one = _alone(a.prob, a.job, bounds, shape)
+        out.append(shared_test(a, [_assess(j, p, one) for j, p in zip(alone, probs)], shape.N))
     return out
 
 

@@ -283,7 +283,12 @@ def text_report(result: FitResult) -> str:
                 )
             )
     test = diag.get("shared") if diag else None
-    if test:
+    if test and not test.get("tested", True):
+        lines.append(
+            f"  shared ({', '.join(test['parameters'])}) not tested against each record alone: "
+            f"{test['reason']}"
+        )
+    elif test:
         lines.append(
             f"  shared ({', '.join(test['parameters'])}) against each record alone: F = "
             f"{test['F']:.3g} on ({test['df'][0]}, {test['df'][1]}), p {_p(test['p'])}"
@@ -344,7 +349,7 @@ def _used(job, prob, N):
             if sel.size:
                 idx.append(sel)
                 blocks.append(slice(at, at + sel.size))
-                names.append(f"the {what[kind]} of {prob.records[r].source or f'record {r}'}")
+                names.append(f"the {what[kind]} of {record_name(prob.records[r], r)}")
                 at += sel.size
     return np.concatenate(idx), blocks, names
 
@@ -534,8 +539,9 @@ SHARED_P = 1e-3
 
 def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
     """Whether the records of a joint fit (`joint`) share its shared parameters: the fit
-    against each record fitted alone (`alone`, one `_Assessed` per record, in order: its
-    parameters its own, the other records' weights 0; `fits._fit._alone`), the nested models compared by the extra sum of squares,
+    against each record fitted alone (`alone`, one `_Assessed` per record, in order: a problem
+    of that record, its parameters its own; `fits._fit._alone`), the nested models compared
+    by the extra sum of squares,
 
         F = ((RSS_joint - RSS_alone) / (q_alone - q_joint)) / (RSS_alone / (n - q_alone)),
 
@@ -549,21 +555,48 @@ def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
     its joint residuals' RMS in units of its own noise scales (`scale`: about 1 where it
     shares the parameters), and per shared parameter the spread of the values alone (`spread`:
     `sum (v_i - mean)^2 / se_i^2` about their weighted mean, chi-square on the records less
-    one); `message` where rejected. None where nothing can be tested (no degree of freedom)."""
+    one); `message` where rejected.
+
+    Where the test cannot be done, `tested` is False (True otherwise), `F`, `df`, `p` and
+    `rejected` are absent and `reason` says why: a record's fit alone that did not converge
+    (its solver's step limit, values that are not finite, or a Jacobian without full rank: its
+    residual sum of squares is then no minimum, and F would measure the failure), or records
+    whose fits alone leave no degree of freedom to test with (`q_alone - q_joint < 1`: sharing
+    takes no parameter; `n - q_alone < 1`: each record's own parameters fit its data
+    exactly)."""
     prob, job = joint.prob, joint.job
     R = len(prob.records)
+    failed = [
+        f"{record_name(prob.records[i], i)}: "
+        + (
+            "its solver did not converge (step limit or no progress)"
+            if not a.job.out["ok"]
+            else "its residuals are not finite"
+            if not math.isfinite(a.job.rss)
+            else "its Jacobian is rank-deficient (its parameters are not all determined by "
+            "its data alone)"
+        )
+        for i, a in enumerate(alone)
+        if not (a.job.out["ok"] and math.isfinite(a.job.rss) and a.full_rank)
+    ]
+    if failed:
+        return _untested(
+            prob,
+            "a record fitted alone failed (" + "; ".join(failed) + "): the extra sum of "
+            "squares would measure that failure, not whether the records share them",
+        )
     r = np.asarray(job.out["r"], dtype=float).reshape(R, 2, N)
     rss_joint, rss_alone, q_alone, records = 0.0, 0.0, 0, []
     for i, a in enumerate(alone):
         own = a.prob
         # the joint residuals in units of the record's own noise scales (the weights differ
         # from the joint fit's by these factors alone: the robust weights are the same)
-        rx = r[i, 0] * prob.sx[i] / own.sx[i]
-        rt = r[i, 1] * prob.st[i] / own.st[i]
+        rx = r[i, 0] * prob.sx[i] / own.sx[0]
+        rt = r[i, 1] * prob.st[i] / own.st[0]
         rss_joint += float(rx @ rx + rt @ rt)
         rss_alone += a.job.rss
         q_alone += a.info["q"]
-        used_x, used_t = own.wx[i] > 0, own.wt[i] > 0
+        used_x, used_t = own.wx[0] > 0, own.wt[0] > 0
         shared_slots = [s for s, (name, _) in enumerate(a.job.slots) if name in prob.shared]
         records.append(
             {
@@ -581,8 +614,19 @@ def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
         )
     n, q_joint = joint.info["n"], joint.info["q"]
     df1, df2 = q_alone - q_joint, n - q_alone
-    if df1 < 1 or df2 < 1 or not (math.isfinite(rss_alone) and rss_alone > 0):
-        return None
+    if df1 < 1:
+        return _untested(
+            prob,
+            f"the records fitted alone move {q_alone} parameters and clock shifts, the joint "
+            f"fit {q_joint}: sharing takes no degree of freedom to test",
+        )
+    if df2 < 1 or not rss_alone > 0:
+        return _untested(
+            prob,
+            f"the records fitted alone leave no residual degree of freedom ({n} residuals, "
+            f"{q_alone} parameters and clock shifts): each fits its own data exactly, and "
+            "nothing measures the noise against which sharing would be judged",
+        )
     inflation = max(max(a.inflation for a in alone), 1.0)
     F = max((rss_joint - rss_alone) / df1, 0.0) / (rss_alone / df2)
     p = f_sf(F / inflation, df1, df2)
@@ -603,6 +647,7 @@ def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
         }
     out = {
         "parameters": list(prob.shared),
+        "tested": True,
         "F": F,
         "df": [int(df1), int(df2)],
         "inflation": inflation,
@@ -616,10 +661,27 @@ def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
     return out
 
 
+def _untested(prob, reason: str) -> dict:
+    """`shared_test`'s evidence where the test cannot be done: why, and the warning saying so
+    (`message`)."""
+    return {
+        "parameters": list(prob.shared),
+        "tested": False,
+        "reason": reason,
+        "message": f"the shared parameters ({', '.join(prob.shared)}) are not tested against "
+        f"each record fitted alone: {reason}",
+    }
+
+
+def record_name(rec: Record, i: int) -> str:
+    """How messages name record `i` of a fit: its source (the file), else `record i`."""
+    return rec.source or f"record {i}"
+
+
 def _disagreement(joint: _Assessed, test: dict) -> str:
     """The warning of a joint fit that `shared_test` rejects: the values of the records fitted
     alone, their residuals in the joint fit against their own noise, and the test."""
-    space, records = joint.job.space, test["records"]
+    space, records, prob = joint.job.space, test["records"], joint.prob
     shared_est = dict(zip(joint.names, joint.est))
     spread = test["spread"]
     names = [nm for nm, sp in spread.items() if sp["p"] < SHARED_P] or list(test["parameters"])
@@ -629,7 +691,7 @@ def _disagreement(joint: _Assessed, test: dict) -> str:
         values = ", ".join(
             f"{rec['params'][name]:.6g}"
             + ("" if rec["stderr"].get(name) is None else f" +- {rec['stderr'][name]:.2g}")
-            + f" ({rec['source'] or f'record {i}'})"
+            + f" ({record_name(prob.records[i], i)})"
             for i, rec in enumerate(records)
             if name in rec["params"]
         )
@@ -663,12 +725,13 @@ def _disagreement(joint: _Assessed, test: dict) -> str:
     )
 
 
-def _steepening(rec: Record) -> str | None:
+def _steepening(rec: Record, name: str | None = None) -> str | None:
     """A warning where `rec`'s amplitudes fall faster later than earlier (the mean decrement
     over windows of an even number of half-swings, so that the sides' asymmetry cancels, rises
     by more than 5 of its standard errors from one window to the next), which no free decay of
     a space with `constant_laws` does: an oscillation held steady (forced) before the release,
-    say."""
+    say. `name`: the record's name in the message (default `record_name(rec, 0)`)."""
+    name = name or record_name(rec, 0)
     skip = 1 if rec.meta.get("release") else 0  # a release located from one side: no datum
     a = rec.amplitudes[skip:]
     width = max(4, 2 * (a.size // 16))
@@ -684,7 +747,7 @@ def _steepening(rec: Record) -> str | None:
         return None
     k = int(rec.k[skip + (rises[0] + 1) * width])
     return (
-        f"{rec.source}: its amplitudes fall faster after turning point k = {k} than before it "
+        f"{name}: its amplitudes fall faster after turning point k = {k} than before it "
         f"({drops[rises[0] + 1]:.3g} against {drops[rises[0]]:.3g} per half-swing), which no "
         f"free decay of this model does: an oscillation held or forced before the release? "
         f"Fit the free decay alone (--window START:, read_record(window=...))"
@@ -694,11 +757,12 @@ def _steepening(rec: Record) -> str | None:
 def _decays_left_out(records) -> list:
     """A warning per signal of several free decays of which the fit leaves some out."""
     taken, starts = {}, {}
-    for rec in records:
+    for i, rec in enumerate(records):
         decays = rec.meta.get("decays")
-        if decays:
-            taken.setdefault(rec.source, set()).add(decays["index"])
-            starts[rec.source] = decays["starts"]
+        if decays:  # (records of one signal have its source; without one, each is its own)
+            name = record_name(rec, i)
+            taken.setdefault(name, set()).add(decays["index"])
+            starts[name] = decays["starts"]
     out = []
     for source, indices in taken.items():
         if len(indices) < len(starts[source]):
@@ -728,7 +792,7 @@ def _sensor_hints(records, per_record, space, free) -> list:
     amplitude explains at least half of its variance, and only for a parameter the model has
     and the fit left out."""
     out = []
-    for rec, one in zip(records, per_record):
+    for i, (rec, one) in enumerate(zip(records, per_record)):
         x = np.asarray(one["residuals"]["position"], dtype=float)
         if rec.times is None or x.size < 8:
             continue
@@ -742,7 +806,7 @@ def _sensor_hints(records, per_record, space, free) -> list:
         (in_time, slope), (in_amplitude, _) = _line(t, shared), _line(a, shared)
         if max(in_time, in_amplitude) < 0.5:
             continue
-        of = f"{rec.source}: " if rec.source else ""
+        of = f"{record_name(rec, i)}: "
         if in_time > in_amplitude and "drift" in space.names and "drift" not in free:
             out.append(
                 f"{of}the residuals' mean over successive turning points drifts with "
@@ -910,36 +974,37 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends, shared=None):
             )
         intervals[nm] = (float(lo), float(hi))
     warn += _decays_left_out(prob.records)
-    for rec, peaks in zip(prob.records, prob.turning or prob.records):
+    for i, (rec, peaks) in enumerate(zip(prob.records, prob.turning or prob.records)):
+        name = record_name(rec, i)
         # (a series fit's: of its turning points; its samples' "amplitudes" rise and fall
         # within every swing, and a clean free decay was told it was forced)
-        steeper = _steepening(peaks) if space.constant_laws else None
+        steeper = _steepening(peaks, name) if space.constant_laws else None
         if steeper:
             warn.append(steeper)
         if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:
             warn.append(
-                f"{rec.source}: its rows are read as successive half-swings (both sides' peaks "
+                f"{name}: its rows are read as successive half-swings (both sides' peaks "
                 f"in turn); a table of one side's peaks (one per period) needs a 'cycle' "
                 f"column: read as half-swings, it gives half the frequency and twice the "
                 f"damping"
             )
         if "length_unit" in rec.meta:
             warn.append(
-                f"{rec.source}: its positions are in {rec.meta['length_unit']} (the column "
+                f"{name}: its positions are in {rec.meta['length_unit']} (the column "
                 f"{value_name(rec)!r}): converted to m, the model's unit (a0, offset and the "
                 f"friction are in SI units)"
             )
         faster = rec.meta.get("faster")
         if faster:
             warn.append(
-                f"{rec.source}: a faster oscillation rides on the signal ({1 / faster['period']:.4g}"
+                f"{name}: a faster oscillation rides on the signal ({1 / faster['period']:.4g}"
                 f" Hz, amplitude about {faster['amplitude']:.3g}: mains hum? a higher mode?): "
                 f"the turning points were found without it and located with it fitted beside them"
             )
         levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
         if levels:
             warn.append(
-                f"{rec.source}: the signal is clipped at {' and '.join(levels)} (a saturated "
+                f"{name}: the signal is clipped at {' and '.join(levels)} (a saturated "
                 f"sensor): the extrema cut off there are left out of the fit"
             )
     structured = bool(diag["warnings"])
@@ -947,7 +1012,9 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends, shared=None):
     diag = {**diag, "warnings": warn}
     if shared is not None:  # a joint fit's shared parameters tested against each record alone
         diag["shared"] = {k: v for k, v in shared.items() if k != "message"}
-        if shared["rejected"]:
+        if not shared["tested"]:
+            warn.append(shared["message"])
+        elif shared["rejected"]:
             warn.insert(0, shared["message"])
             converged = False
     # per-record residuals in data units

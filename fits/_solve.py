@@ -72,6 +72,7 @@ class _Data(eqx.Module):
     absval: jax.Array  # (R,) 1 for amplitude-only records
     fixed: jax.Array  # (R, P) parameter values
     M: jax.Array  # (q, R, P) 1 where slot s sets parameter p of record r
+    E: jax.Array  # (R, qr, q) 1 where record r's local slot j is slot s (`_record_slots`)
     code: jax.Array  # (q,) transform code of each slot (fits._params), HELD: not moved
     lo: jax.Array  # (q,) bounds of each slot
     hi: jax.Array
@@ -93,7 +94,7 @@ def _align_clocks(r, J, wt):
     """The time residuals `r` and their Jacobian `J` on each record's clock shifted to align
     best with the model's: the weighted mean time residual removed, `r_t - wt (wt . r_t) /
     (wt . wt)` per record (a projection off the weights' direction; `J` likewise), nothing
-    for a record without timed points. `r` `(R * 2N,)` and `J` `(R * 2N, q)` as `_residual`
+    for a record without timed points. `r` `(R * 2N,)` and `J` `(R * 2N, q)` as `_residual_and_jacobian_impl`
     makes them, `wt` `(R, N)` the times' weights.
 
     A record's times are measured from its release, but the release's time is no better known
@@ -118,56 +119,66 @@ def _align_clocks(r, J, wt):
     return both[:, -1], both[:, :-1]
 
 
-def _residual(space, forward, n, theta, d: _Data):
-    """Weighted residuals `(R * 2N,)`: per record the positions, then the times (from the
-    record's release; `_align_clocks` aligns the clocks). A series space compares the
-    motion at the sample times `t` (shifted by `t0`) with the samples `x`; its time residuals
-    are zero."""
-
-    def one(th_row, k, x, t, wx, wt, orient, absval):
-        th = theta_dict(space, th_row)
-        if space.series:
-            y = space.motion(th, t - th["t0"], n, forward)
-        else:
-            times, y = space.predict(th, n, forward)
-            y, tk = y[k], times[k]
-        oy = orient * y
-        gain = orient * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else orient
-        dev = gain * y
-        offset = th["offset"] if "offset" in th else 0.0
-        if "drift" in th:  # the sensor's zero drifting, on the record's clock
-            offset = offset + th["drift"] * t
-        px = jnp.where(absval > 0, jnp.abs(dev), offset + dev)
-        if space.series:
-            dt = jnp.zeros_like(t)
-        else:
-            if "drift" in th:  # the reading turns where drift + gain y' = 0, not where y' = 0
-                slope = th["drift"] / jnp.where(gain != 0, gain, 1.0)
-                tk = tk + space.extremum_shift(th, tk, y, slope)
-            dt = tk - t
-        return jnp.concatenate([wx * (px - x), wt * dt])
-
-    rows = (theta, d.k, d.x, d.t, d.wx, d.wt, d.orient, d.absval)
-    if theta.shape[0] == 1:  # one record: no `vmap` over a batch of one (a batching pass of
-        return one(*(a[0] for a in rows))  # the whole forward model, about 0.5 s of tracing)
-    return jax.vmap(one)(*rows).reshape(-1)
+def _record_residual(space, forward, n, th_row, k, x, t, wx, wt, orient, absval):
+    """One record's weighted residuals `(2N,)`: its positions, then its times (from the
+    record's release; `_align_clocks` aligns the clocks), at parameter values `th_row` (P,).
+    A series space compares the motion at the sample times `t` (shifted by `t0`) with the
+    samples `x`; its time residuals are zero."""
+    th = theta_dict(space, th_row)
+    if space.series:
+        y = space.motion(th, t - th["t0"], n, forward)
+    else:
+        times, y = space.predict(th, n, forward)
+        y, tk = y[k], times[k]
+    oy = orient * y
+    gain = orient * (1 + th["asym"] * jnp.sign(oy)) if "asym" in th else orient
+    dev = gain * y
+    offset = th["offset"] if "offset" in th else 0.0
+    if "drift" in th:  # the sensor's zero drifting, on the record's clock
+        offset = offset + th["drift"] * t
+    px = jnp.where(absval > 0, jnp.abs(dev), offset + dev)
+    if space.series:
+        dt = jnp.zeros_like(t)
+    else:
+        if "drift" in th:  # the reading turns where drift + gain y' = 0, not where y' = 0
+            slope = th["drift"] / jnp.where(gain != 0, gain, 1.0)
+            tk = tk + space.extremum_shift(th, tk, y, slope)
+        dt = tk - t
+    return jnp.concatenate([wx * (px - x), wt * dt])
 
 
 def _residual_and_jacobian_impl(space, forward, n, p, d):
-    """Residuals at `p` and their Jacobian with respect to the slot values (in the parameters'
-    units), from one forward-mode pass, the records' clocks aligned (`_align_clocks`).
-    Wrapping it as a `custom_jvp` whose tangent is that materialised Jacobian keeps the
-    solvers from tracing (and compiling) the forward model again for linearisation and
-    transposition: one compiled Jacobian serves the Levenberg-Marquardt steps, Adam's
-    gradients and the standard errors."""
-    val = _values(d, p)
+    """Residuals `(R * 2N,)` at `p` and their Jacobian `(R * 2N, q)` with respect to the slot
+    values (in the parameters' units), from one forward-mode pass, the records' clocks
+    aligned (`_align_clocks`). Wrapping it as a `custom_jvp` whose tangent is that
+    materialised Jacobian keeps the solvers from tracing (and compiling) the forward model
+    again for linearisation and transposition: one compiled Jacobian serves the
+    Levenberg-Marquardt steps, Adam's gradients and the standard errors.
 
-    def r_of(v):
-        r = _residual(space, forward, n, _place(d, v), d)
-        return r, r
+    Each record's pass carries a tangent per slot that sets one of its parameters (`d.E`, qr
+    of them: the shared slots and its own), not one per slot of the job: a joint fit's
+    records, each with its own sensor and release, otherwise each differentiated their
+    forward model along every other record's slots too, whose columns are zero (three
+    pendulum records on their samples, 9 slots each of 17: 17 tangents a record where 9
+    matter)."""
+    theta = _place(d, _values(d, p))  # (R, P)
+    local = jnp.einsum("rjs,srp->rjp", d.E, d.M)  # (R, qr, P): a record's slots' parameters
 
-    J, r = jax.jacfwd(r_of, has_aux=True)(val)
-    return _align_clocks(r, J, d.wt)
+    def one(th_row, loc, *row):
+        def r_of(u):
+            r = _record_residual(space, forward, n, th_row + u @ loc, *row)
+            return r, r
+
+        return jax.jacfwd(r_of, has_aux=True)(jnp.zeros(loc.shape[0], th_row.dtype))
+
+    rows = (theta, local, d.k, d.x, d.t, d.wx, d.wt, d.orient, d.absval)
+    if theta.shape[0] == 1:  # one record: no `vmap` over a batch of one (a batching pass of
+        J, r = one(*(a[0] for a in rows))  # the whole forward model, about 0.5 s of tracing)
+        J, r = J[None], r[None]
+    else:
+        J, r = jax.vmap(one)(*rows)  # (R, 2N, qr), (R, 2N)
+    J = jnp.einsum("rnj,rjs->rns", J, d.E).reshape(-1, d.E.shape[2])
+    return _align_clocks(r.reshape(-1), J, d.wt)
 
 
 # (an inner `jit`, called in one trace context (`_NO_MESH` in `_solve_lm`): every call of it
@@ -356,6 +367,7 @@ class _Shape:
     n_model: int  # turning points predicted
     B: int  # jobs per compiled solve
     settings: dict
+    qr: int | None = None  # slots per record, its own and the shared (`_record_slots`; None: q)
 
 
 def _job_arrays(job, prob, shape) -> dict:
@@ -403,6 +415,7 @@ def _job_arrays(job, prob, shape) -> dict:
         ),
         fixed=fixed,
         M=M,
+        E=_record_slots(job, R, shape),
         code=np.concatenate([job.code, np.full(pad, HELD)]),
         lo=lo,
         hi=hi,
@@ -410,6 +423,19 @@ def _job_arrays(job, prob, shape) -> dict:
         held=np.concatenate([job.held, np.zeros(pad)]),
         p=np.concatenate([job.p, np.zeros(pad)]),
     )
+
+
+def _record_slots(job, R, shape) -> np.ndarray:
+    """`(R, qr, q)`: row `j` of record `r` picks the slot that is the record's `j`-th own or
+    shared one (held slots too: their columns give a bound's one-sided limit; rows past the
+    record's slots are zero)."""
+    q = shape.q
+    qr = q if shape.qr is None else shape.qr
+    E = np.zeros((R, qr, q))
+    for r in range(R):
+        mine = [s for s, (_, rr) in enumerate(job.slots) if rr is None or rr == r]
+        E[r, np.arange(len(mine)), mine] = 1.0
+    return E
 
 
 def _solve(space, items, shape, optimizer=None):
