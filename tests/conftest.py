@@ -15,8 +15,10 @@ jax.config.update("jax_cpu_enable_async_dispatch", False)
 # snippets and the commands' processes compile many small ones that the suite has compiled
 # already (the suite on 2 cores, the same tree, one run each: 570 s with programs of 1 s of
 # compiling and more kept, 500 s with all kept)
-CACHE = os.path.join(os.path.dirname(__file__), "..", ".pytest_cache", "jax")
-os.environ.setdefault("VMJ_CACHE_DIR", CACHE)
+# (VMJ_CACHE_DIR, where set, names another directory: an empty one measures a fresh clone's run)
+CACHE = os.environ.setdefault(
+    "VMJ_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".pytest_cache", "jax")
+)
 jax.config.update("jax_compilation_cache_dir", CACHE)
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 
@@ -31,18 +33,18 @@ sys.path.insert(0, os.path.dirname(__file__))  # tests/scipy_reference.py
 
 
 def pytest_xdist_make_scheduler(config, log):
-    """`--dist loadfile`, except that each page of tests/test_docs.py is its own unit of work:
-    a page's snippets run in their own process and share nothing with the file's other tests,
-    and the file as one unit (five minutes of a cold run) was the last to finish on its worker.
-    (xdist sends the units with the most tests first, so the pages fill in at the end.)"""
+    """`--dist loadfile`, the documentation's file sent first: tests/test_docs.py runs every
+    page in one process (a minute and more of a cold run, from a file of few tests), and xdist
+    sends the files with the most tests first, so that it came last and finished last on its
+    worker."""
     if config.getvalue("dist") != "loadfile":
         return None
     from xdist.scheduler import LoadFileScheduling
 
-    class PagesApart(LoadFileScheduling):
-        def _split_scope(self, nodeid):
-            if nodeid.startswith("tests/test_docs.py::") and "[" in nodeid:
-                return nodeid
-            return super()._split_scope(nodeid)
+    class DocumentationFirst(LoadFileScheduling):
+        def _assign_work_unit(self, node):
+            if "tests/test_docs.py" in self.workqueue:
+                self.workqueue.move_to_end("tests/test_docs.py", last=False)
+            super()._assign_work_unit(node)
 
-    return PagesApart(config, log)
+    return DocumentationFirst(config, log)

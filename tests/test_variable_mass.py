@@ -251,6 +251,20 @@ def test_smoothed_lanes_do_not_depend_on_their_batch():
     assert len(counts) > 1  # lanes that stop after different numbers of swings
 
 
+def value_and_jacrev(f):
+    """`f`'s value and its reverse-mode Jacobian (`jax.jacrev`'s: the pullback of each unit
+    vector) from one compiled program: central differences take their values from the program
+    that gave the Jacobian, one compilation where a second, of `f` alone, took seconds more."""
+
+    @jax.jit
+    def both(theta):
+        y, pullback = jax.vjp(f, theta)
+        (jac,) = jax.vmap(pullback)(jnp.eye(y.size, dtype=y.dtype))
+        return y, jac
+
+    return both
+
+
 @pytest.mark.slow  # 9 s of compiling the reverse pass
 def test_smoothed_gradients_match_central_differences():
     """d x_k / d(F, mu, eps, delta) and d t_k / d(...) of the smoothed turning points (reverse
@@ -266,9 +280,10 @@ def test_smoothed_gradients_match_central_differences():
         return jnp.concatenate([seq.positions, seq.times])
 
     theta = jnp.array((14.7, 9.0, 0.7, -3.0))
-    rev = jax.jit(jax.jacrev(positions))(theta)
+    both = value_and_jacrev(positions)
+    rev = both(theta)[1]
     h = 1e-4 * jnp.maximum(1.0, jnp.abs(theta))
-    values = jax.jit(jax.vmap(positions))(theta + jnp.concatenate([jnp.diag(h), -jnp.diag(h)]))
+    values = jnp.stack([both(p)[0] for p in theta + jnp.concatenate([jnp.diag(h), -jnp.diag(h)])])
     fd = ((values[:4] - values[4:]) / (2 * h[:, None])).T
     error = jnp.abs(rev - fd) / jnp.max(jnp.abs(fd), axis=0)
     print(f"positions: {float(error[:4].max()):.1e}, times: {float(error[4:].max()):.1e}")
@@ -311,10 +326,11 @@ def test_gradients_match_central_differences(law, theta):
     against central finite differences (h = 1e-5 relative): agreement to 1e-7 of each column's
     scale."""
     theta = jnp.array(theta)
-    rev = jax.jit(jax.jacrev(_positions), static_argnums=1)(theta, law)
+    both = value_and_jacrev(lambda th: _positions(th, law))
+    rev = both(theta)[1]
     h = 1e-5 * jnp.maximum(1.0, jnp.abs(theta))
     steps = jnp.concatenate([jnp.diag(h), -jnp.diag(h)])
-    values = jax.jit(jax.vmap(_positions, in_axes=(0, None)), static_argnums=1)(theta + steps, law)
+    values = jnp.stack([both(p)[0] for p in theta + steps])
     fd = ((values[:4] - values[4:]) / (2 * h[:, None])).T
     scale = jnp.max(jnp.abs(fd), axis=0)
     print(
@@ -455,7 +471,9 @@ def test_release_when_friction_falls_with_the_mass():
     use_f=st.booleans(),
 )
 def test_decay_sequence_invariants(m0, c, delta, eps, mu, F, f, use_f):
-    args = [jnp.full(16, v) for v in (m0, c, delta, eps, mu, F, f, use_f)]
+    # (NumPy arrays: the dtypes of test_exact_matches_scipy_event_integration's call, so that
+    # both run one compiled program; `jnp.full` of a Python number is weakly typed, another one)
+    args = [jnp.asarray(np.full(16, v)) for v in (m0, c, delta, eps, mu, F, f, use_f)]
     seq = jax.tree.map(lambda x: x[0], batch_exact(*args))
     n = int(seq.count)
     t = np.asarray(seq.times)
