@@ -806,7 +806,8 @@ def _sensor_hints(records, per_record, space, free) -> list:
         (in_time, slope), (in_amplitude, _) = _line(t, shared), _line(a, shared)
         if max(in_time, in_amplitude) < 0.5:
             continue
-        of = f"{record_name(rec, i)}: "
+        # (a record of a fit alone, without a source, is not named)
+        of = f"{record_name(rec, i)}: " if rec.source or len(records) > 1 else ""
         if in_time > in_amplitude and "drift" in space.names and "drift" not in free:
             out.append(
                 f"{of}the residuals' mean over successive turning points drifts with "
