@@ -537,7 +537,7 @@ def _assess(job, prob, shape) -> _Assessed:
 SHARED_P = 1e-3
 
 
-def shared_test(joint: _Assessed, alone: list, N: int) -> dict | None:
+def shared_test(joint: _Assessed, alone: list, N: int) -> dict:
     """Whether the records of a joint fit (`joint`) share its shared parameters: the fit
     against each record fitted alone (`alone`, one `_Assessed` per record, in order: a problem
     of that record, its parameters its own; `fits._fit._alone`), the nested models compared
@@ -678,6 +678,12 @@ def record_name(rec: Record, i: int) -> str:
     return rec.source or f"record {i}"
 
 
+def _about(rec: Record, i: int, count: int) -> str:
+    """The `name: ` in front of a warning about record `i` of a fit of `count` records; none
+    for the one record of a fit without a source (there is no other to tell it from)."""
+    return f"{record_name(rec, i)}: " if rec.source or count > 1 else ""
+
+
 def _disagreement(joint: _Assessed, test: dict) -> str:
     """The warning of a joint fit that `shared_test` rejects: the values of the records fitted
     alone, their residuals in the joint fit against their own noise, and the test."""
@@ -725,13 +731,14 @@ def _disagreement(joint: _Assessed, test: dict) -> str:
     )
 
 
-def _steepening(rec: Record, name: str | None = None) -> str | None:
+def _steepening(rec: Record, of: str | None = None) -> str | None:
     """A warning where `rec`'s amplitudes fall faster later than earlier (the mean decrement
     over windows of an even number of half-swings, so that the sides' asymmetry cancels, rises
     by more than 5 of its standard errors from one window to the next), which no free decay of
     a space with `constant_laws` does: an oscillation held steady (forced) before the release,
-    say. `name`: the record's name in the message (default `record_name(rec, 0)`)."""
-    name = name or record_name(rec, 0)
+    say. `of`: the record's name in front of the message (`_about`; default: as the one record
+    of a fit)."""
+    of = _about(rec, 0, 1) if of is None else of
     skip = 1 if rec.meta.get("release") else 0  # a release located from one side: no datum
     a = rec.amplitudes[skip:]
     width = max(4, 2 * (a.size // 16))
@@ -747,7 +754,7 @@ def _steepening(rec: Record, name: str | None = None) -> str | None:
         return None
     k = int(rec.k[skip + (rises[0] + 1) * width])
     return (
-        f"{name}: its amplitudes fall faster after turning point k = {k} than before it "
+        f"{of}its amplitudes fall faster after turning point k = {k} than before it "
         f"({drops[rises[0] + 1]:.3g} against {drops[rises[0]]:.3g} per half-swing), which no "
         f"free decay of this model does: an oscillation held or forced before the release? "
         f"Fit the free decay alone (--window START:, read_record(window=...))"
@@ -806,8 +813,7 @@ def _sensor_hints(records, per_record, space, free) -> list:
         (in_time, slope), (in_amplitude, _) = _line(t, shared), _line(a, shared)
         if max(in_time, in_amplitude) < 0.5:
             continue
-        # (a record of a fit alone, without a source, is not named)
-        of = f"{record_name(rec, i)}: " if rec.source or len(records) > 1 else ""
+        of = _about(rec, i, len(records))
         if in_time > in_amplitude and "drift" in space.names and "drift" not in free:
             out.append(
                 f"{of}the residuals' mean over successive turning points drifts with "
@@ -976,36 +982,36 @@ def _result(assessed: _Assessed, jobs, shape, outlier_sigma, ends, shared=None):
         intervals[nm] = (float(lo), float(hi))
     warn += _decays_left_out(prob.records)
     for i, (rec, peaks) in enumerate(zip(prob.records, prob.turning or prob.records)):
-        name = record_name(rec, i)
+        of = _about(rec, i, len(prob.records))
         # (a series fit's: of its turning points; its samples' "amplitudes" rise and fall
         # within every swing, and a clean free decay was told it was forced)
-        steeper = _steepening(peaks, name) if space.constant_laws else None
+        steeper = _steepening(peaks, of) if space.constant_laws else None
         if steeper:
             warn.append(steeper)
         if rec.meta.get("rows") == ROWS_AS_HALF_SWINGS:
             warn.append(
-                f"{name}: its rows are read as successive half-swings (both sides' peaks "
+                f"{of}its rows are read as successive half-swings (both sides' peaks "
                 f"in turn); a table of one side's peaks (one per period) needs a 'cycle' "
                 f"column: read as half-swings, it gives half the frequency and twice the "
                 f"damping"
             )
         if "length_unit" in rec.meta:
             warn.append(
-                f"{name}: its positions are in {rec.meta['length_unit']} (the column "
+                f"{of}its positions are in {rec.meta['length_unit']} (the column "
                 f"{value_name(rec)!r}): converted to m, the model's unit (a0, offset and the "
                 f"friction are in SI units)"
             )
         faster = rec.meta.get("faster")
         if faster:
             warn.append(
-                f"{name}: a faster oscillation rides on the signal ({1 / faster['period']:.4g}"
+                f"{of}a faster oscillation rides on the signal ({1 / faster['period']:.4g}"
                 f" Hz, amplitude about {faster['amplitude']:.3g}: mains hum? a higher mode?): "
                 f"the turning points were found without it and located with it fitted beside them"
             )
         levels = [f"{v:.6g}" for v in rec.meta.get("clipped", {}).values() if v is not None]
         if levels:
             warn.append(
-                f"{name}: the signal is clipped at {' and '.join(levels)} (a saturated "
+                f"{of}the signal is clipped at {' and '.join(levels)} (a saturated "
                 f"sensor): the extrema cut off there are left out of the fit"
             )
     structured = bool(diag["warnings"])
