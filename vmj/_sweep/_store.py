@@ -378,8 +378,7 @@ class ChunkStore:
 
     def _rows(self, c: int) -> tuple[int, int]:
         """The points `lo ... hi - 1` of chunk `c`."""
-        lo = c * self.meta["chunk"]
-        return lo, min(lo + self.meta["chunk"], self.meta["n"])
+        return _chunk_rows(self.meta, c)
 
     def status(self) -> np.ndarray:
         """The status of every chunk (a marker that cannot be read counts as not done)."""
@@ -410,14 +409,13 @@ class ChunkStore:
         return todo
 
     def _sound(self, c: int, key: str, rows: slice, want) -> np.ndarray | None:
-        """The `rows` of the array `key` if they match the checksum `want`, else None."""
+        """The `rows` of the array `key` if they match the checksum `want`, else None (a map's
+        chunk missing too)."""
         try:
-            a = np.asarray(self.group[key][rows])
-        except MemoryError:  # (not damage: the chunk is sound)
-            raise
-        except Exception:  # a data file that cannot be decoded (or a map's chunk missing)
+            array = self.group[key]
+        except Exception:  # (missing, or its metadata cannot be decoded)
             return None
-        return a if checksum(a) == int(want) else None
+        return _checked(array, rows, want)
 
     def lazy(self, names) -> list:
         """A sweep's fields `names`, read lazily from the store (dask arrays with the sweep's
@@ -502,25 +500,33 @@ class _CheckedField:
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     def _chunk(self, c: int) -> np.ndarray:
-        lo = c * self.meta["chunk"]
-        hi = min(lo + self.meta["chunk"], self.meta["n"])
-        where = (
-            f"store {self.path!r}: the field {self.name!r} of chunk {c} (points {lo} to {hi - 1})"
-        )
-        again = f"vmj.sweep(..., store={self.path!r}, resume=True) computes it again"
-        try:
-            a = np.asarray(self.data[lo:hi])
-            sound = checksum(a) == int(self.checksums[c])
-        except MemoryError:
-            raise
-        except Exception:  # a data file that cannot be decoded
-            sound = False
-        if not sound:
+        lo, hi = _chunk_rows(self.meta, c)
+        a = _checked(self.data, slice(lo, hi), self.checksums[c])
+        if a is None:
             raise ValueError(
-                f"{where} does not match its checksum (damaged on disk, or rewritten since "
-                f"it was opened): {again}"
+                f"store {self.path!r}: the field {self.name!r} of chunk {c} (points {lo} to "
+                f"{hi - 1}) does not match its checksum (damaged on disk, or rewritten since it "
+                f"was opened): vmj.sweep(..., store={self.path!r}, resume=True) computes it again"
             )
         return _native(a)
+
+
+def _chunk_rows(meta: dict, c: int) -> tuple[int, int]:
+    """The points `lo ... hi - 1` of chunk `c` of a store's plan `meta`."""
+    lo = c * meta["chunk"]
+    return lo, min(lo + meta["chunk"], meta["n"])
+
+
+def _checked(array, rows: slice, want) -> np.ndarray | None:
+    """`array[rows]` if it matches the checksum `want`, else None (a data file that cannot be
+    decoded too). A MemoryError is raised: it is not damage."""
+    try:
+        a = np.asarray(array[rows])
+    except MemoryError:
+        raise
+    except Exception:
+        return None
+    return a if checksum(a) == int(want) else None
 
 
 def _markers(array) -> np.ndarray:
