@@ -230,20 +230,23 @@ def test_vmj_commands_run(page, pages_run):
     assert failure is None, f"the commands of {_id(page)} failed:\n{failure}"
 
 
+def _long_page_runs(job, what: str, tmp_path) -> None:
+    """A page's long-running `job` (`python_job` or `vmj_job` with `long=True`), in a process
+    of its own."""
+    failure = run_pages([job], tmp_path / "report.jsonl", timeout=3600)[job["kind"], job["page"]]
+    assert failure is None, f"the long-running {what} of {job['page']} failed:\n{failure}"
+
+
 @pytest.mark.long
 @pytest.mark.parametrize("page", [p for p in PAGES if python_source(p, long=True)], ids=_id)
 def test_long_python_snippets_run(page, tmp_path):
-    job = python_job(page, scratch(tmp_path / "page"), long=True)
-    failure = run_pages([job], tmp_path / "report.jsonl", timeout=3600)["python", _id(page)]
-    assert failure is None, f"the long-running snippets of {_id(page)} failed:\n{failure}"
+    _long_page_runs(python_job(page, scratch(tmp_path / "page"), long=True), "snippets", tmp_path)
 
 
 @pytest.mark.long
 @pytest.mark.parametrize("page", [p for p in PAGES if vmj_commands(p, long=True)], ids=_id)
 def test_long_vmj_commands_run(page, tmp_path):
-    job = vmj_job(page, scratch(tmp_path / "page"), long=True)
-    failure = run_pages([job], tmp_path / "report.jsonl", timeout=3600)["vmj", _id(page)]
-    assert failure is None, f"the long-running commands of {_id(page)} failed:\n{failure}"
+    _long_page_runs(vmj_job(page, scratch(tmp_path / "page"), long=True), "commands", tmp_path)
 
 
 # -- the site ------------------------------------------------------------------------------------
