@@ -239,7 +239,6 @@ def ode_solve(
     import diffrax as dfx  # here, not at the top: `import vmj` and the vmj command stay light
 
     solver_state, controller_state, made_jump = (None, None, None) if resume is None else resume
-    extra = {} if adjoint is None else {"adjoint": adjoint}
     return dfx.diffeqsolve(
         dfx.ODETerm(field),
         dopri8() if solver is None else solver,
@@ -255,5 +254,5 @@ def ode_solve(
         solver_state=solver_state,
         controller_state=controller_state,
         made_jump=made_jump,
-        **extra,
+        adjoint=dfx.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
     )
