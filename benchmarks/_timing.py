@@ -18,12 +18,16 @@ WARM_UP_S = float(os.environ.get("VMJ_BENCH_WARM", "0.1"))
 
 
 def set_up_jax() -> bool:
-    """JAX as the `vmj` command runs it, before anything is computed: float64 and synchronous CPU
-    dispatch. `--float32` on the command line turns float64 off (and silences vmj's warning that
-    its accuracy figures assume float64: it was asked for); `--async-dispatch` keeps JAX's
-    default dispatch. Returns whether JAX runs in float32."""
+    """JAX as the `vmj` command runs it, before anything is computed: XLA's loops as one kernel
+    each (`vmj.one_kernel_loops`), float64 and synchronous CPU dispatch. `--float32` on the
+    command line turns float64 off (and silences vmj's warning that its accuracy figures assume
+    float64: it was asked for); `--async-dispatch` keeps JAX's default dispatch. Returns
+    whether JAX runs in float32."""
     import warnings
 
+    import vmj
+
+    vmj.one_kernel_loops()
     import jax
 
     float32 = "--float32" in sys.argv

@@ -3,7 +3,13 @@
 import os
 import sys
 
-import jax
+import vmj
+
+# as the vmj command runs: XLA's small loops (a single solve's) as one kernel each, set before
+# JAX starts its backend (the suite's own compiling takes as long either way: tests/test_rope.py
+# and tests/test_decay_trajectory.py in an empty cache, 105 against 114 s)
+vmj.one_kernel_loops()
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 # as the vmj command runs single solves (its `fit` runs asynchronously: docs/fits.md); the

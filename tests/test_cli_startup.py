@@ -288,3 +288,56 @@ def test_the_command_settles_the_garbage_collector_only_for_its_own_process(caps
     assert main(["--no-cache", "linear", "--m", "1", "--c", "1", "--k", "14.5"]) == 0
     assert gc.isenabled() and gc.get_freeze_count() == frozen
     capsys.readouterr()
+
+
+def test_the_command_compiles_its_loops_as_one_kernel_each(monkeypatch):
+    """`vmj.one_kernel_loops` (which the command calls before JAX starts its backend) makes
+    XLA compile a small `while` loop into one kernel; after the backend started it changes
+    nothing and says so; an `XLA_FLAGS` of the user's is extended, never overridden."""
+    code = (
+        "import json, os, sys, vmj\n"
+        "applied = vmj.one_kernel_loops() if sys.argv[1] == 'on' else None\n"
+        "import jax, jax.numpy as jnp\n"
+        "loop = lambda x: jax.lax.fori_loop(0, 3, lambda i, y: jnp.sin(y) + y, x)\n"
+        "text = jax.jit(loop).lower(jnp.ones(256)).compile().as_text()\n"
+        "late = vmj.one_kernel_loops()\n"
+        "print(json.dumps([applied, late, 'xla_cpu_small_call' in text, "
+        "os.environ.get('XLA_FLAGS', '')]))"
+    )
+    environ = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+
+    def run(mode):
+        done = subprocess.run(
+            [sys.executable, "-c", code, mode], capture_output=True, text=True, env=environ
+        )
+        assert done.returncode == 0, done.stderr
+        return json.loads(done.stdout.splitlines()[-1])
+
+    applied, late, one_kernel, flags = run("on")
+    assert (applied, late, one_kernel) == (True, True, True)  # (late: the option is set)
+    assert flags == "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=65536"
+    _, late, one_kernel, flags = run("off")  # XLA's default: a kernel per operation
+    assert (late, one_kernel, flags) == (False, False, "")
+
+    from jax._src import xla_bridge
+
+    from vmj import _host
+
+    monkeypatch.setattr(xla_bridge, "backends_are_initialized", lambda: False)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/d --xla_backend_extra_options=a=1")
+    assert _host.one_kernel_loops(4096) is True
+    assert os.environ["XLA_FLAGS"] == (
+        "--xla_dump_to=/tmp/d --xla_backend_extra_options=a=1,"
+        "xla_cpu_small_while_loop_byte_threshold=4096"
+    )
+    monkeypatch.setenv(
+        "XLA_FLAGS", "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
+    )
+    assert _host.one_kernel_loops() is True  # the user's choice stays
+    assert os.environ["XLA_FLAGS"].endswith("=0")
+    monkeypatch.delenv("XLA_FLAGS")
+    assert main(["--no-cache", "linear", "--m", "1", "--c", "1", "--k", "14.5", "--json"]) == 0
+    assert os.environ["XLA_FLAGS"].endswith("xla_cpu_small_while_loop_byte_threshold=65536")
+    for bad in (-1, 2**63, 1.5, True, "1G"):
+        with pytest.raises(ValueError, match="limit must be an integer number of bytes"):
+            vmj.one_kernel_loops(bad)

@@ -31,7 +31,7 @@ from ._version import __version__ as __version__
 
 if TYPE_CHECKING:  # the table of contents, read by type checkers and the docs as written
     from ._checks import AbstractParams, assume_valid
-    from ._host import retain_host_memory
+    from ._host import one_kernel_loops, retain_host_memory
     from ._integrate import decay_trajectory, limit_cycle, simulate, turning_points
     from ._laws._dissipation import CoulombDamping, DissipationLaw, QuadraticDamping, ViscousDamping
     from ._laws._forcing import BaseMotion, Forcing, HarmonicForce, NoForcing
@@ -140,6 +140,7 @@ __all__ = [
     "map_chunks",
     "resolve_field",
     "retain_host_memory",
+    "one_kernel_loops",
     # the variable-mass paper's tables
     "PAPER",
     "paper_cells",

@@ -1,5 +1,6 @@
-"""Host memory settings for large sweeps on the CPU, and the memory free for new buffers
-(`available_memory`: a sweep's chunk size, the room for an entry point's results).
+"""Host settings of a program's start-up (the allocator for large sweeps on the CPU, XLA's CPU
+loops for single solves), and the memory free for new buffers (`available_memory`: a sweep's
+chunk size, the room for an entry point's results).
 
 XLA:CPU takes every compiled call's output and temporary buffers from `malloc`. glibc serves
 blocks above its mmap threshold with fresh `mmap`s and gives freed memory back to the operating
@@ -9,9 +10,15 @@ x 12 amplitudes) once more for every sweep. On the 2-core development machine th
 to a third of a 10^6-point energy-balance sweep (docs/performance.md). `retain_host_memory`
 raises both thresholds, so that freed blocks are reused instead.
 
-It changes the whole process's allocator, so vmj never calls it on import or inside a solver:
-the `vmj` command line and the benchmarks call it at start-up, and a script of your own may do
-the same.
+XLA's CPU backend runs a `while` loop operation by operation, a kernel launch each per
+iteration, unless the loop's buffers come to less than its `xla_cpu_small_while_loop_byte_threshold`
+(1 kB by default): then the whole loop is one compiled kernel. A single solve is loops of scalar
+operations (swings, substeps, Newton iterations), whose cost is the number of launches, not the
+arithmetic; `one_kernel_loops` raises the threshold.
+
+Both change the whole process, so vmj never calls them on import or inside a solver: the `vmj`
+command line, the benchmarks and the test suite call them at start-up, and a script of your own
+may do the same.
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ import math
 import os
 import platform
 
-__all__ = ["retain_host_memory", "available_memory"]
+__all__ = ["retain_host_memory", "one_kernel_loops", "available_memory"]
 
 _M_TRIM_THRESHOLD = -1  # glibc <malloc.h>
 _M_MMAP_THRESHOLD = -3
@@ -60,6 +67,57 @@ def retain_host_memory(limit: int = 2**30) -> bool:
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     mallopt.restype = ctypes.c_int
     return bool(mallopt(_M_MMAP_THRESHOLD, limit)) and bool(mallopt(_M_TRIM_THRESHOLD, limit))
+
+
+#: XLA's option, and the loops' bytes up to which `one_kernel_loops` makes a loop one kernel
+LOOP_OPTION, LOOP_BYTES = "xla_cpu_small_while_loop_byte_threshold", 2**16
+
+
+def one_kernel_loops(limit: int = LOOP_BYTES) -> bool:
+    """Have XLA's CPU backend compile each `while` loop whose buffers come to less than `limit`
+    bytes into one kernel, instead of a kernel launch per operation and iteration (sets its
+    option `xla_cpu_small_while_loop_byte_threshold` in the `XLA_FLAGS` environment variable,
+    which XLA reads when JAX starts its backend: call it before the first computation).
+
+    **Arguments:**
+
+    - `limit`: bytes, an integer in `[0, 2**63 - 1]` (XLA's default: 1024).
+
+    **Returns:** `True` if the setting will apply (or `XLA_FLAGS` names the option already: it
+    is left as given); `False` if JAX's backend has started already, when nothing is changed.
+
+    Measured on the 2-core development machine (docs/performance.md): one warm
+    `vmj.turning_points` call (the exact solver, 12 half-swings), the best of 25 x 200 calls in
+    each of nine alternating pairs of processes, 84-152 us at XLA's default and 58-108 us with
+    it (the pairs' median ratio 0.69); a sweep's chunks (16384 lanes) are above the limit and
+    unchanged; the test suite's compiling takes as long (in an empty cache, two files of
+    tests: 114 and 105 s). A limit of 10^9 also makes the sweeps' loops one kernel, no faster
+    for them, and compiles more slowly (the same tests: 122 against 100 s).
+    """
+    if isinstance(limit, bool) or not isinstance(limit, int) or not 0 <= limit < 2**63:
+        raise ValueError(
+            f"limit must be an integer number of bytes in [0, 2**63 - 1], got {limit!r}"
+        )
+    flags = os.environ.get("XLA_FLAGS", "")
+    if LOOP_OPTION in flags:
+        return True
+    try:
+        from jax._src import xla_bridge
+
+        if xla_bridge.backends_are_initialized():
+            return False
+    except (ImportError, AttributeError):  # pragma: no cover - another JAX: set it regardless
+        pass
+    option = f"{LOOP_OPTION}={limit}"
+    words = flags.split()
+    for i, word in enumerate(words):  # (XLA takes one map of extra options: extend it)
+        if word.startswith("--xla_backend_extra_options="):
+            words[i] = f"{word},{option}"
+            break
+    else:
+        words.append(f"--xla_backend_extra_options={option}")
+    os.environ["XLA_FLAGS"] = " ".join(words)
+    return True
 
 
 def available_memory(device, enough: float = math.inf) -> int | None:
