@@ -356,19 +356,21 @@ def test_results_keep_the_points_on_the_axis_their_computation_puts_them_on():
     assert axes == [0, 1] and out["stacked"].shape == (3, 5)
     np.testing.assert_array_equal(out["stacked"].T, jax.vmap(both)(x)["stacked"])
 
-    def fn(model, a0, n):
+    def fn(model, a0, n):  # (the energy balance's own loop is inside a conditional, whose
+        # batched results have the points first)
         seq = vmj.turning_points(model, a0, n, vmj.EnergyBalance())
-        return {"amplitudes": seq.amplitudes, "count": seq.count}
+        grown = jax.lax.scan(lambda m, _: (m * 1.5, m), model.mu + a0, None, length=n)[1]
+        return {"amplitudes": seq.amplitudes, "grown": grown, "count": seq.count}
 
     delta, mu = np.linspace(-3, 3, 7), np.linspace(0, 9, 7)
     one = jax.local_devices()[:1]  # (several devices split the first axis)
     r = vmj.sweep(fn, paper_model(delta=delta, mu=mu), a0=A0, n=N_SWINGS, chunk_size=4, devices=one)
     ref = jax.vmap(lambda d, m: fn(paper_model(d, 0.0, m), A0, N_SWINGS))(delta, mu)
     assert r.chunks == n_chunks(7, 4) >= 2
-    for name in ("amplitudes", "count"):
+    for name in ("amplitudes", "grown", "count"):
         np.testing.assert_array_equal(r.values[name], ref[name])
-    amplitudes = r.values["amplitudes"]
-    assert amplitudes.shape == (7, N_SWINGS) and amplitudes.strides[0] == amplitudes.itemsize
+    grown = r.values["grown"]
+    assert grown.shape == (7, N_SWINGS) and grown.strides[0] == grown.itemsize
 
 
 def _run(code: str, env_extra: dict | None = None) -> dict:

@@ -578,6 +578,38 @@ def test_energy_balance_matches_a_plain_swing_by_swing_reference(
     np.testing.assert_allclose(np.asarray(seq.times)[:k], t, rtol=1e-12)
 
 
+def test_energy_balance_takes_one_path_per_batch_and_both_agree(monkeypatch):
+    """A batch whose exponents all stay small takes exp(x) as 1 + x phi(x), phi from its series
+    (no exponential, no quotient: `vmj/_closed_forms/_olshansky.py`); any other batch takes the
+    exponential for every lane. A lane's turning points do not depend on the path to 1e-15 of
+    a0 (a heavily damped lane beside it, or no small batch at all), the times not at all, and
+    their derivatives agree to 1e-12 relative."""
+    import vmj._closed_forms._olshansky as olshansky
+
+    rng = np.random.default_rng(7)
+    light = [rng.uniform(-3, 3, 64), rng.uniform(0, 1, 64), rng.uniform(0, 10, 64)]
+    heavy = [np.append(v, x) for v, x in zip(light, (3.0, 0.0, 200.0))]
+
+    def solve(delta, eps, mu):  # traced anew each time: the radius is read while tracing
+        full = lambda x: np.full(len(delta), x)  # noqa: E731
+        m = vmj.VariableMass(full(M0), full(C), delta, eps, mu, vmj.Coulomb(full(FT)))
+        return jax.jit(jax.vmap(lambda p: olshansky.energy_balance_sequence(p, A0, 12)))(m)
+
+    def a5(mu):  # d x_5 / d mu of one solve
+        return jax.grad(
+            lambda mu: olshansky.energy_balance_sequence(model(mu=mu), A0, 6).positions[5]
+        )(mu)
+
+    fast, beside, grad = solve(*light), solve(*heavy), a5(2.0)
+    monkeypatch.setattr(olshansky, "_FAST_RADIUS", 0.0)  # no batch is small: the exponential
+    exponential = solve(*light)
+    for other in (beside, exponential):
+        np.testing.assert_array_equal(np.asarray(other.times)[:64], fast.times)
+        np.testing.assert_allclose(other.positions[:64], fast.positions, rtol=0, atol=1e-15 * A0)
+    assert not np.array_equal(exponential.positions, fast.positions)  # (two paths ran)
+    np.testing.assert_allclose(a5(2.0), grad, rtol=1e-12)
+
+
 # -- bad input ----------------------------------------------------------------------------------
 @pytest.mark.parametrize(
     "kwargs,name",

@@ -270,8 +270,9 @@ def vmap_in_place(fn, args):
     the transposes that `vmap` appended to it. The energy-balance sweep of
     `benchmarks/bench_energy.py` (10^6 points x 12 swings) in turns with the points moved to the
     front, medians of 20 rounds: 54.0 -> 48.4 ms (0.90 x; one 16384-point chunk 1089 -> 956
-    us); the exact sweep of `bench_exact.py`, whose loop writes the turning points with the
-    points first: 6.02 -> 6.04 ms (unchanged)."""
+    us), before its loop went inside a conditional (whose batched results have the points
+    first: vmj/_closed_forms/_olshansky.py); the exact sweep of `bench_exact.py`, whose loop
+    writes the turning points with the points first: 6.02 -> 6.04 ms (unchanged)."""
     closed, shapes = jax.make_jaxpr(jax.vmap(fn), return_shape=True)(args)
     made = {id(v): eqn for eqn in closed.jaxpr.eqns for v in eqn.outvars}
     outvars, axes = [], []
