@@ -7,7 +7,7 @@ import vmj
 
 # as the vmj command runs: XLA's small loops (a single solve's) as one kernel each, set before
 # JAX starts its backend (the suite's own compiling takes as long either way: tests/test_rope.py
-# and tests/test_decay_trajectory.py in an empty cache, 105 against 114 s)
+# and tests/test_decay_trajectory.py in an empty cache, 105 s with it, 114 s without)
 vmj.one_kernel_loops()
 import jax  # noqa: E402
 

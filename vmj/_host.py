@@ -11,10 +11,11 @@ to a third of a 10^6-point energy-balance sweep (docs/performance.md). `retain_h
 raises both thresholds, so that freed blocks are reused instead.
 
 XLA's CPU backend runs a `while` loop operation by operation, a kernel launch each per
-iteration, unless the loop's buffers come to less than its `xla_cpu_small_while_loop_byte_threshold`
-(1 kB by default): then the whole loop is one compiled kernel. A single solve is loops of scalar
-operations (swings, substeps, Newton iterations), whose cost is the number of launches, not the
-arithmetic; `one_kernel_loops` raises the threshold.
+iteration, unless the loop's buffers come to less than its option
+`xla_cpu_small_while_loop_byte_threshold` (1 kB by default): then the whole loop is one
+compiled kernel. A single solve is loops of scalar operations (swings, substeps, Newton
+iterations), whose cost is the number of launches, not the arithmetic; `one_kernel_loops`
+raises the threshold.
 
 Both change the whole process, so vmj never calls them on import or inside a solver: the `vmj`
 command line, the benchmarks and the test suite call them at start-up, and a script of your own
