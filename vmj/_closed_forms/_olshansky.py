@@ -42,6 +42,7 @@ import jax.numpy as jnp
 from equinox.internal import unvmap_any
 from jax import lax
 
+from .._numerics._series import horner
 from .._solution import RESULTS, DecaySequence
 
 #: Taylor coefficients of phi(x) = (exp(x) - 1)/x = sum_j x^j/(j + 1)!
@@ -54,23 +55,15 @@ _SERIES_RADIUS = 0.1
 _FAST_RADIUS = 0.25
 
 
-def _series(x, coefficients):
-    """`sum_j coefficients[j] x^j` (Horner)."""
-    out = coefficients[-1]
-    for coefficient in reversed(coefficients[:-1]):
-        out = out * x + coefficient
-    return out
-
-
 def _exp_and_phi(x, inverse_x, fast: bool):
     """`exp(x)` and `phi(x) = (exp(x) - 1)/x`, smooth through `x = 0` (value and gradient);
     `inverse_x` is `1/x` where `|x| >= _SERIES_RADIUS` (any finite value elsewhere). `fast`:
     both from the series, for `|x| < _FAST_RADIUS` only."""
     if fast:
-        phi = _series(x, _PHI)
+        phi = horner(_PHI, x)
         return 1.0 + x * phi, phi
     e = jnp.exp(x)
-    series = _series(x, _PHI[:10])
+    series = horner(_PHI[:10], x)
     return e, jnp.where(jnp.abs(x) < _SERIES_RADIUS, series, (e - 1.0) * inverse_x)
 
 

@@ -242,9 +242,9 @@ def on_cpu_if_small(args, seconds: float) -> None:
 
 def _set_up_jax(args, process: bool = False) -> None:
     """XLA's loops as one kernel each, float64, synchronous dispatch, the persistent compilation
-    cache, host memory reuse (entry point only); for the process's own command (`process`), the CPU as its device
-    unless `JAX_PLATFORMS` says otherwise or the command is for an accelerator (which then
-    decides from its work: `on_cpu_if_small`)."""
+    cache, host memory reuse (entry point only); for the process's own command (`process`), the
+    CPU as its device unless `JAX_PLATFORMS` says otherwise or the command is for an accelerator
+    (which then decides from its work: `on_cpu_if_small`)."""
     from .._host import one_kernel_loops
 
     # (before JAX starts its backend: a single solve's loops as one kernel each)
