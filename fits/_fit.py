@@ -1139,8 +1139,8 @@ def fit_batch(
     resume: bool = False,
     progress=None,
 ) -> list:
-    """Fit the same model to many records independently, at once (`jax.vmap` over records and
-    sub-models; one compilation).
+    """Fit the same model to many records independently, at once (one compiled solve for all:
+    the records and sub-models one after another on a CPU, `jax.vmap`ped on an accelerator).
 
     Arguments as in [`fits.fit`][]; `given` is one dict for every record or a list of one dict per
     record (the free parameters are the same for all). Returns a list of

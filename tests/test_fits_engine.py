@@ -646,6 +646,28 @@ def test_fits_solved_in_threads_at_once():
         assert a.params == b.params and a.intervals == b.intervals
 
 
+def test_jobs_solved_in_turn_as_batched(monkeypatch):
+    """A CPU solves a batch's jobs one after another (`fits._solve._over_jobs`), an
+    accelerator all at once (`jax.vmap`): the same estimates and standard errors, and the
+    same converged flags, from four records that take different numbers of steps. (Within
+    the solver's end, 1e-4 of a standard error: the two compiled programs round differently,
+    and their last steps differ by that much.)"""
+    import fits._solve
+    from test_distributed import synthetic_records
+
+    records = synthetic_records(4)
+    given = {"m0": 5.0, "c": 4900.0, "delta": 3.0, "eps": 0.0, "a0": 0.06}
+    kw = dict(compare=False, intervals=False)
+    in_turn = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, **kw)
+    monkeypatch.setattr(fits._solve, "_in_turn", lambda p0: False)
+    batched = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, **kw)
+    for a, b in zip(in_turn, batched):
+        assert a.converged and a.converged == b.converged
+        for name in ("FT", "mu"):
+            assert abs(a.params[name] - b.params[name]) < 1e-4 * a.stderr[name]
+            assert a.stderr[name] == pytest.approx(b.stderr[name], rel=1e-6)
+
+
 def _sensor_points(n):
     """Times and positions of `n` turning points read from a sensor whose zero is at 2 (omega
     20 rad/s, zeta 0.01, xF 0.05, a0 10; noise 1e-4 s and 0.02)."""
