@@ -652,8 +652,9 @@ def test_jobs_solved_in_turn_as_batched(monkeypatch):
     same converged flags, from four records that take different numbers of steps. (Within
     the solver's end, 1e-4 of a standard error: the two compiled programs round differently,
     and their last steps differ by that much.)"""
-    import fits._solve
     from test_distributed import synthetic_records
+
+    import fits._solve
 
     records = synthetic_records(4)
     given = {"m0": 5.0, "c": 4900.0, "delta": 3.0, "eps": 0.0, "a0": 0.06}
