@@ -291,8 +291,8 @@ class _LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
 
 
 def _in_turn(p0) -> bool:
-    """Whether the jobs of a batch placed as `p0` is are solved one after another (on a CPU:
-    `_over_jobs`)."""
+    """Whether the batch's starts `p0` lie on a CPU, where `_over_jobs` solves the jobs one
+    after another."""
     return next(iter(p0.devices())).platform == "cpu"
 
 
@@ -303,14 +303,9 @@ def _over_jobs(one, d, p0, in_turn: bool):
     On a CPU, one job after another is faster to trace, to compile and to run. Batched, a
     while loop needs its carries' batching found by tracing its body again (JAX's fixpoint),
     and the fit's loops are four deep (the solver's steps, the swings, the substeps, Newton's
-    iterations); each lane then runs until the batch's slowest has converged. `vmj fit` on
-    `fits/data/table1_mu9_eps0.csv` (two jobs a solve) in a fresh cache, two processes each,
-    2-core Intel Xeon VM: `_solve_lm` traced in 3.24-3.36 s batched, 1.28-1.63 s in turn,
-    compiled in 4.80-4.94 s against 2.87-4.03 s, the whole command 12.4-12.7 s against
-    7.1-9.7 s. `benchmarks/bench_fits.py` (200 records in `fits.fit_batch`, medians of 5): 3.4
-    -> 2.4 ms a record without intervals, 4.1 -> 3.5 ms with them, its first call 8.1 -> 3.7
-    s; one fit warm 7.6 -> 6.8 ms; `vmj fit --optimizer adam` on the same record 20.9 -> 18.0
-    s. The estimates agree to 1e-15."""
+    iterations); each lane then runs until the batch's slowest has converged. The pendulum fit
+    of `fits/data/80P.txt` took 95-98 s batched, 44-45 s in turn (a fresh cache, 2 cores; the
+    other figures in docs/fits.md)."""
     if in_turn:
         return jax.lax.map(lambda job: one(*job), (d, p0))
     return jax.vmap(one)(d, p0)
