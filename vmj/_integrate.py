@@ -20,6 +20,8 @@ from ._checks import (
     check_room,
     default_float,
     guard,
+    instance_of,
+    own_fields,
     positive,
     scalar,
     validated,
@@ -95,7 +97,7 @@ def _solver(solver, default):
     as `"smooth"` included, is refused naming the object to pass."""
     if solver is None:
         return _default(default)
-    if isinstance(solver, AbstractSolver):
+    if instance_of(solver, AbstractSolver):
         return solver
     got = f"the string {solver!r}" if isinstance(solver, str) else type(solver).__name__
     raise TypeError(f"solver must be a solver object (got {got}): {_pass(solver)}")
@@ -146,7 +148,7 @@ def _one_lane(solver):
     microsecond or more, a warm solve's Python overhead is a few)."""
     if type(solver) is not Exact:
         return solver
-    fields = vars(solver)
+    fields = own_fields(solver)
     variant = fields.get(_ONE_LANE)
     if variant is None:
         variant = solver
@@ -196,7 +198,7 @@ def turning_points(
     concrete = require_scalar_fields(model)
     model = _checked(solver, model, "turning_points")
     a0 = scalar("a0", check("a0", a0, *type(model).release_range(model)))
-    if isinstance(solver, Smoothed):
+    if instance_of(solver, Smoothed):
         solver = solver.with_defaults(model, a0, 0.0)
     elif concrete and not _is_traced(a0):
         solver = _one_lane(solver)

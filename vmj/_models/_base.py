@@ -27,7 +27,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import AbstractParams, _is_traced, positive
+from .._checks import AbstractParams, _is_traced, instance_of, own_fields, positive
 from .._solution import RESULTS
 
 __all__ = [
@@ -231,8 +231,8 @@ def require_scalar_fields(model) -> bool:
     """Refuse a model with array parameters at an entry point that solves one model; returns
     whether the model is concrete (no traced leaf). (A concrete model that passed is marked and
     not walked again: modules are immutable, and the walk cost a warm single solve 3.6 us.)"""
-    module = isinstance(model, AbstractParams)
-    if module and vars(model).get(_SCALAR_FIELDS, False):
+    module = instance_of(model, AbstractParams)
+    if module and own_fields(model).get(_SCALAR_FIELDS, False):
         return True
     concrete = True
     for leaf in jax.tree.leaves(model):

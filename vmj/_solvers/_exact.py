@@ -36,6 +36,7 @@ import jax.numpy as jnp
 from equinox.internal import unvmap_any
 from jax import lax
 
+from .._checks import instance_of
 from .._models._base import AbstractDecayModel, AbstractLimitCycle
 from .._numerics._roots import bracketed_newton, implicit_step
 from .._numerics._scan import computed_once, decay_scan, early_exit_loop, zeros_of_lanes
@@ -117,7 +118,7 @@ class Exact(AbstractSolver):
             raise ValueError(f"max_substeps must be an integer >= 1 (got {self.max_substeps!r})")
 
     def check(self, model, task):
-        if task == "turning_points" and isinstance(model, AbstractDecayModel):
+        if task == "turning_points" and instance_of(model, AbstractDecayModel):
             return model
         if task == "limit_cycle" and isinstance(model, AbstractLimitCycle):
             return model
