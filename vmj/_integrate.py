@@ -144,8 +144,8 @@ def _turning_points(model, a0, n, solver):
 
 def _one_lane(solver):
     """The exact solver compiled for a single solve (`Exact.one_lane`), made once per solver
-    object and kept on it (read through `vars`: an equinox module's attribute access costs a
-    microsecond or more, a warm solve's Python overhead is a few)."""
+    object and kept on it (read through `own_fields`: an equinox module's attribute access
+    costs a microsecond or more, a warm solve's Python overhead is a few)."""
     if type(solver) is not Exact:
         return solver
     fields = own_fields(solver)
