@@ -8,6 +8,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
+from .._checks import instance_of
 from .._models._base import AbstractAnalytic, AbstractEnergyMap, AbstractLimitCycle
 from .._solution import RESULTS, Trajectory
 from ._base import AbstractSolver, unsupported
@@ -51,7 +52,7 @@ class EnergyBalance(AbstractSolver):
     name: ClassVar[str] = "energy"
 
     def check(self, model, task):
-        if task != "turning_points" or not isinstance(model, AbstractEnergyMap):
+        if task != "turning_points" or not instance_of(model, AbstractEnergyMap):
             raise unsupported(
                 self,
                 model,
@@ -74,7 +75,7 @@ class ClosedForm(AbstractSolver):
 
     def check(self, model, task):
         ok = {"simulate": AbstractAnalytic, "limit_cycle": AbstractLimitCycle}.get(task)
-        if ok is None or not isinstance(model, ok):
+        if ok is None or not instance_of(model, ok):
             raise unsupported(
                 self,
                 model,

@@ -120,7 +120,7 @@ class Exact(AbstractSolver):
     def check(self, model, task):
         if task == "turning_points" and instance_of(model, AbstractDecayModel):
             return model
-        if task == "limit_cycle" and isinstance(model, AbstractLimitCycle):
+        if task == "limit_cycle" and instance_of(model, AbstractLimitCycle):
             return model
         raise unsupported(
             self, model, task.replace("_", " "), "use vmj.Smoothed() or the model's closed forms"

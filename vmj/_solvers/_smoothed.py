@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import _float, _is_traced, check, check_int, positive
+from .._checks import _float, _is_traced, check, check_int, instance_of, positive
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
 from .._numerics._ode import dopri8, ode_solve, recording
 from .._numerics._roots import bracketed_newton, implicit_step
@@ -88,7 +88,7 @@ class Smoothed(AbstractSolver):
             "simulate": AbstractModel,
             "limit_cycle": AbstractLimitCycle,
         }[task]
-        if not isinstance(model, ok):
+        if not instance_of(model, ok):
             raise unsupported(
                 self,
                 model,
