@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+import vmj
 from vmj._numerics._roots import bracketed_newton, implicit_step
 
 
@@ -55,6 +56,45 @@ def test_loop_carries_start_batched_wherever_their_lane_is():
     assert not np.any(np.signbit(zeros_of_lanes(x)))
     value, tangent = jax.jvp(zeros_of_lanes, (x,), (jnp.ones(4),))
     assert not np.any(value) and not np.any(tangent)
+
+
+def test_a_release_point_is_batched_and_differentiated_wherever_the_model_is():
+    """`lanes_of`: `x`'s value unchanged (a leaf that is not finite adds +0, not NaN), batched
+    under `vmap` wherever a floating leaf of the tree is, its derivative in each leaf zero; the
+    exact decay of a model swept in parameters its release point does not depend on is then
+    batched in one pass of each loop's body (JAX's batching rule repeats a loop's body until
+    its carries' batching stops changing: two, three and six passes before, the decay's,
+    the substeps' and Newton's loops)."""
+    import pytest
+
+    from vmj._numerics._scan import lanes_of
+
+    x = jnp.array(-0.06)
+    leaves = {"mu": jnp.array([1.0, jnp.inf, jnp.nan]), "n": jnp.arange(3)}
+    assert float(lanes_of(x, leaves)) == -0.06
+    assert jax.vmap(lambda u: lanes_of(x, {"n": u}), out_axes=None)(leaves["n"]).shape == ()
+    with pytest.raises(ValueError, match="output was batched"):
+        jax.vmap(lambda u: lanes_of(x, {"mu": u}), out_axes=None)(leaves["mu"])
+    np.testing.assert_array_equal(jax.grad(lambda u: lanes_of(x, (u,)))(jnp.array(2.0)), 0.0)
+
+    batching = pytest.importorskip("jax._src.interpreters.batching")
+    passes = {}
+    original = batching.batch_jaxpr
+
+    def counted(closed, axis_data, in_batched, *args, **kwargs):
+        passes.setdefault(id(closed), set()).add(tuple(in_batched))
+        return original(closed, axis_data, in_batched, *args, **kwargs)
+
+    def amplitudes(mu, delta):
+        m = vmj.VariableMass(5.0, 4900.0, delta, 0.0, mu, vmj.Coulomb(14.7))
+        return vmj.turning_points(m, 0.06, 4).amplitudes
+
+    batching.batch_jaxpr = counted
+    try:
+        jax.jit(jax.vmap(amplitudes)).lower(jnp.linspace(0.0, 3.0, 4), jnp.linspace(-3, 3, 4))
+    finally:
+        batching.batch_jaxpr = original
+    assert passes and max(len(p) for p in passes.values()) == 1
 
 
 def test_values_computed_once_keep_their_values_and_derivatives_and_their_chain_runs_once():
