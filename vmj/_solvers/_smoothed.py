@@ -314,6 +314,7 @@ class Smoothed(AbstractSolver):
             y_start,
             t_end,
             dfx.SaveAt(t1=True, solver_state=True),
+            t0=v0,  # (the solve's time batched and differentiated from its start as well)
             rtol=rtol,
             atol=rtol,
             max_steps=n * steps,
