@@ -12,7 +12,14 @@ from jax import lax
 
 from .._solution import RESULTS, DecaySequence
 
-__all__ = ["computed_once", "decay_scan", "early_exit_loop", "lanes_of", "zeros_of_lanes"]
+__all__ = [
+    "computed_once",
+    "decay_scan",
+    "early_exit_loop",
+    "lanes_of",
+    "release_point",
+    "zeros_of_lanes",
+]
 
 
 def computed_once(values, step):
@@ -54,21 +61,23 @@ def zeros_of_lanes(x, dtype=None):
 
 def lanes_of(x, tree):
     """`x`, its value unchanged, batched under `vmap` and carrying a tangent under `jax.jvp`
-    wherever a floating leaf of `tree` does (`x + 0 * sum(leaf)` for each, `+0` where a
-    leaf is not finite): the release point of a decay whose loops' carries all come to depend
-    on the model. JAX batches (and differentiates) a loop by tracing its body again until the
-    batching (the non-zero tangents) of its carries stops changing, and every loop nested in
-    it with it: released from `x = -a0` of a model whose swept or differentiated parameters
-    `x` does not depend on (`eps`, `mu`, `delta`, `F_T` of the variable mass), the carries
-    turned batched in the first swing, and the decay loop's body was traced twice, the
-    substeps' three times, Newton's six. The tracing of `jax.jacfwd` of 12 exact turning
-    points in `F_T` and `mu`: 1.65-1.85 -> 0.89-0.93 s; of their `vmap`: 0.70-1.07 -> 0.53-0.55
-    s (docs/performance.md)."""
+    wherever a floating leaf of `tree` does (`x + zeros_of_lanes(sum(leaf))` for each): a
+    loop's start that every lane's state comes to depend on. JAX batches (and differentiates)
+    a loop by tracing its body again until the batching (the non-zero tangents) of its
+    carries stops changing, and every loop nested in it with it: a decay released from
+    `x = -a0` of a model swept in parameters `x` does not depend on (`eps`, `mu`, `delta`,
+    `F_T` of the variable mass) traced its decay loop's body twice, the substeps' three
+    times, Newton's six (the tracing times in docs/performance.md)."""
     for leaf in jax.tree.leaves(tree):
         if isinstance(leaf, jax.Array | np.ndarray) and jnp.issubdtype(leaf.dtype, jnp.floating):
-            s = jnp.sum(leaf)
-            x = x + jnp.where(jnp.isfinite(s), 0 * s, 0).astype(x.dtype)
+            x = x + zeros_of_lanes(jnp.sum(leaf), x.dtype)
     return x
+
+
+def release_point(model, a0, *more):
+    """`x = -a0` at every lane of `model`, the start of its decay (`lanes_of` the model, `a0`
+    and `more`, the solver's own parameters)."""
+    return lanes_of(-a0 * jnp.ones_like(model.velocity_scale(1.0)), (model, a0, *more))
 
 
 def early_exit_loop(
@@ -123,7 +132,7 @@ def decay_scan(model, a0, n: int, swing, kind: str = "bounded") -> DecaySequence
         out = (times.at[k].set(t), positions.at[k].set(x), crossed.at[k].set(cross))
         return k + 1, t, x, code, count + advance.astype(jnp.int32), out
 
-    x0 = lanes_of(-a0 * jnp.ones_like(model.velocity_scale(1.0)), (model, a0))
+    x0 = release_point(model, a0)
     t0 = zeros_of_lanes(x0)
     zero = zeros_of_lanes(x0, jnp.int32)
     buffers = tuple(

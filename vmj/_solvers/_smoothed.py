@@ -15,7 +15,7 @@ from .._checks import _float, _is_traced, check, check_int, instance_of, positiv
 from .._models._base import AbstractDecayModel, AbstractLimitCycle, AbstractModel
 from .._numerics._ode import dopri8, ode_solve, recording
 from .._numerics._roots import bracketed_newton, implicit_step
-from .._numerics._scan import lanes_of, zeros_of_lanes
+from .._numerics._scan import release_point, zeros_of_lanes
 from .._solution import RESULTS, DecaySequence, Trajectory
 from ._base import AbstractSolver, unsupported
 
@@ -221,8 +221,8 @@ class Smoothed(AbstractSolver):
         rtol, steps, ode = self._settings(model)
         w = self.smoothing
         slow = CREEP * w
-        x0 = lanes_of(-a0 * jnp.ones_like(model.velocity_scale(1.0)), (model, a0, w))
-        v0 = zeros_of_lanes(x0)
+        x0 = release_point(model, a0, w)
+        zero = v0 = zeros_of_lanes(x0)  # (also the solve's start time)
         t_end = model.horizon(a0, n)
         y_start, field, unpack = _components(model, x0, v0, w)
         scale = model.velocity_scale(a0)  # (event functions in units of it)
@@ -295,8 +295,8 @@ class Smoothed(AbstractSolver):
             reach = jnp.maximum(0.9 * (speed - 5 * w), 0.4 * (speed + w))
             return jnp.where(falls, reach / jnp.where(falls, jnp.abs(a), 1.0), jnp.inf)
 
-        # (the carries batched from the start, as the lanes' own states (`lanes_of`); the
-        # swing's sign without a tangent)
+        # (the carries batched from the start, as the release point; the swing's sign
+        # without a tangent)
         no = zeros_of_lanes(x0, bool)
         one = jnp.where(no, 0.0, 1.0).astype(x0.dtype)
         memo = (
@@ -314,7 +314,7 @@ class Smoothed(AbstractSolver):
             y_start,
             t_end,
             dfx.SaveAt(t1=True, solver_state=True),
-            t0=v0,  # (the solve's time batched and differentiated from its start as well)
+            t0=zero,
             rtol=rtol,
             atol=rtol,
             max_steps=n * steps,
