@@ -72,6 +72,7 @@ def test_guards_stay_inside_the_users_own_jit():
         jax.jit(positions)(-1.0).block_until_ready()
 
 
+@pytest.mark.production_compile
 def test_assume_valid_compiles_no_guards():
     """Code that keeps its values in range itself traces its solves inside
     `vmj.assume_valid()`: no host callback, the same answer; concrete values are still checked
@@ -127,6 +128,7 @@ def test_scalar_arguments_are_checked_on_the_host():
         np.testing.assert_array_equal(seq.positions, seqs[0].positions)
 
 
+@pytest.mark.production_compile
 def test_one_calls_compile_with_the_older_kernel_emitters_to_the_same_numbers():
     """A concrete call's program is compiled with `ONE_CALL` (XLA's older kernel emitters:
     less compile time; vmj/_exported.py), which this XLA takes on a CPU (a GPU's compiler

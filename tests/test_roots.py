@@ -4,6 +4,7 @@ numerics its loops run on (`computed_once`, `slope_and_curvature`)."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import vmj
 from vmj._numerics._roots import bracketed_newton, implicit_step
@@ -97,6 +98,7 @@ def test_a_release_point_is_batched_and_differentiated_wherever_the_model_is():
     assert passes and max(len(p) for p in passes.values()) == 1
 
 
+@pytest.mark.production_compile
 def test_values_computed_once_keep_their_values_and_derivatives_and_their_chain_runs_once():
     """`computed_once`: the same values to the last bit, under `vmap` in a loop, with their
     derivatives (forward and reverse); on a CPU, a chain that three values read is computed

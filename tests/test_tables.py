@@ -7,6 +7,9 @@ import pytest
 
 import vmj
 
+# the paper's values as the `vmj` command compiles its programs (tests/test_production_compile.py)
+pytestmark = pytest.mark.production_compile
+
 
 @pytest.fixture(scope="module")
 def rows():
