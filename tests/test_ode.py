@@ -3,6 +3,7 @@
 import diffrax as dfx
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import vmj
 from vmj._numerics._ode import dopri8, ode_solve, recording, step_size_controller
@@ -30,6 +31,7 @@ def _solve(solver=None, saveat=None, limit=None):
     )
 
 
+@pytest.mark.production_compile
 def test_dopri8_steps_as_diffrax_dopri8():
     """The same tableau and error estimate as diffrax's `Dopri8`: one step from the same state
     gives the same end and error estimate (to the order of the additions), and a whole solve
