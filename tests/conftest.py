@@ -80,11 +80,12 @@ def pytest_collection_modifyitems(config, items):
     (`production_tests` runs them)."""
     if PRODUCTION:
         return
-    chosen = [item for item in items if item.get_closest_marker("production_compile")]
+    kept, chosen = [], []
+    for item in items:
+        (chosen if item.get_closest_marker("production_compile") else kept).append(item)
     config.stash[_PRODUCTION_TESTS] = [item.nodeid for item in chosen]
-    if chosen:
-        config.hook.pytest_deselected(items=chosen)
-        items[:] = [item for item in items if not item.get_closest_marker("production_compile")]
+    config.hook.pytest_deselected(items=chosen)
+    items[:] = kept
 
 
 @pytest.fixture
