@@ -16,6 +16,7 @@ import vmj
 from vmj._sweep import _sweep as sweep_module
 
 distributed = pytest.importorskip("distributed")
+dask = pytest.importorskip("dask")
 zarr = pytest.importorskip("zarr")
 cloudpickle = pytest.importorskip("cloudpickle")
 # the workers cannot import this test module: send its functions by value
@@ -326,9 +327,12 @@ def test_bad_arguments(points, tmp_path):
         vmj.sweep(vmj.turning_points, points, store=str(tmp_path / "s.zarr"), resume="yes", **KW)
     with pytest.raises(ValueError, match="client must be a dask.distributed.Client"):
         vmj.sweep(vmj.turning_points, points, client=3, **KW)
-    # Dask's own messages ("invalid literal for int()") named no argument
+    # Dask's own messages ("invalid literal for int()") named no argument; and the failed
+    # client left itself as the process's scheduler (later store reads failed)
+    scheduler = dask.config.get("scheduler", None)
     with pytest.raises(ValueError, match="client 'tcp://127.0.0.1:abc' is not a scheduler"):
         vmj.sweep(vmj.turning_points, points, client="tcp://127.0.0.1:abc", **KW)
+    assert dask.config.get("scheduler", None) == scheduler
     (tmp_path / "plain").mkdir()
     with pytest.raises(ValueError, match="is not a vmj store"):
         vmj.sweep(vmj.turning_points, points, store=str(tmp_path / "plain"), resume=True, **KW)

@@ -193,7 +193,11 @@ def _float64_plugin(x64: bool):
 def cluster(client):
     """The `distributed.Client` for `client`: itself, a new one connected to a scheduler
     address (`"tcp://host:8786"`), or, for `"local"`, a `LocalCluster` on this machine with one
-    single-threaded worker process per core (closed again at the end)."""
+    single-threaded worker process per core (closed again at the end). The clients vmj makes
+    are not the process's Dask scheduler (`set_as_default=False`): one whose address failed
+    stayed it (Dask's constructor sets it first), and every later Dask computation of the
+    process, a store's lazy results among them, failed with "Requested dask.distributed
+    scheduler but no Client active"."""
     if client is None:
         yield None
         return
@@ -219,11 +223,11 @@ def cluster(client):
             host="127.0.0.1",
             dashboard_address=None,
         )
-        with lc, distributed.Client(lc) as c:
+        with lc, distributed.Client(lc, set_as_default=False) as c:
             yield c
         return
     try:
-        connected = distributed.Client(client)
+        connected = distributed.Client(client, set_as_default=False)
     except (ValueError, TypeError) as e:  # not an address: Dask's message names no argument
         raise ValueError(
             f"client {client!r} is not a scheduler address ({e}); give one such as "
