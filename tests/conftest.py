@@ -1,5 +1,6 @@
 """Test configuration: float64 before any computation, hypothesis profile for a 2-core CI."""
 
+import json
 import os
 import sys
 
@@ -54,22 +55,75 @@ settings.load_profile("vmj")
 sys.path.insert(0, os.path.dirname(__file__))  # tests/scipy_reference.py
 
 
+#: measured seconds of each test file in a run of the suite (`VMJ_TEST_DURATIONS=path` writes
+#: them): the order that `pytest_xdist_make_scheduler` sends the files in
+DURATIONS = os.path.join(os.path.dirname(__file__), "durations.json")
+DOCUMENTATION = "tests/test_docs.py"
+
+
+def file_order(files: list[str], seconds: dict[str, float]) -> list[str]:
+    """`files` longest first (a file not in `seconds` counts as the median), with the
+    documentation's file moved towards the end: just before the files whose seconds add up to
+    its own, so that the other worker has work while the documentation runs. The pages'
+    snippets run in one process of their own that compiles what they call unless the suite's
+    files have compiled it into the shared cache already (tests/test_docs.py alone: 99 s in an
+    empty cache, 63 s after the rest of the suite)."""
+    known = sorted(seconds.values()) or [1.0]
+    cost = {f: seconds.get(f, known[len(known) // 2]) for f in files}
+    order = sorted((f for f in files if f != DOCUMENTATION), key=lambda f: -cost[f])
+    if DOCUMENTATION in files:
+        at, after = len(order), 0.0
+        while at > 0 and after < cost[DOCUMENTATION]:
+            at -= 1
+            after += cost[order[at]]
+        order.insert(at, DOCUMENTATION)
+    return order
+
+
 def pytest_xdist_make_scheduler(config, log):
-    """`--dist loadfile`, the documentation's file sent first: tests/test_docs.py runs every
-    page in one process (a minute and more of a cold run, from a file of few tests), and xdist
-    sends the files with the most tests first, so that it came last and finished last on its
-    worker."""
+    """`--dist loadfile` with the files in `file_order` (xdist's own order, the files with the
+    most tests first, left the documentation's last: it finished alone on its worker; sent
+    first, it compiled in an empty cache what the suite compiles later)."""
     if config.getvalue("dist") != "loadfile":
         return None
     from xdist.scheduler import LoadFileScheduling
 
-    class DocumentationFirst(LoadFileScheduling):
+    try:
+        with open(DURATIONS, encoding="utf-8") as f:
+            seconds = json.load(f)
+    except (OSError, ValueError):
+        seconds = {}
+
+    class ByDuration(LoadFileScheduling):
+        ordered = False
+
         def _assign_work_unit(self, node):
-            if "tests/test_docs.py" in self.workqueue:
-                self.workqueue.move_to_end("tests/test_docs.py", last=False)
+            if not self.ordered:  # (the queue is complete at the first assignment)
+                self.ordered = True
+                for scope in file_order(list(self.workqueue), seconds):
+                    self.workqueue.move_to_end(scope)
             super()._assign_work_unit(node)
 
-    return DocumentationFirst(config, log)
+    return ByDuration(config, log)
+
+
+_SECONDS: dict = {}
+
+
+def pytest_runtest_logreport(report):
+    """The seconds of each test file (its tests' set-up, call and tear-down), for
+    `VMJ_TEST_DURATIONS`."""
+    if os.environ.get("VMJ_TEST_DURATIONS"):
+        name = report.nodeid.split("::")[0]
+        _SECONDS[name] = _SECONDS.get(name, 0.0) + report.duration
+
+
+def pytest_sessionfinish(session):
+    path = os.environ.get("VMJ_TEST_DURATIONS")
+    if path and _SECONDS and not hasattr(session.config, "workerinput"):  # (the controller)
+        with open(path, "w", encoding="utf-8") as f:
+            json.dump({k: round(v, 1) for k, v in sorted(_SECONDS.items())}, f, indent=1)
+            f.write("\n")
 
 
 _PRODUCTION_TESTS = pytest.StashKey[list]()

@@ -95,14 +95,14 @@ def test_assume_valid_compiles_no_guards():
 
 def test_models_rebuilt_without_their_constructor_are_checked_again():
     model = MODELS["variable-mass"]()
-    vmj.turning_points(model, 0.06, 4)
+    vmj.turning_points(model, 0.06, 6)
     bad = eqx.tree_at(lambda m: m.mu, model, jnp.asarray(-1.0))
     with pytest.raises(ValueError, match="^mu must be finite and >= 0"):
-        vmj.turning_points(bad, 0.06, 4)
+        vmj.turning_points(bad, 0.06, 6)
     leaves, treedef = jax.tree.flatten(model)
     leaves = [jnp.asarray(np.nan) if i == 1 else x for i, x in enumerate(leaves)]  # c
     with pytest.raises(ValueError, match="^c must be finite and > 0"):
-        vmj.turning_points(jax.tree.unflatten(treedef, leaves), 0.06, 4)
+        vmj.turning_points(jax.tree.unflatten(treedef, leaves), 0.06, 6)
     friction = eqx.tree_at(lambda m: m.friction.F, model, jnp.asarray(-2.0))
     with pytest.raises(ValueError, match="^F must be finite and >= 0"):
         vmj.simulate(friction, -0.06, 0.0, 0.5)
@@ -110,7 +110,7 @@ def test_models_rebuilt_without_their_constructor_are_checked_again():
     good = eqx.tree_at(lambda m: m.mu, model, jnp.asarray(2.5))
     direct = vmj.VariableMass(5.0, 4900.0, 3.0, 0.5, 2.5, vmj.Coulomb(14.7))
     np.testing.assert_array_equal(
-        vmj.turning_points(good, 0.06, 4).positions, vmj.turning_points(direct, 0.06, 4).positions
+        vmj.turning_points(good, 0.06, 6).positions, vmj.turning_points(direct, 0.06, 6).positions
     )
 
 
@@ -118,11 +118,11 @@ def test_scalar_arguments_are_checked_on_the_host():
     model = MODELS["variable-mass"]()
     for a0 in (0.0, -1.0, float("nan"), np.float64(-1.0), jnp.asarray(float("inf"))):
         with pytest.raises(ValueError, match="^a0 must be finite and > 0"):
-            vmj.turning_points(model, a0, 4)
+            vmj.turning_points(model, a0, 6)
     # Python, NumPy and JAX scalars give one compiled program and the same answer
-    seqs = [vmj.turning_points(model, 0.06, 5)]
+    seqs = [vmj.turning_points(model, 0.06, 6)]
     compiled = entry._turning_points._cache_size()
-    seqs += [vmj.turning_points(model, a0, 5) for a0 in (np.float64(0.06), jnp.asarray(0.06), 6e-2)]
+    seqs += [vmj.turning_points(model, a0, 6) for a0 in (np.float64(0.06), jnp.asarray(0.06), 6e-2)]
     assert entry._turning_points._cache_size() == compiled
     for seq in seqs[1:]:
         np.testing.assert_array_equal(seq.positions, seqs[0].positions)
@@ -196,7 +196,7 @@ def test_a_top_level_call_waits_for_its_program_off_a_cpu(monkeypatch):
     for off_cpu in (False, True):
         monkeypatch.setattr(exported, "_default_backend_is_cpu", lambda on=not off_cpu: on)
         amp = vmj.kbm_amplitude(rope, 0.6, jnp.linspace(0.0, 1.0, 3))
-        seq = vmj.turning_points(model, 0.06, 4)
+        seq = vmj.turning_points(model, 0.06, 6)
         assert len(waited) == (2 if off_cpu else 0)
     assert jax.tree.leaves(waited[0])[0] is amp  # (the law's (amplitude, frequency))
     assert jax.tree.leaves(waited[1])[0] is jax.tree.leaves(seq)[0]

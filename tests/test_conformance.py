@@ -178,7 +178,7 @@ def test_results_enumeration():
 def test_throw_raises_solver_error_with_the_message():
     m = vmj.VariableMass(5.0, 4900.0, -3.0, 0.0, 0.0, vmj.Coulomb(0.1))  # mass runs out
     with pytest.raises(vmj.SolverError, match="reaches zero"):
-        vmj.turning_points(m, 0.06, 60, throw=True)
+        vmj.turning_points(m, 0.06, 40, throw=True)
 
 
 def test_applicability_that_depends_on_traced_values_is_guarded():
