@@ -4,7 +4,7 @@ accelerator: `_over_jobs`), and the profile-likelihood batch.
 
 A *job* is one least-squares problem (`fits._fit`): R records of N points, P parameters and q
 free slots, all array data (`_Data`), so one compiled solve serves every fit of a model family,
-forward method, record shape and batch size. The residual vmaps over the records; a slot's
+forward method and record shape (and, on an accelerator, batch size). The residual vmaps over the records; a slot's
 value is its coordinate through `fits._params.apply` (bounds per slot); the Jacobian is
 materialised in one forward-mode pass and handed to the solvers through a `custom_jvp`.
 """
@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 import optimistix as optx
+from jax.extend.core import jaxpr_as_fun
 
 import vmj
 from vmj.cli import exported_jit
@@ -290,29 +291,43 @@ class _LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
         return self._lm.postprocess(fn, y, aux, args, options, state[0], tags, result)
 
 
-def _in_turn(p0) -> bool:
-    """Whether the batch's starts `p0` lie on a CPU, where `_over_jobs` solves the jobs one
-    after another."""
-    return next(iter(p0.devices())).platform == "cpu"
+def _in_turn() -> bool:
+    """Whether the fit's arrays go to a CPU (JAX's default device), where `_solve` solves the
+    jobs in turn, `CPU_JOBS` a call."""
+    return next(iter(jnp.zeros(()).devices())).platform == "cpu"
 
 
-def _over_jobs(one, d, p0, in_turn: bool):
-    """`one(d, p0)` for every job of the batch: in turn (`lax.map`, on a CPU) or all at once
-    (`jax.vmap`, on an accelerator, whose lanes run in parallel).
+#: jobs per compiled solve on a CPU, whatever the fit: its padding is skipped (`_over_jobs`)
+CPU_JOBS = 32
+
+
+def _over_jobs(one, d, p0, real, in_turn: bool):
+    """`one(d, p0)` for every job of the batch: in turn (`lax.map`, on a CPU), the jobs whose
+    `real` is False (a chunk's padding) skipped, their outputs zero; or all at once
+    (`jax.vmap`, on an accelerator, whose lanes run in parallel; padding solved as well).
 
     On a CPU, one job after another is faster to trace, to compile and to run. Batched, a
     while loop needs its carries' batching found by tracing its body again (JAX's fixpoint),
     and the fit's loops are four deep (the solver's steps, the swings, the substeps, Newton's
     iterations); each lane then runs until the batch's slowest has converged. The pendulum fit
     of `fits/data/80P.txt` took 95-98 s batched, 44-45 s in turn (a fresh cache, 2 cores; the
-    other figures in docs/fits.md)."""
-    if in_turn:
-        return jax.lax.map(lambda job: one(*job), (d, p0))
-    return jax.vmap(one)(d, p0)
+    other figures in docs/fits.md). (`one` is traced once, into a jaxpr that the conditional's
+    branch evaluates: the skipping branch needs only its outputs' shapes.)"""
+    if not in_turn:
+        return jax.vmap(one)(d, p0)
+
+    def job(args):
+        d, p0, real = args
+        closed, shapes = jax.make_jaxpr(one, return_shape=True)(d, p0)
+        skip = lambda *_: [jnp.zeros(s.shape, s.dtype) for s in jax.tree.leaves(shapes)]  # noqa: E731
+        out = jax.lax.cond(real, jaxpr_as_fun(closed), skip, *jax.tree.leaves((d, p0)))
+        return jax.tree.unflatten(jax.tree.structure(shapes), out)
+
+    return jax.lax.map(job, (d, p0, real))
 
 
 @exported_jit(static_argnums=(0, 1, 2, 3, 4))  # a repeated `vmj fit` loads it untraced
-def _solve_lm(space, forward, n, max_steps, in_turn, d, p0):
+def _solve_lm(space, forward, n, max_steps, in_turn, d, p0, real):
     def one(d, p0):
         def fn(p, d):
             # one trace context for every call: optimistix first calls `fn` under
@@ -335,11 +350,11 @@ def _solve_lm(space, forward, n, max_steps, in_turn, d, p0):
         ok = sol.result == optx.RESULTS.successful
         return sol.value, _place(d, _values(d, sol.value)), J, r, ok, sol.stats["num_steps"]
 
-    return _over_jobs(one, d, p0, in_turn)
+    return _over_jobs(one, d, p0, real, in_turn)
 
 
 @exported_jit(static_argnums=(0, 1, 2, 3, 4))
-def _solve_adam(space, forward, n, steps, in_turn, d, p0):
+def _solve_adam(space, forward, n, steps, in_turn, d, p0, real):
     """Adam (optax) on the weighted residual sum of squares, `steps` steps from `p0`: the
     problem Levenberg-Marquardt solves. A robust loss is the weights' concern (`fits._fit`'s
     iteratively reweighted passes, weights psi(u)/u), not the objective's: both solvers then
@@ -377,7 +392,7 @@ def _solve_adam(space, forward, n, steps, in_turn, d, p0):
         ok = jnp.all(jnp.isfinite(p)) & (offset2 < _ADAM_OFFSET**2)
         return p, _place(d, _values(d, p)), J, r, ok, jnp.asarray(steps)
 
-    return _over_jobs(one, d, p0, in_turn)
+    return _over_jobs(one, d, p0, real, in_turn)
 
 
 # -- batched solves ----------------------------------------------------------------------------
@@ -460,15 +475,25 @@ def _record_slots(job, R, shape) -> np.ndarray:
 
 
 def _solve(space, items, shape, optimizer=None):
-    """Solve the jobs `items` (dicts of `_job_arrays`) of one space in chunks of `shape.B`
-    (the last one padded with copies); returns per item a dict of numpy outputs."""
+    """Solve the jobs `items` (dicts of `_job_arrays`) of one space in chunks (the last one
+    padded with copies); returns per item a dict of numpy outputs.
+
+    A chunk is `CPU_JOBS` jobs on a CPU (`_in_turn`), whose padding the solve skips, whatever
+    the fit: one compiled solve (and one stored) serves fits of any number of jobs. Until
+    2026-12-02 a CPU's chunks were `shape.B` jobs, the most that one round of the fit solves,
+    padding solved as well: a program for every such number (of the 66 programs that the test
+    suite's fits compiled, 15 differed in it alone). On an accelerator a chunk is `shape.B`
+    jobs solved at once (`jax.vmap`)."""
     s = shape.settings
     steps = s["max_steps"]
     optimizer = optimizer or s["optimizer"]
+    in_turn = _in_turn()
+    size = CPU_JOBS if in_turn else shape.B
     outs = []
-    for c0 in range(0, len(items), shape.B):
-        chunk = items[c0 : c0 + shape.B]
-        chunk = chunk + [chunk[0]] * (shape.B - len(chunk))
+    for c0 in range(0, len(items), size):
+        chunk = items[c0 : c0 + size]
+        real = len(chunk)
+        chunk = chunk + [chunk[0]] * (size - real)
         stacked = {k: np.stack([it[k] for it in chunk]) for k in chunk[0]}
         p0 = jnp.asarray(stacked.pop("p"), dtype=float)
         d = _Data(
@@ -477,16 +502,16 @@ def _solve(space, items, shape, optimizer=None):
                 for k, v in stacked.items()
             }
         )
-        in_turn = _in_turn(p0)
+        mask = jnp.asarray(np.arange(size) < real)
         with vmj.assume_valid():
             if optimizer == "lm":
-                res = _solve_lm(space, s["forward"], shape.n_model, steps, in_turn, d, p0)
+                res = _solve_lm(space, s["forward"], shape.n_model, steps, in_turn, d, p0, mask)
             else:
                 res = _solve_adam(
-                    space, s["forward"], shape.n_model, s["adam_steps"], in_turn, d, p0
+                    space, s["forward"], shape.n_model, s["adam_steps"], in_turn, d, p0, mask
                 )
         p, theta, J, r, ok, st = (np.asarray(v) for v in res)
-        for j in range(min(shape.B, len(items) - c0)):
+        for j in range(real):
             outs.append(
                 {
                     "p": p[j],

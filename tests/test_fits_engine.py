@@ -647,8 +647,8 @@ def test_fits_solved_in_threads_at_once():
 
 
 def test_jobs_solved_in_turn_as_batched(monkeypatch):
-    """A CPU solves a batch's jobs one after another (`fits._solve._over_jobs`), an
-    accelerator all at once (`jax.vmap`): the same estimates and standard errors, and the
+    """A CPU solves a batch's jobs one call each (`fits._solve._solve`), an accelerator all
+    at once (`jax.vmap`): the same estimates and standard errors, and the
     same converged flags, from four records that take different numbers of steps. (Within
     the solver's end, 1e-4 of a standard error: the two compiled programs round differently,
     and their last steps differ by that much.)"""
@@ -660,7 +660,7 @@ def test_jobs_solved_in_turn_as_batched(monkeypatch):
     given = {"m0": 5.0, "c": 4900.0, "delta": 3.0, "eps": 0.0, "a0": 0.06}
     kw = dict(compare=False, intervals=False)
     in_turn = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, **kw)
-    monkeypatch.setattr(fits._solve, "_in_turn", lambda p0: False)
+    monkeypatch.setattr(fits._solve, "_in_turn", lambda: False)
     batched = fits.fit_batch(records, "variable-mass", ("FT", "mu"), given, **kw)
     for a, b in zip(in_turn, batched):
         assert a.converged and a.converged == b.converged
