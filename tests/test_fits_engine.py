@@ -647,8 +647,8 @@ def test_fits_solved_in_threads_at_once():
 
 
 def test_jobs_solved_in_turn_as_batched(monkeypatch):
-    """A CPU solves a batch's jobs one call each (`fits._solve._solve`), an accelerator all
-    at once (`jax.vmap`): the same estimates and standard errors, and the
+    """A CPU solves a batch's jobs one after another (`fits._solve._over_jobs`), an
+    accelerator all at once (`jax.vmap`): the same estimates and standard errors, and the
     same converged flags, from four records that take different numbers of steps. (Within
     the solver's end, 1e-4 of a standard error: the two compiled programs round differently,
     and their last steps differ by that much.)"""
