@@ -4,9 +4,10 @@ accelerator: `_over_jobs`), and the profile-likelihood batch.
 
 A *job* is one least-squares problem (`fits._fit`): R records of N points, P parameters and q
 free slots, all array data (`_Data`), so one compiled solve serves every fit of a model family,
-forward method and record shape (and, on an accelerator, batch size). The residual vmaps over the records; a slot's
-value is its coordinate through `fits._params.apply` (bounds per slot); the Jacobian is
-materialised in one forward-mode pass and handed to the solvers through a `custom_jvp`.
+forward method and record shape (and, on an accelerator, batch size). The residual vmaps over
+the records; a slot's value is its coordinate through `fits._params.apply` (bounds per slot);
+the Jacobian is materialised in one forward-mode pass and handed to the solvers through a
+`custom_jvp`.
 """
 
 from __future__ import annotations
