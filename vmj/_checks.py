@@ -182,7 +182,7 @@ def check_all(items) -> list:
             raise ValueError(f"{message} (got {shown})")
     if traced:
         bad = jnp.stack([b for _, b, _ in traced])
-        guarded = eqx.branched_error_if(
+        guarded = fail_branched(
             tuple(out[i] for i, _, _ in traced),
             jnp.any(bad),
             jnp.argmax(bad),
@@ -338,8 +338,93 @@ def assume_valid():
 
 
 def guard(x, bad, message: str):
-    """`equinox.error_if(x, bad, message)` for a traced check, unless inside `assume_valid`."""
-    return x if _ASSUMED.get() else eqx.error_if(x, bad, message)
+    """`fail_if(x, bad, message)` for a check of an input, unless inside `assume_valid`."""
+    return x if _ASSUMED.get() else fail_if(x, bad, message)
+
+
+# -- checks of traced values, as host callbacks or as values -----------------------------------
+#: the collector of the program being traced at top level (`collecting`), or None
+_COLLECTOR = contextvars.ContextVar("vmj_collector", default=None)
+
+
+def _current_trace():
+    from jax._src import core
+
+    return core.trace_ctx.trace
+
+
+def fail_if(x, bad, message: str, error: type = ValueError):
+    """`x`, failing with `message` where `bad` (any entry) holds: at once (`error`) for a
+    concrete `bad`; for a traced one, collected as a value where a compiled entry point traces
+    its program at top level (`collecting`), else `equinox.error_if` (a host callback: inside
+    the user's `jit`/`vmap`, or a loop's body)."""
+    return fail_branched(x, jnp.any(bad), 0, (message,), error)
+
+
+def fail_branched(x, bad, index, messages, error: type = ValueError):
+    """`fail_if` with the message `messages[index]` (`equinox.branched_error_if`'s form): one
+    check however many parameters it covers."""
+    messages = tuple(messages)
+    if not _is_traced(bad):
+        if bool(np.any(bad)):
+            raise error(messages[int(index)])
+        return x
+    collector = _COLLECTOR.get()
+    if collector is not None and collector.trace is _current_trace():
+        code = jnp.where(jnp.any(bad), jnp.asarray(index, jnp.int32), -1)
+        collector.found.append((code, messages, error))
+        return x
+    return eqx.branched_error_if(x, jnp.any(bad), index, messages)
+
+
+class Failures(eqx.Module):
+    """The checks that a compiled program traced at top level returns as values
+    (`collecting`): per check the index of its failed message (`-1`: passed), its messages
+    and the exception it raises on the host."""
+
+    codes: tuple
+    messages: tuple = eqx.field(static=True)
+    errors: tuple = eqx.field(static=True)
+
+    def raise_any(self) -> None:
+        """Raise the first failed check's exception, its message (concrete codes)."""
+        for code, messages, error in zip(self.codes, self.messages, self.errors):
+            code = int(np.max(np.asarray(code)))
+            if code >= 0:
+                raise error(messages[code])
+
+    def guard(self, x):
+        """`x` guarded by the same checks in the trace that is current (`fail_branched`): for
+        checks collected inside a transformation and returned out of it (`jax.jacfwd`'s
+        auxiliary output)."""
+        for code, messages, error in zip(self.codes, self.messages, self.errors):
+            x = fail_branched(x, code >= 0, jnp.maximum(code, 0), messages, error)
+        return x
+
+
+class _Collector:
+    def __init__(self):
+        self.trace, self.found = _current_trace(), []
+
+    def failures(self) -> Failures:
+        codes, messages, errors = zip(*self.found) if self.found else ((), (), ())
+        return Failures(tuple(codes), tuple(messages), tuple(errors))
+
+
+@contextlib.contextmanager
+def collecting():
+    """Within this block, checks of values traced at the trace that is current (not deeper:
+    inside a `vmap`, a loop's body or a derivative's trace their values cannot leave) are
+    collected instead of compiled as host callbacks; yields the collector, whose `failures()`
+    the traced function returns: the compiled program stays free of host callbacks (JAX's
+    persistent compilation cache stores no program that has one), and the caller raises
+    (`Failures.raise_any`) on the host with the same message."""
+    collector = _Collector()
+    token = _COLLECTOR.set(collector)
+    try:
+        yield collector
+    finally:
+        _COLLECTOR.reset(token)
 
 
 def _problems(m, traced: bool = True) -> list:
@@ -443,6 +528,4 @@ def validated(model):
     if not traced or _ASSUMED.get():
         return model
     bad = jnp.stack([jnp.logical_not(jnp.all(ok)) for _, ok in traced])
-    return eqx.branched_error_if(
-        model, jnp.any(bad), jnp.argmax(bad), [message for message, _ in traced]
-    )
+    return fail_branched(model, jnp.any(bad), jnp.argmax(bad), [message for message, _ in traced])

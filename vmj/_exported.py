@@ -184,15 +184,23 @@ def filter_jit(fun):
     transformation tracing), as `exported_jit`'s: for the entry points whose arguments are no
     flat arrays (a model with a callable, a dictionary of solver settings; `vmj.sensitivity`,
     the rope's averaged laws, the linear response, the stick-slip cycle's samples). The
-    function returns arrays only."""
+    function returns arrays only. Called at top level, the checks of values traced in its own
+    trace are returned as values and raise on the host (`vmj._checks.collecting`): the program
+    holds no host callback for them, and JAX's persistent compilation cache can store it."""
 
     @functools.cache
-    def jitted(options: tuple):
+    def jitted(options: tuple, collect: bool):
         import jax
+
+        from ._checks import collecting
 
         def program(arrays, static):
             args, kwargs = jax.tree.unflatten(static[0], joined_leaves(static, arrays))
-            return fun(*args, **kwargs)
+            if not collect:
+                return fun(*args, **kwargs)
+            with collecting() as checks:
+                out = fun(*args, **kwargs)
+            return out, checks.failures()
 
         program.__name__ = program.__qualname__ = fun.__name__
         return jax.jit(program, static_argnums=1, compiler_options=dict(options) or None)
@@ -201,9 +209,16 @@ def filter_jit(fun):
     def call(*args, **kwargs):
         arrays, static = split_arrays((args, kwargs))
         if not _top_level():
-            return jitted(())(arrays, static)
-        return _checked(jitted(_one_call_options())(arrays, static))
+            return jitted((), False)(arrays, static)
+        out, failures = jitted(_one_call_options(), True)(arrays, static)
+        failures.raise_any()
+        return _checked(out)
 
+    def lower(*args, **kwargs):
+        """The program of a top-level call (`jax.stages.Lowered`: `as_text()`, ...)."""
+        return jitted(_one_call_options(), True).lower(*split_arrays((args, kwargs)))
+
+    call.lower = lower
     return call
 
 

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike
 
-from ._checks import _is_traced
+from ._checks import _is_traced, fail_branched
 
 __all__ = ["RESULTS", "SolverError", "DecaySequence", "Trajectory", "throw_if_failed"]
 
@@ -107,7 +107,8 @@ class SolverError(RuntimeError):
 def throw_if_failed(value, result, throw: bool):
     """The one `throw=True` path: a concrete result raises [`vmj.SolverError`][] on the host
     (compiled entry points stay free of host callbacks); a traced one (inside the user's `jit`
-    or `vmap`) is guarded with `equinox.branched_error_if`."""
+    or `vmap`) is guarded with `equinox.branched_error_if`, or returned as a value where a
+    compiled entry point collects its checks (`vmj._checks.collecting`)."""
     if not throw:
         return value
     if not _is_traced(result):
@@ -115,8 +116,8 @@ def throw_if_failed(value, result, throw: bool):
         if np.any(RESULTS.failed(codes)):
             raise SolverError(RESULTS(int(codes.max())).message)
         return value
-    return eqx.branched_error_if(
-        value, jnp.any(RESULTS.failed(result)), jnp.max(result), RESULTS.messages
+    return fail_branched(
+        value, jnp.any(RESULTS.failed(result)), jnp.max(result), RESULTS.messages, SolverError
     )
 
 

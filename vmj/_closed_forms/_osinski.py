@@ -20,12 +20,12 @@ from __future__ import annotations
 
 import functools
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from .._checks import fail_if
 from .._numerics._ode import ode_solve
 from .._numerics._roots import expanding_root
 from .._numerics._scan import decay_scan
@@ -143,7 +143,8 @@ _UNBOUNDED = (
 
 
 def _turning_point(c, E, side):
-    """The turning point `x` on `side` (+-1) of `V(x) = E`."""
+    """The turning point `x` on `side` (+-1) of `V(x) = E`, and whether it exists (found by a
+    bracketing search; False above the potential barrier, `_UNBOUNDED`)."""
     c2, c3, c4 = c
 
     def f(y):  # E - V(side * y), positive inside the swing
@@ -151,15 +152,15 @@ def _turning_point(c, E, side):
         return E - x * x * (c2 + x * (c3 + x * c4))
 
     y, bracketed = expanding_root(f, jnp.sqrt(jnp.maximum(E, 0.0) / c2))
-    y = eqx.error_if(y, jnp.logical_not(bracketed), _UNBOUNDED)
-    return side * y
+    return side * y, bracketed
 
 
 def _check_bounded(rope, a0):
     """Raise (inside jit) when a swing from `-a0` has no turning point at the initial length."""
     c0 = _poly(rope, rope.length.l0)
     E0 = a0 * a0 * (c0[0] - a0 * c0[1] + a0 * a0 * c0[2])  # V(-a0)
-    return c0, E0, _turning_point(c0, E0, 1.0)
+    xp, bounded = _turning_point(c0, E0, 1.0)
+    return c0, E0, fail_if(xp, jnp.logical_not(bounded), _UNBOUNDED)
 
 
 # -- exact energy map for a fixed length -------------------------------------------------------
@@ -195,23 +196,24 @@ def energy_map_sequence(rope, a0, n: int):
 # -- action-based averaging ---------------------------------------------------------------------
 def _swing_of_action(rope, I, l):
     """Energy, turning points and angular frequency of the frictionless swing of action `I` at
-    length `l`: `(E, x_minus, x_plus, Omega)`."""
+    length `l`, and whether the swing has both turning points: `(E, x_minus, x_plus, Omega,
+    bounded)`."""
     c = _poly(rope, l)
     omega = jnp.sqrt(2 * c[0] / rope.m)
 
     def state(E):
-        xm, xp = _turning_point(c, E, -1.0), _turning_point(c, E, 1.0)
-        return xm, xp
+        (xm, okm), (xp, okp) = _turning_point(c, E, -1.0), _turning_point(c, E, 1.0)
+        return xm, xp, okm & okp
 
     def body(_, E):  # Newton on I(E) = I (concave increasing: monotone from below)
-        xm, xp = state(E)
+        xm, xp, _ = state(E)
         period = 2 * _half_swing_time(rope, c, 0.0, xm, xp)
         return E + (I - _action(rope, c, xm, xp)) * (2 * jnp.pi) / period
 
     E = lax.fori_loop(0, 30, body, I * omega)
-    xm, xp = state(E)
+    xm, xp, bounded = state(E)
     period = 2 * _half_swing_time(rope, c, 0.0, xm, xp)
-    return E, xm, xp, 2 * jnp.pi / period
+    return E, xm, xp, 2 * jnp.pi / period, bounded
 
 
 def action_law(rope, a0, ts):
@@ -222,46 +224,57 @@ def action_law(rope, a0, ts):
     friction = rope.friction_force()
     tiny = 1e-9 * J0
 
-    def field(t, J, args):  # J = sqrt(I): dJ/dt = -(A T/pi)(x_+ - x_-) / (2 J)
+    def field(t, y, args):  # J = sqrt(I): dJ/dt = -(A T/pi)(x_+ - x_-) / (2 J)
+        J, _ = y  # (and the time spent above the potential barrier: a value, no callback)
         l = rope.length.length(t)
         alive = J > tiny
         Js = jnp.where(alive, J, J0)
-        _, xm, xp, _ = _swing_of_action(rope, Js * Js, l)
-        return jnp.where(alive, -friction / jnp.pi * (xp - xm) / (2 * Js), 0.0)
+        _, xm, xp, _, bounded = _swing_of_action(rope, Js * Js, l)
+        dJ = jnp.where(alive, -friction / jnp.pi * (xp - xm) / (2 * Js), 0.0)
+        return dJ, jnp.where(alive & ~bounded, 1.0, 0.0)
 
     order = jnp.argsort(ts)  # any order of the requested times: solve sorted, then put back
     ts = ts[order]
     t1 = ts[-1]
     import diffrax as dfx  # only where an ODE is solved (light imports)
+    import optimistix as optx
 
     # diffrax's Dopri8, whose stages run in a loop: the field (a Newton solve of I(E) with two
     # root finders per iteration) is then traced 4 times instead of 30 with vmj's written-out
     # stages (`dopri8()`, made for cheap vmapped fields); the first call compiles in 3.0 s
     # instead of 10.4, a warm one takes 6.5 ms instead of 9.6, the amplitudes agree to 2e-15
+    # the steps controlled by J's error alone (the time above the barrier only counts); the
+    # values at `ts` from the dense output, the interpolant `SaveAt(ts=ts)` saves, without its
+    # check of `ts` (a host callback: JAX's persistent compilation cache stores no program with
+    # one; `ts` were checked on the host)
     sol = ode_solve(
         field,
-        J0,
+        (J0, jnp.zeros_like(J0)),
         t1,
-        dfx.SaveAt(ts=ts),
+        dfx.SaveAt(dense=True),
         rtol=1e-10,
         atol=1e-10 * J0,
         max_steps=100_000,
         solver=dfx.Dopri8(),
+        norm=lambda y: optx.rms_norm(y[0]),
     )
-    Js = sol.ys
+    Js, above = jax.vmap(sol.evaluate)(ts)
 
     def output(J, t):
         alive = J > tiny
         Js = jnp.where(alive, J, J0)
-        _, xm, xp, Om = _swing_of_action(rope, Js * Js, rope.length.length(t))
+        _, xm, xp, Om, bounded = _swing_of_action(rope, Js * Js, rope.length.length(t))
         l = rope.length.length(t)
-        return jnp.where(alive, (xp - xm) / 2, 0.0), jnp.where(
-            alive, Om, jnp.sqrt(rope.A * rope.e / (rope.m * l))
+        return (
+            jnp.where(alive, (xp - xm) / 2, 0.0),
+            jnp.where(alive, Om, jnp.sqrt(rope.A * rope.e / (rope.m * l))),
+            bounded | ~alive,
         )
 
-    amp, freq = jax.vmap(output)(Js, ts)
+    amp, freq, bounded = jax.vmap(output)(Js, ts)
+    amp = fail_if(amp, jnp.any((above > 0) & jnp.isfinite(above)) | ~jnp.all(bounded), _UNBOUNDED)
     ok = sol.result == dfx.RESULTS.successful
-    amp = eqx.error_if(amp, jnp.logical_not(ok), "the averaged (action) law's ODE solve failed")
+    amp = fail_if(amp, jnp.logical_not(ok), "the averaged (action) law's ODE solve failed")
     back = jnp.argsort(order)
     return amp[back], freq[back]
 

@@ -22,7 +22,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array
 
-from .._checks import _float, _is_traced, nonnegative, positive
+from .._checks import _float, _is_traced, fail_if, nonnegative, positive
 from .._exported import filter_jit
 from .._laws._forcing import Forcing, NoForcing
 from ._base import AbstractAnalytic
@@ -123,7 +123,7 @@ class LinearOscillator(AbstractAnalytic):
             "ratio eta = c/(2 sqrt(k m)) < 1); use response() otherwise"
         )
         if _is_traced(eta):
-            wd = eqx.error_if(wd, jnp.any(eta >= 1), message)
+            wd = fail_if(wd, eta >= 1, message)
         elif np.any(np.asarray(eta) >= 1):  # a ValueError, as every concrete check
             got = np.asarray(eta)
             raise ValueError(f"{message} (got eta = {got.item() if got.ndim == 0 else got})")

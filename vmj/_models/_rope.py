@@ -23,6 +23,7 @@ from .._checks import (
     _is_traced,
     anything,
     check,
+    fail_if,
     nonnegative,
     positive,
     scalar,
@@ -280,7 +281,7 @@ class Rope(AbstractEnergyMap):
         return eqx.tree_at(
             lambda r: r.length.u,
             self,
-            eqx.error_if(u, u != 0, "u must be 0 for the energy map (a rope of fixed length)"),
+            fail_if(u, u != 0, "u must be 0 for the energy map (a rope of fixed length)"),
         )
 
 

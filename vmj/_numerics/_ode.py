@@ -161,7 +161,7 @@ def _recording_class():
     return Recording
 
 
-def step_size_controller(rtol, atol, limit=None):
+def step_size_controller(rtol, atol, limit=None, norm=None):
     """diffrax's `PIDController(rtol=rtol, atol=atol)` (integral control at its default
     coefficients: the next step is the last times `clip(safety / error**(1/order), factormin,
     factormax)`), with the power written as `exp(log(1/error)/order)`: XLA's `power` is, on
@@ -172,8 +172,10 @@ def step_size_controller(rtol, atol, limit=None):
 
     `limit(t0, t1, y0, y1)`, if given: the longest step after an accepted step from `(t0, y0)`
     to `(t1, y1)` (the controller's own choice where it is shorter); a step limited so is
-    shorter, never longer, so the error control stays as it is."""
-    return _controller_class()(rtol=rtol, atol=atol, limit=limit)
+    shorter, never longer, so the error control stays as it is. `norm`: of the error estimate
+    (default diffrax's RMS norm over the whole state)."""
+    extra = {} if norm is None else {"norm": norm}
+    return _controller_class()(rtol=rtol, atol=atol, limit=limit, **extra)
 
 
 @functools.cache
@@ -228,13 +230,14 @@ def ode_solve(
     resume=None,
     limit=None,
     adjoint=None,
+    norm=None,
 ):
     """`field(t, y, args)` integrated from `t0` (default 0) to `t1` with diffrax (`solver`,
     default `dopri8()`) under a PID step-size controller, stopping early at a `diffrax.Event`;
     never raises (check `sol.result`). `resume`: `(solver_state, controller_state, made_jump)`
     of a solve that ended at `t0` (saved with `SaveAt(solver_state=True,
     controller_state=True, made_jump=True)`), which this one continues with the same steps.
-    `limit`: the step-size controller's (`step_size_controller`). `adjoint`: diffrax's
+    `limit`, `norm`: the step-size controller's (`step_size_controller`). `adjoint`: diffrax's
     (default: its `RecursiveCheckpointAdjoint`, reverse mode)."""
     import diffrax as dfx  # here, not at the top: `import vmj` and the vmj command stay light
 
@@ -247,7 +250,7 @@ def ode_solve(
         dt0=None,
         y0=y0,
         saveat=saveat,
-        stepsize_controller=step_size_controller(rtol, atol, limit),
+        stepsize_controller=step_size_controller(rtol, atol, limit, norm),
         max_steps=max_steps,
         throw=False,
         event=event,

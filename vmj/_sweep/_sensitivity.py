@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._checks import _float
+from .._checks import _float, collecting
 from .._exported import filter_jit
 from .._names import name_list
 from ._grid import Grid
@@ -147,18 +147,20 @@ def _sensitivity(fn, model, paths, field_names, wrt, mode, theta0, solver_args):
                 lambda m: [_get(m, p) for p in paths], m, [theta[w] for w in field_names]
             )
         args = {**solver_args, **{w: theta[w] for w in wrt if w in solver_args}}
-        out = fn(m, **args)
+        with collecting() as checks:  # returned out of the derivative's trace (`Failures`)
+            out = fn(m, **args)
         for leaf in jax.tree.leaves(out):
             if not jnp.issubdtype(jnp.result_type(leaf), jnp.inexact):
                 raise ValueError(
                     "sensitivity needs fn to return float arrays only (got an integer or boolean "
                     "output: select float fields such as .amplitudes, .times or .stop_time)"
                 )
-        return out
+        return out, checks.failures()
 
-    jac = (jax.jacfwd if mode == "forward" else jax.jacrev)(of)(theta0)
+    jac, failures = (jax.jacfwd if mode == "forward" else jax.jacrev)(of, has_aux=True)(theta0)
+    jac = failures.guard(jac)  # fn's checks, in this trace: values of `filter_jit`'s program
     # jac has the output's structure with a dict over `wrt` at each leaf: put `wrt` outside
-    outer = jax.tree.structure(jax.eval_shape(of, theta0))
+    outer = jax.tree.structure(jax.eval_shape(lambda theta: of(theta)[0], theta0))
     inner = jax.tree.structure(theta0)
     swapped = jax.tree.transpose(outer, inner, jac)
     return {w: swapped[w] for w in wrt}
