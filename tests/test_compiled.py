@@ -73,7 +73,6 @@ def test_guards_stay_inside_the_users_own_jit():
         jax.jit(positions)(-1.0).block_until_ready()
 
 
-@pytest.mark.long  # 175 s in the suite's process (3-8 s of it measured apart): not yet known why
 def test_sensitivity_and_the_averaged_laws_compile_without_host_callbacks(monkeypatch):
     """The `filter_jit` entry points return the checks of their own trace as values and raise
     on the host (`vmj._checks.collecting`): `vmj.sensitivity` (its function's checks, traced in

@@ -105,20 +105,16 @@ class SolverError(RuntimeError):
 
 
 def throw_if_failed(value, result, throw: bool):
-    """The one `throw=True` path: a concrete result raises [`vmj.SolverError`][] on the host
-    (compiled entry points stay free of host callbacks); a traced one (inside the user's `jit`
-    or `vmap`) is guarded with `equinox.branched_error_if`, or returned as a value where a
-    compiled entry point collects its checks (`vmj._checks.collecting`)."""
+    """The one `throw=True` path (`vmj._checks.fail_branched`): a concrete result raises
+    [`vmj.SolverError`][] on the host (compiled entry points stay free of host callbacks); a
+    traced one is returned as a value where a compiled entry point collects its checks
+    (`vmj._checks.collecting`), else (inside the user's `jit` or `vmap`) guarded with
+    `equinox.branched_error_if`."""
     if not throw:
         return value
-    if not _is_traced(result):
-        codes = np.asarray(result)
-        if np.any(RESULTS.failed(codes)):
-            raise SolverError(RESULTS(int(codes.max())).message)
-        return value
-    return fail_branched(
-        value, jnp.any(RESULTS.failed(result)), jnp.max(result), RESULTS.messages, SolverError
-    )
+    codes = _host(result)  # (NumPy for a concrete result: no JAX dispatch)
+    failed = RESULTS.failed(codes)
+    return fail_branched(value, failed.any(), codes.max(), RESULTS.messages, SolverError)
 
 
 class DecaySequence(eqx.Module):

@@ -76,7 +76,8 @@ def _kbm_frequency(rope, a, t):
 
 def kbm(rope, a0, t):
     """First-order amplitude and frequency at times `t` (refusing an unbounded swing)."""
-    _, _, xp0 = _check_bounded(rope, a0)  # first order ignores b and d: refuse an unbounded swing
+    # first order ignores b and d: refuse an unbounded swing
+    _, _, xp0, _ = _check_bounded(rope, a0)
     a = _kbm_amplitude(rope, a0 + 0 * xp0, t)
     return a, _kbm_frequency(rope, a, t)
 
@@ -156,11 +157,12 @@ def _turning_point(c, E, side):
 
 
 def _check_bounded(rope, a0):
-    """Raise (inside jit) when a swing from `-a0` has no turning point at the initial length."""
+    """Fail (`fail_if`) when a swing from `-a0` has no turning point at the initial length:
+    `(c0, E0, x_plus, bounded)`."""
     c0 = _poly(rope, rope.length.l0)
     E0 = a0 * a0 * (c0[0] - a0 * c0[1] + a0 * a0 * c0[2])  # V(-a0)
     xp, bounded = _turning_point(c0, E0, 1.0)
-    return c0, E0, fail_if(xp, jnp.logical_not(bounded), _UNBOUNDED)
+    return c0, E0, fail_if(xp, jnp.logical_not(bounded), _UNBOUNDED), bounded
 
 
 # -- exact energy map for a fixed length -------------------------------------------------------
@@ -219,46 +221,19 @@ def _swing_of_action(rope, I, l):
 def action_law(rope, a0, ts):
     """Amplitude and frequency of the action-averaged law at times `ts` (see
     `vmj.action_amplitude`)."""
-    c0, E0, xp0 = _check_bounded(rope, a0)
+    c0, E0, xp0, bounded0 = _check_bounded(rope, a0)
     J0 = jnp.sqrt(_action(rope, c0, -a0, xp0))
     friction = rope.friction_force()
     tiny = 1e-9 * J0
 
     def field(t, y, args):  # J = sqrt(I): dJ/dt = -(A T/pi)(x_+ - x_-) / (2 J)
-        J, _ = y  # (and the time spent above the potential barrier: a value, no callback)
+        J, _ = y  # (and the time spent above the potential barrier, checked after the solve)
         l = rope.length.length(t)
         alive = J > tiny
         Js = jnp.where(alive, J, J0)
         _, xm, xp, _, bounded = _swing_of_action(rope, Js * Js, l)
         dJ = jnp.where(alive, -friction / jnp.pi * (xp - xm) / (2 * Js), 0.0)
         return dJ, jnp.where(alive & ~bounded, 1.0, 0.0)
-
-    order = jnp.argsort(ts)  # any order of the requested times: solve sorted, then put back
-    ts = ts[order]
-    t1 = ts[-1]
-    import diffrax as dfx  # only where an ODE is solved (light imports)
-    import optimistix as optx
-
-    # diffrax's Dopri8, whose stages run in a loop: the field (a Newton solve of I(E) with two
-    # root finders per iteration) is then traced 4 times instead of 30 with vmj's written-out
-    # stages (`dopri8()`, made for cheap vmapped fields); the first call compiles in 3.0 s
-    # instead of 10.4, a warm one takes 6.5 ms instead of 9.6, the amplitudes agree to 2e-15
-    # the steps controlled by J's error alone (the time above the barrier only counts); the
-    # values at `ts` from the dense output, the interpolant `SaveAt(ts=ts)` saves, without its
-    # check of `ts` (a host callback: JAX's persistent compilation cache stores no program with
-    # one; `ts` were checked on the host)
-    sol = ode_solve(
-        field,
-        (J0, jnp.zeros_like(J0)),
-        t1,
-        dfx.SaveAt(dense=True),
-        rtol=1e-10,
-        atol=1e-10 * J0,
-        max_steps=100_000,
-        solver=dfx.Dopri8(),
-        norm=lambda y: optx.rms_norm(y[0]),
-    )
-    Js, above = jax.vmap(sol.evaluate)(ts)
 
     def output(J, t):
         alive = J > tiny
@@ -271,9 +246,43 @@ def action_law(rope, a0, ts):
             bounded | ~alive,
         )
 
-    amp, freq, bounded = jax.vmap(output)(Js, ts)
-    amp = fail_if(amp, jnp.any((above > 0) & jnp.isfinite(above)) | ~jnp.all(bounded), _UNBOUNDED)
-    ok = sol.result == dfx.RESULTS.successful
+    order = jnp.argsort(ts)  # any order of the requested times: solve sorted, then put back
+    ts = ts[order]
+    import diffrax as dfx  # only where an ODE is solved (light imports)
+    import optimistix as optx
+
+    def solved(_):
+        # diffrax's Dopri8, whose stages run in a loop: the field (a Newton solve of I(E) with
+        # two root finders per iteration) is then traced 4 times instead of 30 with vmj's
+        # written-out stages (`dopri8()`, made for cheap vmapped fields); the first call
+        # compiled in 3.0 s instead of 10.4, a warm one took 6.5 ms instead of 9.6, the
+        # amplitudes agree to 2e-15. The steps are controlled by J's error alone (the time above
+        # the barrier only counts); the values at `ts` come from the dense output, the
+        # interpolant `SaveAt(ts=ts)` saves, without its check of `ts` (a host callback: JAX's
+        # persistent compilation cache stores no program with one; `ts` were checked on the
+        # host)
+        sol = ode_solve(
+            field,
+            (J0, jnp.zeros_like(J0)),
+            ts[-1],
+            dfx.SaveAt(dense=True),
+            rtol=1e-10,
+            atol=1e-10 * J0,
+            max_steps=100_000,
+            solver=dfx.Dopri8(),
+            norm=lambda y: optx.rms_norm(y[0]),
+        )
+        Js, above = jax.vmap(sol.evaluate)(ts)
+        amp, freq, bounded = jax.vmap(output)(Js, ts)
+        above = jnp.any((above > 0) & jnp.isfinite(above)) | ~jnp.all(bounded)
+        return amp, freq, above, sol.result == dfx.RESULTS.successful
+
+    def refused(_):  # a release above the barrier (`_check_bounded` fails): nothing to solve,
+        nan = jnp.full_like(ts, jnp.nan)  # and a swing without turning points would make the
+        return nan, nan, jnp.asarray(False), jnp.asarray(True)  # root finders run to their limit
+
+    amp, freq, above, ok = lax.cond(bounded0, solved, refused, None)
+    amp = fail_if(amp, above, _UNBOUNDED)
     amp = fail_if(amp, jnp.logical_not(ok), "the averaged (action) law's ODE solve failed")
     back = jnp.argsort(order)
     return amp[back], freq[back]
