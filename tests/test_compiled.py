@@ -9,6 +9,8 @@ run before them.
   (`eqx.tree_at`, `jax.tree.unflatten`) is checked again by the entry points.
 """
 
+import re
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -112,6 +114,35 @@ def test_sensitivity_and_the_averaged_laws_compile_without_host_callbacks(monkey
         with pytest.raises(ValueError, match="above the potential barrier"):
             law(rope, 0.6, ts)
         assert has_callback(jax.jit(lambda a0, law=law: law(rope, a0, ts)).lower(0.05).as_text())
+
+
+def test_sweep_chunks_return_their_functions_checks_as_values(monkeypatch):
+    """A sweep's chunk collects the checks of what its function computes (the derivative's
+    inputs of `vmj.sensitivity` over a grid, `throw=True`) as values: no host callback in the
+    chunk's program, and a failing point raises on the host with its plain message."""
+    import vmj._sweep._sweep as sweep_module
+
+    seen = []
+    call = sweep_module._ChunkFunction.__call__
+    monkeypatch.setattr(
+        sweep_module._ChunkFunction, "__call__", lambda f, *a: seen.append((f, a)) or call(f, *a)
+    )
+    model = MODELS["variable-mass"]()
+    g = vmj.grid(model, mu=[1.0, 2.0])
+    amplitudes = lambda m, a0, n: vmj.turning_points(m, a0, n).amplitudes  # noqa: E731
+    got = vmj.sensitivity(amplitudes, g, ("mu", "a0"), a0=0.06, n=6)
+    function, args = seen[-1]
+    assert not has_callback(function.lower(*args).as_text())
+    at = vmj.sensitivity(amplitudes, eqx.tree_at(lambda m: m.mu, model, 2.0), ("mu",), a0=0.06, n=6)
+    np.testing.assert_allclose(got.values["d_mu"][1], at["mu"], rtol=1e-12)
+    shifted = lambda m, a0, n: vmj.turning_points(m, a0 - 1.0, n).amplitudes  # noqa: E731
+    with pytest.raises(ValueError, match=r"^a0 must be finite and > 0 \[m\]$"):
+        vmj.sensitivity(shifted, g, ("mu", "a0"), a0=0.06, n=6)
+    stuck = vmj.grid(vmj.VariableMass(5.0, 4900.0, -3.0, 0.0, 0.0, vmj.Coulomb(14.7)), F=[0.01])
+    with pytest.raises(vmj.SolverError, match=re.escape(vmj.RESULTS.mass_exhausted.message)):
+        vmj.sweep(vmj.turning_points, stuck, a0=0.06, n=40, throw=True)
+    function, args = seen[-1]
+    assert not has_callback(function.lower(*args).as_text())
 
 
 @pytest.mark.production_compile

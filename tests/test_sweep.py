@@ -680,14 +680,16 @@ def test_a_sweep_checks_its_points_once_on_the_host():
     with pytest.raises(ValueError, match="eps must be"):
         vmj.sweep(vmj.turning_points, bad, a0=A0, n=4, solver=vmj.EnergyBalance())
     # each point's model is then traced as checked: no host callback in the compiled chunk
-    # (and a swept function's own arguments are still guarded)
+    # (and a swept function's own arguments are still checked, as values of the chunk)
     swept = tuple(np.ndim(x) > 0 for x in jax.tree.leaves(good))
     energy = {"a0": A0, "n": 4, "solver": vmj.EnergyBalance()}
     job = _SweepJob(vmj.turning_points, energy, good, swept, (2,), 2, "")
     assert "callback" not in job.function().lower(*job.args(0)).as_text()
-    own_a0 = lambda m, n: vmj.turning_points(m, m.eps, n, vmj.EnergyBalance())  # noqa: E731
+    own_a0 = lambda m, n: vmj.turning_points(m, m.eps - 0.6, n, vmj.EnergyBalance())  # noqa: E731
     job = _SweepJob(own_a0, {"n": 4}, good, swept, (2,), 2, "")
-    assert "callback" in job.function().lower(*job.args(0)).as_text()
+    assert "callback" not in job.function().lower(*job.args(0)).as_text()
+    with pytest.raises(ValueError, match="^a0 must be finite and > 0"):
+        job.compute(0)  # (the first point's a0 is -0.1)
 
 
 def test_threads_that_sink_their_chunks_report_failures_and_progress():

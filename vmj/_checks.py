@@ -1,9 +1,10 @@
 """Input validation shared by every entry point.
 
 Concrete values (Python numbers, NumPy arrays, concrete JAX arrays) are checked eagerly and
-raise `ValueError` naming the parameter and its allowed range. Traced values (inside `jit`,
-`vmap`, `grad`) are checked with `equinox.error_if`, which raises at run time with the same
-message.
+raise `ValueError` naming the parameter and its allowed range. Traced values are returned as
+status codes where vmj compiles the program itself (an entry point's own trace, a sweep's
+chunk: `collecting`) and raise on the host with the same message; inside the user's `jit`,
+`vmap` or `grad` they are checked with `equinox.error_if`, which raises at run time.
 """
 
 from __future__ import annotations
@@ -355,8 +356,8 @@ def _current_trace():
 
 def fail_if(x, bad, message: str, error: type = ValueError):
     """`x`, failing with `message` where `bad` (any entry) holds: at once (`error`) for a
-    concrete `bad`; for a traced one, collected as a value where a compiled entry point traces
-    its program at top level (`collecting`), else `equinox.error_if` (a host callback: inside
+    concrete `bad`; for a traced one, collected as a value where a compiled entry point or a
+    sweep's chunk traces it (`collecting`), else `equinox.error_if` (a host callback: inside
     the user's `jit`/`vmap`, or a loop's body)."""
     return fail_branched(x, jnp.any(bad), 0, (message,), error)
 
@@ -387,11 +388,15 @@ class Failures(eqx.Module):
     errors: tuple = eqx.field(static=True)
 
     def raise_any(self) -> None:
-        """Raise the first failed check's exception, its message (concrete codes)."""
+        """Raise the first failed check's exception, its message (concrete codes, of one
+        call or of a sweep's chunk of points: any that failed); its `check_message` attribute
+        is the message alone (a sweep's record of a failed chunk)."""
         for code, messages, error in zip(self.codes, self.messages, self.errors):
             code = int(np.max(np.asarray(code)))
             if code >= 0:
-                raise error(messages[code])
+                failed = error(messages[code])
+                failed.check_message = messages[code]
+                raise failed
 
     def guard(self, x):
         """`x` guarded by the same checks in the trace that is current (`fail_branched`): for
@@ -418,7 +423,9 @@ def collecting():
     collected instead of compiled as host callbacks; yields the collector, whose `failures()`
     the traced function returns: the compiled program stays free of host callbacks (JAX's
     persistent compilation cache stores no program that has one), and the caller raises
-    (`Failures.raise_any`) on the host with the same message."""
+    (`Failures.raise_any`) on the host with the same message. Used by `filter_jit` (a
+    call's own trace; a call inside another trace hands its failures on to that one,
+    `Failures.guard`) and by a sweep's chunk (the trace of its `jax.vmap` over the points)."""
     collector = _Collector()
     token = _COLLECTOR.set(collector)
     try:
@@ -496,8 +503,8 @@ def mark_checked(model):
     """Mark every module of `model` as checked, so that [`validated`][] passes it without
     guards: for a model rebuilt from values that were validated elsewhere. A sweep validates
     its parameter arrays on the host once; each point's model, rebuilt inside the compiled
-    chunk, is marked, so the chunk has no host callback (arguments the chunk's function
-    computes are still guarded). Returns `model`."""
+    chunk, is marked, so the chunk checks nothing of it again (arguments the chunk's function
+    computes are still checked, as values the chunk returns: `collecting`). Returns `model`."""
     for m in _modules(model):
         object.__setattr__(m, _CHECKED, True)
     return model

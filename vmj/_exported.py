@@ -184,20 +184,21 @@ def filter_jit(fun):
     transformation tracing), as `exported_jit`'s: for the entry points whose arguments are no
     flat arrays (a model with a callable, a dictionary of solver settings; `vmj.sensitivity`,
     the rope's averaged laws, the linear response, the stick-slip cycle's samples). The
-    function returns arrays only. Called at top level, the checks of values traced in its own
-    trace are returned as values and raise on the host (`vmj._checks.collecting`): the program
-    holds no host callback for them, and JAX's persistent compilation cache can store it."""
+    function returns arrays only. The checks of values traced in its own trace are returned as
+    values (`vmj._checks.collecting`): called at top level, they raise on the host, and the
+    program holds no host callback for them (JAX's persistent compilation cache can store it);
+    called inside another trace, they guard the result in that trace (`Failures.guard`: a
+    value again where that trace collects its checks, a sweep's chunk, else
+    `equinox.error_if`)."""
 
     @functools.cache
-    def jitted(options: tuple, collect: bool):
+    def jitted(options: tuple):
         import jax
 
         from ._checks import collecting
 
         def program(arrays, static):
             args, kwargs = jax.tree.unflatten(static[0], joined_leaves(static, arrays))
-            if not collect:
-                return fun(*args, **kwargs)
             with collecting() as checks:
                 out = fun(*args, **kwargs)
             return out, checks.failures()
@@ -209,14 +210,15 @@ def filter_jit(fun):
     def call(*args, **kwargs):
         arrays, static = split_arrays((args, kwargs))
         if not _top_level():
-            return jitted((), False)(arrays, static)
-        out, failures = jitted(_one_call_options(), True)(arrays, static)
+            out, failures = jitted(())(arrays, static)
+            return failures.guard(out)
+        out, failures = jitted(_one_call_options())(arrays, static)
         failures.raise_any()
         return _checked(out)
 
     def lower(*args, **kwargs):
         """The program of a top-level call (`jax.stages.Lowered`: `as_text()`, ...)."""
-        return jitted(_one_call_options(), True).lower(*split_arrays((args, kwargs)))
+        return jitted(_one_call_options()).lower(*split_arrays((args, kwargs)))
 
     call.lower = lower
     return call

@@ -134,8 +134,12 @@ class Progress:
 
 
 def failure_message(exc: BaseException) -> str:
-    """A one-line message for a failed chunk: the message of an `equinox.error_if` check or
-    a solver status, without the long stack text around it."""
+    """A one-line message for a failed chunk: the message of a check (returned by the chunk
+    as a value, `vmj._checks.Failures`, or an `equinox.error_if` inside it) or a solver
+    status, without the long stack text around it."""
+    collected = getattr(exc, "check_message", None)
+    if collected is not None:
+        return collected
     text = str(exc)
     hit = re.search(r"EquinoxRuntimeError: (.*)", text)
     if hit:

@@ -29,7 +29,14 @@ import jax.numpy as jnp
 import numpy as np
 from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
-from .._checks import check_int, check_room, mark_checked, validated, warn_if_float32
+from .._checks import (
+    check_int,
+    check_room,
+    collecting,
+    mark_checked,
+    validated,
+    warn_if_float32,
+)
 from .._exported import exported_cache_directory, exported_jit, joined_leaves, split_arrays
 from .._host import available_memory
 from .._solution import RESULTS
@@ -167,18 +174,21 @@ class _Chunk:
 @jax.tree_util.register_pytree_node_class
 class _Placed:
     """A chunk's result `out` with the axis of each of its leaves where its points are
-    (`axes`, `vmap_in_place`'s): the axes are in the result's structure, so that they come with
-    it from the exported-program cache."""
+    (`axes`, `vmap_in_place`'s), and the checks that its function's points failed (`failures`,
+    `vmj._checks.Failures`, each code the failed message of any of the chunk's points): the
+    axes are in the result's structure, so that they come with it from the exported-program
+    cache."""
 
-    def __init__(self, out, axes: tuple):
-        self.out, self.axes = out, tuple(axes)
+    def __init__(self, out, axes: tuple, failures):
+        self.out, self.axes, self.failures = out, tuple(axes), failures
 
     def tree_flatten(self):
-        return (self.out,), self.axes
+        return (self.out, self.failures), self.axes
 
     @classmethod
     def tree_unflatten(cls, axes, children):
-        return cls(children[0], axes)
+        out, failures = children
+        return cls(out, axes, failures)
 
 
 def _chunk_program(model_arrays, kwargs_arrays, start, chunk: _Chunk) -> _Placed:
@@ -205,13 +215,22 @@ def _chunk_program(model_arrays, kwargs_arrays, start, chunk: _Chunk) -> _Placed
         it = iter(batched)
         # the sweep validated its arrays on the host: no guards (host callbacks) per point
         one = jax.tree.unflatten(treedef, [next(it) if s else x for x, s in zip(part, swept)])
-        return chunk.fn(mark_checked(one), **kwargs)
+        # the checks of what the function computes (its arguments, a derivative's inputs,
+        # throw=True) as values: the chunk has no host callback for them (JAX's persistent
+        # cache, and the exported-program cache, store it), and `compute` raises on the host
+        with collecting() as checks:
+            out = chunk.fn(mark_checked(one), **kwargs)
+        return out, checks.failures()
 
     points = [x for x, s in zip(part, swept) if s]
     if chunk.sharding is None:
-        return _Placed(*vmap_in_place(point, points))
-    out = jax.vmap(point)(points)  # (a sharding over several devices splits the first axis)
-    return _Placed(out, [0] * len(jax.tree.leaves(out)))
+        (out, failures), axes = vmap_in_place(point, points)
+        axes = axes[: len(jax.tree.leaves(out))]
+    else:  # (a sharding over several devices splits the first axis)
+        out, failures = jax.vmap(point)(points)
+        axes = [0] * len(jax.tree.leaves(out))
+    failures = jax.tree.map(jnp.max, failures)  # (the chunk's: a check's code, or -1)
+    return _Placed(out, axes, failures)
 
 
 @functools.cache
@@ -461,6 +480,7 @@ class _SweepJob:
         points on their first axis (views of the chunk's result)."""
         start = self.first(c)
         placed = self.function()(*self.args(start))
+        placed.failures.raise_any()
         lo, hi = c * self.chunk, min((c + 1) * self.chunk, self.n)
         return [
             np.moveaxis(np.asarray(g), a, 0)[lo - start : hi - start]
